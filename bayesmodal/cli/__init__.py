@@ -1,0 +1,66 @@
+"""Command-line interface: parses arguments and calls the library, nothing more.
+
+Each sub-command lives in its own module ``bayesmodal/cli/_<name>.py`` exposing
+``register(subparsers)``; registering sets ``func(args) -> int`` on its parser.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import traceback
+
+from .. import __version__
+from .._errors import ConfigError, DataError, ModelError
+
+#: Sub-command modules, in help order.
+COMMANDS = ("report", "lsq", "static", "modal", "bench", "sample", "compare", "ema",
+            "diagnose", "run", "batch")
+
+
+class CLIError(Exception):
+    """An error to show the user as one line, exit code 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bayesmodal",
+        description="Bayesian identification of vibrating mass-spring-damper rigs.",
+    )
+    parser.add_argument("--version", action="version", version=f"bayesmodal {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show full tracebacks on error")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        try:
+            mod = importlib.import_module(f"{__name__}._{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"{__name__}._{name}":
+                continue  # command not built yet
+            raise
+        mod.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``bayesmodal`` console script; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("bayesmodal: interrupted", file=sys.stderr)
+        return 130
+    except (DataError, ModelError, ConfigError, CLIError, OSError, ValueError) as exc:
+        if args.debug:
+            traceback.print_exc()
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f"bayesmodal {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,135 @@
+"""The exact ZOH simulator against closed forms, lsim, and linear-system identities."""
+
+import numpy as np
+import pytest
+import scipy.signal as ss
+from conftest import TABLE3
+
+from bayesmodal import DataError, ModelError
+from bayesmodal.simulate import discretize_zoh, simulate_linear, simulate_state_space
+from bayesmodal.system import LinearModel, Rig
+
+
+def _sdof(m, c, k, g):
+    return LinearModel(Rig((k,)), "free"), np.array([g, m, c])
+
+
+def test_sdof_step_response_closed_form():
+    # m x'' + c x' + k x = g v, unit step: x = (g/k)(1 - e^{-zw t}(cos wd t + zw/wd sin wd t))
+    m, c, k, g = 1.3, 0.9, 400.0, 5.0
+    model, theta = _sdof(m, c, k, g)
+    dt, N = 0.002, 3000
+    t = np.arange(N) * dt
+    y = simulate_linear(model, theta, np.ones(N), dt)[:, 0]
+    wn = np.sqrt(k / m)
+    z = c / (2 * np.sqrt(k * m))
+    wd = wn * np.sqrt(1 - z**2)
+    exact = g / k * (1 - np.exp(-z * wn * t) * (np.cos(wd * t) + z * wn / wd * np.sin(wd * t)))
+    np.testing.assert_allclose(y, exact, rtol=0, atol=1e-12 * g / k * 1e3)
+
+
+def test_sdof_free_response_closed_form():
+    m, c, k = 0.8, 0.3, 250.0
+    model, theta = _sdof(m, c, k, 1.0)
+    dt, N = 0.005, 2000
+    t = np.arange(N) * dt
+    x0 = np.array([0.01, -0.2])
+    y = simulate_linear(model, theta, np.zeros(N), dt, x0=x0)[:, 0]
+    wn = np.sqrt(k / m)
+    z = c / (2 * np.sqrt(k * m))
+    wd = wn * np.sqrt(1 - z**2)
+    exact = np.exp(-z * wn * t) * (
+        x0[0] * np.cos(wd * t) + (x0[1] + z * wn * x0[0]) / wd * np.sin(wd * t)
+    )
+    np.testing.assert_allclose(y, exact, atol=1e-14)
+
+
+def test_static_gain_equals_K_inverse_b(free_model):
+    theta = TABLE3
+    N, dt = 20000, 0.005
+    y = simulate_linear(free_model, theta, 0.5 * np.ones(N), dt)
+    M, C, K, b = free_model.matrices(theta)
+    np.testing.assert_allclose(y[-1], np.linalg.solve(K, b) * 0.5, rtol=1e-9)
+    # report eq. 13: series connection of springs
+    k1, k2, k3 = Rig().springs_n_m
+    g = theta[0]
+    eq13 = g * np.array([(k1 * k2 + k3 * k2 + k3 * k1) / (k1 * k2 * k3), (k2 + k3) / (k2 * k3),
+                         1 / k3])
+    np.testing.assert_allclose(np.linalg.solve(K, b), eq13, rtol=1e-12)
+
+
+@pytest.mark.parametrize("damping", ["free", "proportional"])
+def test_agrees_with_lsim(damping):
+    rng = np.random.default_rng(1)
+    model = LinearModel(Rig(), damping)
+    if damping == "free":
+        theta = TABLE3 * (1 + 0.1 * rng.random((5, 9)))
+    else:
+        theta = np.array([6.2, 1.5, 1.4, 1.1, 1.5, 8e-5]) * (1 + 0.1 * rng.random((5, 6)))
+    N, dt = 8000, 0.005
+    u = rng.normal(size=N)
+    y = simulate_linear(model, theta, u, dt)
+    t = np.arange(N) * dt
+    for i in range(theta.shape[0]):
+        A, B = model.state_space(theta[i])
+        sys = (A, B[:, None], np.eye(6)[:3], np.zeros((3, 1)))
+        _, yl, _ = ss.lsim(sys, u, t, interp=False)
+        err = np.max(np.abs(yl - y[i])) / np.max(np.abs(yl))
+        assert err < 1e-9
+
+
+def test_batch_matches_single_and_chunks():
+    rng = np.random.default_rng(2)
+    model = LinearModel(Rig(), "free")
+    theta = TABLE3 * (1 + 0.2 * rng.random((70, 9)))  # more than one 64-wide chunk
+    u = rng.normal(size=500)
+    yb = simulate_linear(model, theta, u, 0.01)
+    assert yb.shape == (70, 500, 3)
+    for i in (0, 31, 63, 64, 69):
+        np.testing.assert_allclose(yb[i], simulate_linear(model, theta[i], u, 0.01), rtol=1e-13,
+                                   atol=1e-18)
+
+
+def test_superposition_and_time_invariance():
+    rng = np.random.default_rng(3)
+    model = LinearModel(Rig(), "free")
+    u1, u2 = rng.normal(size=(2, 1000))
+    a, b = 1.7, -0.4
+    y1 = simulate_linear(model, TABLE3, u1, 0.005)
+    y2 = simulate_linear(model, TABLE3, u2, 0.005)
+    y12 = simulate_linear(model, TABLE3, a * u1 + b * u2, 0.005)
+    np.testing.assert_allclose(y12, a * y1 + b * y2, atol=1e-12 * np.abs(y12).max())
+    shift = 37
+    us = np.r_[np.zeros(shift), u1[:-shift]]
+    ys = simulate_linear(model, TABLE3, us, 0.005)
+    np.testing.assert_allclose(ys[shift:], y1[:-shift], atol=1e-12 * np.abs(y1).max())
+    assert np.all(ys[:shift] == 0)
+
+
+def test_discretize_scalar_closed_form():
+    d = discretize_zoh(np.array([[-2.0]]), np.array([3.0]), 0.1)
+    assert d.Ad[0, 0, 0] == pytest.approx(np.exp(-0.2), rel=1e-14)
+    assert d.Bd[0, 0] == pytest.approx(3.0 * (1 - np.exp(-0.2)) / 2.0, rel=1e-14)
+
+
+def test_impossible_parameters_raise(free_model):
+    bad = TABLE3.copy()
+    bad[1] = -1.0
+    with pytest.raises(ModelError, match="masses > 0"):
+        simulate_linear(free_model, bad, np.ones(10), 0.01)
+    with pytest.raises(ModelError, match="length 9"):
+        simulate_linear(free_model, TABLE3[:5], np.ones(10), 0.01)
+    with pytest.raises(DataError, match="dt"):
+        simulate_state_space(np.zeros((1, 2, 2)), np.zeros((1, 2)), np.ones(5), 0.0, 1)
+
+
+def test_ten_carts_and_one_cart_run():
+    rig = Rig(tuple(np.linspace(300, 900, 10)))
+    model = LinearModel(rig, "proportional")
+    theta = np.r_[5.0, np.ones(10), 0.5, 1e-4]
+    y = simulate_linear(model, theta, np.ones(3000), 0.005)
+    M, C, K, b = model.matrices(theta)
+    assert y.shape == (3000, 10)
+    assert np.all(np.isfinite(y))
+    one = LinearModel(Rig((500.0,)), "free")
+    assert one.names == ("g_v", "m1", "c1")
