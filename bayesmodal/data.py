@@ -335,13 +335,14 @@ def _load_csv(path: Path, name: str) -> Experiment:
         raise DataError(f"{path}: rows have {arr.shape[1]} columns, header has {len(names)}")
     col = {h: arr[:, i] for i, h in enumerate(names)}
     y = np.column_stack([col[f"x{i + 1}"] for i in range(len(xs))])
+    exp = Experiment(col["t"], col["v"], y, name=name, source=str(path))  # validates first
     if np.max(np.abs(y)) > _MAX_PLAUSIBLE_M:
         warnings.warn(
             f"{path}: displacements up to {np.max(np.abs(y)):.3g} m are implausible for the "
             "rig; are the outputs in encoder counts instead of metres?",
             stacklevel=3,
         )
-    return Experiment(col["t"], col["v"], y, name=name, source=str(path))
+    return exp
 
 
 _FORMATS = ("mat", "txt", "csv")

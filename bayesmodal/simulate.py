@@ -1,14 +1,22 @@
 """Exact zero-order-hold simulation of the linear rig model, batched over parameter sets.
 
-With the input held constant over each sample interval, the continuous system
-``x' = A x + B v`` is integrated exactly by
+With the input held constant over each sample interval, ``x' = A x + B v`` is integrated
+exactly by
 
-    [Ad  Bd]  =  expm( [[A, B], [0, 0]] * dt )     (top block row)
+    [Ad  Bd]  =  expm( [[A, B], [0, 0]] * dt )     (top block row, Van Loan)
     x[k+1] = Ad x[k] + Bd v[k]
 
-(Van Loan's block exponential).  This is the discretisation ``scipy.signal.lsim`` uses
-with ``interp=False``; here the exponential is taken for a whole stack of parameter sets at
-once and the recursion runs in a compiled kernel with the batch index innermost.
+which is what ``scipy.signal.lsim(..., interp=False)`` computes.  For speed the recursion
+is run in modal coordinates when the system is underdamped: with ``A V = V diag(lambda)``,
+``z = V^-1 x`` obeys ``z[k+1] = mu z[k] + gamma v[k]`` with ``mu = exp(lambda dt)`` and
+``gamma = (mu - 1) / lambda * (V^-1 B)`` (the same exact ZOH formula, mode by mode).
+Conjugate modes carry conjugate coordinates, so the positions are
+``x_i = 2 Re sum_m V[i, m] z_m`` over the modes with positive imaginary part; scaling
+``w_m = z_m / gamma_m`` leaves one multiply-add per input.  Lanes whose modal form is not
+trustworthy (real or repeated eigenvalues, ill-conditioned eigenvectors, an uncontrollable
+mode) are detected by comparing the modal static gain with ``-A^-1 B`` and fall back to
+the full-state recursion.  Both kernels are compiled with numba, vectorised across the
+batch (see ``_kernels``).
 """
 
 from __future__ import annotations
@@ -19,9 +27,18 @@ import numpy as np
 from scipy.linalg import expm
 
 from ._errors import DataError, ModelError
-from ._kernels import run_recursion
+from ._kernels import direct_kernel, modal_kernel, padded_width
 
-__all__ = ["discretize_zoh", "simulate_linear", "simulate_state_space", "Discretized"]
+__all__ = [
+    "Discretized",
+    "LinearSimulator",
+    "discretize_zoh",
+    "simulate_linear",
+    "simulate_state_space",
+]
+
+#: Largest relative mismatch of the modal static gain accepted for the modal kernel.
+_MODAL_DC_RTOL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -39,6 +56,12 @@ class Discretized:
     Ad: np.ndarray
     Bd: np.ndarray
     dt: float
+
+
+def _check_dt(dt: float) -> float:
+    if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
+        raise DataError(f"sample interval dt must be finite and > 0 s, got {dt!r}")
+    return float(dt)
 
 
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
@@ -62,8 +85,7 @@ def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
     >>> float(d.Ad[0, 0, 0])  # exp(-0.1)
     0.9048374180359595
     """
-    if not (np.isfinite(dt) and dt > 0):
-        raise DataError(f"sample interval dt must be finite and > 0 s, got {dt!r}")
+    dt = _check_dt(dt)
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
     if A.ndim == 2:
@@ -75,7 +97,158 @@ def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
     F[:, :s, :s] = A * dt
     F[:, :s, s] = B * dt
     E = expm(F)
-    return Discretized(Ad=E[:, :s, :s], Bd=E[:, :s, s], dt=float(dt))
+    return Discretized(Ad=E[:, :s, :s], Bd=E[:, :s, s], dt=dt)
+
+
+def _modal_form(A, B, x0, dt, n_out):
+    """Scaled modal form of each lane, or None for lanes where it is not reliable.
+
+    Returns ``ok`` (nb,) and, for all lanes, ``mu`` (nb, m), ``G`` (nb, n_out, m),
+    ``w0`` (nb, m) (meaningful only where ``ok``).
+    """
+    nb, s, _ = A.shape
+    if s % 2:
+        return np.zeros(nb, bool), None, None, None
+    n_modes = s // 2
+    lam, V = np.linalg.eig(A)
+    # modes with positive imaginary part, in a fixed order
+    order = np.argsort(-lam.imag, axis=1, kind="stable")[:, :n_modes]
+    lam_m = np.take_along_axis(lam, order, axis=1)
+    scale = np.abs(lam).max(axis=1, keepdims=True) + 1e-300
+    ok = np.all(lam_m.imag > 1e-8 * scale, axis=1)
+    rhs = np.concatenate([B[..., None], x0[..., None]], axis=2).astype(complex)
+    try:
+        sol = np.linalg.solve(V, rhs)
+    except np.linalg.LinAlgError:
+        return np.zeros(nb, bool), None, None, None
+    beta = np.take_along_axis(sol[..., 0], order, axis=1)
+    z0 = np.take_along_axis(sol[..., 1], order, axis=1)
+    mu = np.exp(lam_m * dt)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gamma = beta * (mu - 1.0) / lam_m
+        ok &= np.all(np.abs(gamma) > 1e-12 * np.abs(gamma).max(axis=1, keepdims=True), axis=1)
+        Vm = np.take_along_axis(V[:, :n_out, :], order[:, None, :], axis=2)
+        G = 2.0 * Vm * gamma[:, None, :]
+        w0 = z0 / gamma
+        # static gain of the modal recursion vs the exact -A^-1 B (positions)
+        dc_modal = np.real(np.sum(G / (1.0 - mu)[:, None, :], axis=2))
+    try:
+        dc_exact = -np.linalg.solve(A, B[..., None])[:, :n_out, 0]
+    except np.linalg.LinAlgError:
+        return np.zeros(nb, bool), None, None, None
+    err = np.max(np.abs(dc_modal - dc_exact), axis=1)
+    ok &= np.isfinite(err) & (err <= _MODAL_DC_RTOL * (np.abs(dc_exact).max(axis=1) + 1e-300))
+    ok &= np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(w0), axis=1)
+    return ok, mu, G, w0
+
+
+class LinearSimulator:
+    """Simulate one input record for many parameter sets, reusing work buffers.
+
+    This is the object a likelihood holds on to: each call simulates a batch (for emcee, all
+    walkers) and returns a view into an internal buffer that the next call overwrites.
+
+    Parameters
+    ----------
+    u : ndarray, shape (N,)
+        Input samples (V), held over each sample interval.
+    dt : float
+        Sample interval, s.
+    n_out : int
+        Number of leading states returned (the cart positions).
+
+    Examples
+    --------
+    >>> from bayesmodal.system import LinearModel, Rig
+    >>> model = LinearModel(Rig(), "proportional")
+    >>> sim = LinearSimulator(np.ones(200), 0.005, model.n_carts)
+    >>> A, B = model.state_space(np.array([[6.2, 1.5, 1.5, 1.1, 1.5, 1e-4]]))
+    >>> sim.run(A, B).shape
+    (1, 200, 3)
+    """
+
+    def __init__(self, u: np.ndarray, dt: float, n_out: int) -> None:
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        if u.ndim != 1 or u.size < 1:
+            raise DataError(f"input u must be a non-empty 1-D array, got shape {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise DataError("input u has non-finite values (NaN or inf)")
+        self.u = u
+        self.dt = _check_dt(dt)
+        self.n_out = int(n_out)
+        self._buffers: dict[tuple[int, int], np.ndarray] = {}
+
+    def _buffer(self, n_chunks: int, width: int) -> np.ndarray:
+        key = (n_chunks, width)
+        buf = self._buffers.get(key)
+        if buf is None:
+            buf = np.empty((n_chunks, self.u.size, self.n_out, width))
+            self._buffers = {key: buf}  # keep one buffer: the last shape used
+        return buf
+
+    def run(self, A: np.ndarray, B: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+        """Simulate a stack of systems.
+
+        Parameters
+        ----------
+        A : ndarray, shape (nb, s, s)
+        B : ndarray, shape (nb, s)
+        x0 : ndarray, shape (s,) or (nb, s), optional
+            Initial state; zero by default.
+
+        Returns
+        -------
+        y : ndarray, shape (nb, N, n_out)
+            View into the simulator's buffer (valid until the next call);
+            ``y[:, k]`` is the state at ``t = k dt``.
+        """
+        A = np.asarray(A, dtype=float)
+        B = np.asarray(B, dtype=float)
+        if A.ndim != 3 or B.ndim != 2 or A.shape[:2] != B.shape or A.shape[1] != A.shape[2]:
+            raise ModelError(f"A must be (nb, s, s) and B (nb, s); got {A.shape} and {B.shape}")
+        nb, s, _ = A.shape
+        if x0 is None:
+            x0b = np.zeros((nb, s))
+        else:
+            x0 = np.asarray(x0, dtype=float)
+            if x0.shape not in ((s,), (nb, s)):
+                raise DataError(f"x0 must have shape ({s},) or ({nb}, {s}), got {x0.shape}")
+            x0b = np.broadcast_to(x0, (nb, s))
+        ok, mu, G, w0 = _modal_form(A, B, x0b, self.dt, self.n_out)
+        width = padded_width(nb)
+        n_chunks = -(-nb // width)
+        Y = self._buffer(n_chunks, width)
+        direct = None
+        for c in range(n_chunks):
+            lanes = np.arange(c * width, (c + 1) * width)
+            real = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
+            if np.all(ok[real]):
+                nm = s // 2
+                Q = np.empty((2 * nm + 2 * nm * self.n_out, width))
+                Q[0 : 2 * nm : 2] = mu[real].real.T
+                Q[1 : 2 * nm : 2] = mu[real].imag.T
+                g = G[real].reshape(width, self.n_out * nm).T  # rows i*nm + m
+                Q[2 * nm :: 2] = g.real
+                Q[2 * nm + 1 :: 2] = g.imag
+                W = np.empty((2 * nm, width))
+                W[0::2] = w0[real].real.T
+                W[1::2] = w0[real].imag.T
+                modal_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
+                                                    Y[c].reshape(-1))
+            else:
+                if direct is None:
+                    direct = discretize_zoh(A, B, self.dt)
+                P = np.empty((s * s + s, width))
+                P[: s * s] = direct.Ad[real].reshape(width, s * s).T
+                P[s * s :] = direct.Bd[real].T
+                X = np.ascontiguousarray(x0b[real].T)
+                direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
+                                                    Y[c].reshape(-1))
+        # (chunk, N, out, lane) -> (lane, N, out); a view when there is one chunk
+        y = Y.transpose(0, 3, 1, 2)
+        if n_chunks == 1:
+            return y[0, :nb]
+        return y.reshape(n_chunks * width, self.u.size, self.n_out)[:nb]
 
 
 def simulate_state_space(
@@ -90,8 +263,8 @@ def simulate_state_space(
 
     Parameters
     ----------
-    A : ndarray, shape (nb, s, s)
-    B : ndarray, shape (nb, s)
+    A : ndarray, shape (nb, s, s) or (s, s)
+    B : ndarray, shape (nb, s) or (s,)
     u : ndarray, shape (N,)
         Input samples, held constant over each interval.
     dt : float
@@ -104,21 +277,15 @@ def simulate_state_space(
     Returns
     -------
     y : ndarray, shape (nb, N, n_out)
-        Possibly a non-contiguous view; ``y[:, k]`` is the state at ``t = k dt``.
+        ``y[:, k]`` is the state at ``t = k dt``.
     """
-    d = discretize_zoh(A, B, dt)
-    nb, s, _ = d.Ad.shape
-    u = np.ascontiguousarray(u, dtype=float)
-    if u.ndim != 1:
-        raise DataError(f"input u must be 1-D, got shape {u.shape}")
-    if x0 is None:
-        x0b = np.zeros((nb, s))
-    else:
-        x0 = np.asarray(x0, dtype=float)
-        if x0.shape not in ((s,), (nb, s)):
-            raise DataError(f"x0 must have shape ({s},) or ({nb}, {s}), got {x0.shape}")
-        x0b = np.broadcast_to(x0, (nb, s))
-    return run_recursion(d.Ad, d.Bd, u, x0b, int(n_out))
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    if A.ndim == 2:
+        A = A[None]
+    if B.ndim == 1:
+        B = B[None]
+    return LinearSimulator(u, dt, n_out).run(A, B, x0)
 
 
 def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None) -> np.ndarray:
@@ -160,5 +327,6 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
     if theta.ndim != 2:
         raise ModelError(f"theta must have shape (n_params,) or (nb, n_params), got {theta.shape}")
     A, B = model.state_space(theta)
-    y = simulate_state_space(A, B, u, dt, model.n_carts, x0)
+    y = LinearSimulator(u, dt, model.n_carts).run(A, B, x0)
     return y[0] if single else y
+

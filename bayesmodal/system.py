@@ -63,7 +63,9 @@ class Rig:
     def __post_init__(self) -> None:
         k = np.asarray(self.springs_n_m, dtype=float)
         if k.ndim != 1 or k.size < 1:
-            raise ModelError(f"springs_n_m must be a non-empty 1-D sequence, got {self.springs_n_m!r}")
+            raise ModelError(
+                f"springs_n_m must be a non-empty 1-D sequence, got {self.springs_n_m!r}"
+            )
         if not np.all(np.isfinite(k)) or np.any(k <= 0):
             raise ModelError(f"every spring stiffness must be finite and > 0 N/m, got {k.tolist()}")
         object.__setattr__(self, "springs_n_m", tuple(float(x) for x in k))
