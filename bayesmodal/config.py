@@ -1,0 +1,356 @@
+"""Run configurations: TOML files parsed into a frozen, fully validated dataclass.
+
+A configuration is data only (``tomllib``; nothing is executed or unpickled).  Every
+problem in a file is collected and reported at once, each naming the file and the key::
+
+    [data]
+    files = ["ecp210-3dof/data_impulses.mat"]   # relative to the config, or to a data root
+    m_per_count = 0.0000044125                   # optional, m per encoder count
+
+    [rig]
+    springs_n_m = [774.0, 770.0, 396.0]
+
+    [model]
+    damping = "free"            # or "proportional"
+    extensions = []             # names from bayesmodal.extensions
+
+    [priors]                    # per-parameter overrides: [lo, hi] bounds of a uniform prior
+    m1 = [0.5, 3.0]             # or { lo = 0.5, hi = 3.0, scale = "log" }
+
+    [likelihood]
+    noise = "ar1"               # or "white"
+
+    [sampler]
+    walkers = 32
+    steps = 5000
+    burn = 1000
+    thin = 5
+    seed = 1
+    moves = "stretch"           # stretch, de, de-snooker, walk, kde or "de:0.8,de-snooker:0.2"
+
+    [outputs]
+    dir = "impulses-free"       # relative to the output root; no "..", not absolute
+    plots = true
+    report = true
+    predictive_draws = 200
+
+Data paths are looked up relative to the config file, then ``$BAYESMODAL_DATA``, then
+``../shared/data`` beside the repository.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path, PurePosixPath
+
+from ._errors import ConfigError
+from .data import ECP_M_PER_COUNT, data_root
+from .system import DAMPING_MODELS, ECP210_SPRINGS_N_M
+
+__all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
+
+MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
+NOISE_MODELS = ("ar1", "white")
+
+_SCHEMA: dict[str, dict[str, type | tuple]] = {
+    "data": {"files": list, "m_per_count": (int, float)},
+    "rig": {"springs_n_m": list},
+    "model": {"damping": str, "extensions": list},
+    "priors": {},  # free keys, checked against parameter names later
+    "likelihood": {"noise": str},
+    "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
+                "moves": str},
+    "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int},
+}
+
+
+@dataclass(frozen=True)
+class PriorOverride:
+    """Uniform prior bounds for one parameter; ``scale="log"`` for log-uniform."""
+
+    lo: float
+    hi: float
+    scale: str = "linear"
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A validated run configuration.  See the module docstring for the file format."""
+
+    name: str
+    source: str
+    data_files: tuple[str, ...]
+    m_per_count: float = ECP_M_PER_COUNT
+    springs_n_m: tuple[float, ...] = ECP210_SPRINGS_N_M
+    damping: str = "free"
+    extensions: tuple[str, ...] = ()
+    priors: dict[str, PriorOverride] = field(default_factory=dict)
+    noise: str = "ar1"
+    walkers: int = 32
+    steps: int = 5000
+    burn: int = 1000
+    thin: int = 5
+    seed: int = 1
+    moves: str = "stretch"
+    out_dir: str = ""
+    plots: bool = True
+    report: bool = True
+    predictive_draws: int = 200
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["priors"] = {k: asdict(v) for k, v in self.priors.items()}
+        return d
+
+    def hash(self) -> str:
+        """SHA-256 of the canonical JSON of everything that affects the result."""
+        d = self.to_dict()
+        for k in ("source", "name", "out_dir", "plots", "report"):
+            d.pop(k)
+        # where the data live does not change the result; their content is hashed separately
+        d["data_files"] = [Path(f).name for f in self.data_files]
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
+
+
+def _type_name(t) -> str:
+    if isinstance(t, tuple):
+        return " or ".join(x.__name__ for x in t)
+    return t.__name__
+
+
+def _resolve_data(path_text: str, base: Path) -> Path | None:
+    p = Path(path_text).expanduser()
+    candidates = [p] if p.is_absolute() else [base / p]
+    root = data_root()
+    if root is not None and not p.is_absolute():
+        candidates.append(root / p)
+    for c in candidates:
+        if c.is_file():
+            return c.resolve()
+    return None
+
+
+def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = None,
+                 name: str = "run", check_files: bool = True) -> RunConfig:
+    """Validate a parsed TOML mapping; raise one ConfigError listing every problem.
+
+    Parameters
+    ----------
+    raw : dict
+        The parsed TOML document.
+    source : str
+        File name used in messages.
+    base : Path, optional
+        Folder that relative data paths start from (the config's folder).
+    name : str
+        Run name (the config file stem).
+    check_files : bool
+        Check that every data file exists.
+    """
+    errors: list[str] = []
+    base = base or Path.cwd()
+
+    def err(key: str, msg: str) -> None:
+        errors.append(f"{source}: [{key}] {msg}")
+
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{source}: not a TOML table")
+    for section in raw:
+        if section not in _SCHEMA:
+            err(section, f"unknown section; expected one of {sorted(_SCHEMA)}")
+    values: dict = {}
+    for section, keys in _SCHEMA.items():
+        table = raw.get(section, {})
+        if not isinstance(table, dict):
+            err(section, "must be a table")
+            continue
+        if section == "priors":
+            continue
+        for key, val in table.items():
+            if key not in keys:
+                err(f"{section}.{key}", f"unknown key; expected one of {sorted(keys)}")
+                continue
+            want = keys[key]
+            ok = isinstance(val, want) and not (want is int and isinstance(val, bool))
+            if want == (int, float) and isinstance(val, bool):
+                ok = False
+            if not ok:
+                err(f"{section}.{key}", f"must be {_type_name(want)}, got {val!r}")
+                continue
+            values[(section, key)] = val
+
+    kw: dict = {"name": name, "source": source}
+    files = values.get(("data", "files"))
+    if files is None:
+        err("data.files", "missing: list the data files to fit")
+        files = []
+    elif not files or not all(isinstance(f, str) for f in files):
+        err("data.files", f"must be a non-empty list of paths, got {files!r}")
+        files = []
+    resolved = []
+    for f in files:
+        if not isinstance(f, str):
+            continue
+        p = _resolve_data(f, base)
+        if p is None and check_files:
+            err("data.files", f"file not found: {f!r} (looked relative to {base} and in the "
+                "data root $BAYESMODAL_DATA or ../shared/data)")
+        resolved.append(str(p) if p is not None else f)
+    kw["data_files"] = tuple(resolved)
+
+    mpc = values.get(("data", "m_per_count"))
+    if mpc is not None:
+        if not (mpc > 0 and mpc < 1):
+            err("data.m_per_count", f"must be in (0, 1) m per count, got {mpc!r}")
+        kw["m_per_count"] = float(mpc)
+
+    springs = values.get(("rig", "springs_n_m"))
+    if springs is not None:
+        if not springs or not all(isinstance(k, (int, float)) and not isinstance(k, bool)
+                                  and k > 0 for k in springs):
+            err("rig.springs_n_m", f"must be a non-empty list of positive N/m, got {springs!r}")
+        else:
+            kw["springs_n_m"] = tuple(float(k) for k in springs)
+
+    damping = values.get(("model", "damping"), "free")
+    if damping not in DAMPING_MODELS:
+        err("model.damping", f"must be one of {DAMPING_MODELS}, got {damping!r}")
+    kw["damping"] = damping
+    exts = values.get(("model", "extensions"), [])
+    try:
+        from .extensions import EXTENSIONS  # noqa: PLC0415 - optional catalogue
+
+        known = tuple(EXTENSIONS)
+    except ImportError:
+        known = ()
+    for e in exts:
+        if e not in known:
+            err("model.extensions", f"unknown extension {e!r}; known: {list(known)}")
+    kw["extensions"] = tuple(str(e) for e in exts)
+
+    noise = values.get(("likelihood", "noise"), "ar1")
+    if noise not in NOISE_MODELS:
+        err("likelihood.noise", f"must be one of {NOISE_MODELS}, got {noise!r}")
+    kw["noise"] = noise
+
+    for key, lo in (("walkers", 4), ("steps", 1), ("burn", 0), ("thin", 1), ("seed", 0)):
+        v = values.get(("sampler", key))
+        if v is not None:
+            if v < lo:
+                err(f"sampler.{key}", f"must be >= {lo}, got {v}")
+            kw[key] = v
+    if values.get(("sampler", "burn"), 0) >= values.get(("sampler", "steps"), 5000):
+        err("sampler.burn", "must be smaller than sampler.steps")
+    moves = values.get(("sampler", "moves"))
+    if moves is not None:
+        for part in moves.split(","):
+            mv, _, w = part.strip().partition(":")
+            if mv not in MOVES:
+                err("sampler.moves", f"unknown move {mv!r}; expected {MOVES}")
+            if w:
+                try:
+                    if float(w) <= 0:
+                        raise ValueError
+                except ValueError:
+                    err("sampler.moves", f"weight of {mv!r} must be a positive number")
+        kw["moves"] = moves
+
+    out = values.get(("outputs", "dir"))
+    if out is not None:
+        pp = PurePosixPath(out.replace("\\", "/"))
+        if pp.is_absolute() or Path(out).is_absolute() or ".." in pp.parts or not out.strip():
+            err("outputs.dir", f"must be a relative folder inside the output root, got {out!r}")
+        kw["out_dir"] = out
+    for key in ("plots", "report"):
+        if ("outputs", key) in values:
+            kw[key] = values[("outputs", key)]
+    pd = values.get(("outputs", "predictive_draws"))
+    if pd is not None:
+        if pd < 0:
+            err("outputs.predictive_draws", f"must be >= 0, got {pd}")
+        kw["predictive_draws"] = pd
+
+    priors: dict[str, PriorOverride] = {}
+    ptable = raw.get("priors", {})
+    if isinstance(ptable, dict):
+        for pname, spec in ptable.items():
+            key = f"priors.{pname}"
+            lo = hi = None
+            scale = "linear"
+            if isinstance(spec, list) and len(spec) == 2:
+                lo, hi = spec
+            elif isinstance(spec, dict):
+                extra = set(spec) - {"lo", "hi", "scale"}
+                if extra:
+                    err(key, f"unknown field(s) {sorted(extra)}; use lo, hi, scale")
+                lo, hi, scale = spec.get("lo"), spec.get("hi"), spec.get("scale", "linear")
+            else:
+                err(key, f"must be [lo, hi] or {{lo, hi, scale}}, got {spec!r}")
+                continue
+            if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (lo, hi)):
+                err(key, f"lo and hi must be numbers, got {lo!r}, {hi!r}")
+                continue
+            if not lo < hi:
+                err(key, f"impossible prior: lo = {lo} is not below hi = {hi}")
+            if scale not in ("linear", "log"):
+                err(key, f"scale must be 'linear' or 'log', got {scale!r}")
+            if scale == "log" and lo <= 0:
+                err(key, f"a log-uniform prior needs lo > 0, got {lo}")
+            priors[pname] = PriorOverride(float(lo), float(hi), str(scale))
+        _check_prior_names(priors, kw, err)
+    kw["priors"] = priors
+
+    if errors:
+        raise ConfigError(f"{len(errors)} problem(s) in the configuration:\n" + "\n".join(errors))
+    return RunConfig(**kw)
+
+
+def _check_prior_names(priors, kw, err) -> None:
+    from .system import LinearModel, Rig  # noqa: PLC0415
+
+    try:
+        model = LinearModel(Rig(kw.get("springs_n_m", ECP210_SPRINGS_N_M)),
+                            kw.get("damping", "free"))
+    except ValueError:
+        return
+    n = model.n_carts
+    allowed = set(model.names) | {f"sigma{i + 1}" for i in range(n)} | {
+        f"phi{i + 1}" for i in range(n)}
+    try:
+        from .extensions import EXTENSIONS  # noqa: PLC0415
+
+        for e in kw.get("extensions", ()):
+            if e in EXTENSIONS:
+                allowed |= set(EXTENSIONS[e].names(model.rig))
+    except (ImportError, AttributeError):
+        pass
+    for pname, pr in priors.items():
+        if pname not in allowed:
+            err(f"priors.{pname}", f"unknown parameter; expected one of {sorted(allowed)}")
+        elif (pname.startswith("m") or pname == "g_v") and pr.lo < 0:
+            err(f"priors.{pname}", f"impossible prior: {pname} must be positive, lo = {pr.lo}")
+        elif pname.startswith("c") and pr.lo < 0:
+            err(f"priors.{pname}", f"impossible prior: damping cannot be negative, lo = {pr.lo}")
+
+
+def load_config(path: str | os.PathLike, *, check_files: bool = True) -> RunConfig:
+    """Read and validate a TOML run configuration.
+
+    Raises
+    ------
+    ConfigError
+        Listing every problem found, each with the file and the key.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such configuration file")
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc})") from exc
+    return parse_config(raw, source=str(path), base=path.parent, name=path.stem,
+                        check_files=check_files)

@@ -1,0 +1,133 @@
+"""Run configurations: good files parse, every bad one is refused naming the key."""
+
+import textwrap
+
+import pytest
+
+from bayesmodal import ConfigError
+from bayesmodal.config import load_config, parse_config
+
+GOOD = """
+[data]
+files = ["exp.csv"]
+
+[model]
+damping = "proportional"
+
+[priors]
+m1 = [0.5, 3.0]
+g_v = { lo = 2.0, hi = 10.0, scale = "log" }
+
+[likelihood]
+noise = "white"
+
+[sampler]
+walkers = 16
+steps = 200
+burn = 50
+thin = 2
+seed = 7
+moves = "de:0.8,de-snooker:0.2"
+
+[outputs]
+dir = "my-run"
+"""
+
+
+@pytest.fixture
+def cfg_dir(tmp_path):
+    (tmp_path / "exp.csv").write_text("t,v,x1,x2,x3\n0,0,0,0,0\n0.01,0,0,0,0\n0.02,0,0,0,0\n")
+    return tmp_path
+
+
+def test_good_config_parses(cfg_dir):
+    p = cfg_dir / "good.toml"
+    p.write_text(GOOD)
+    c = load_config(p)
+    assert c.name == "good"
+    assert c.damping == "proportional" and c.noise == "white"
+    assert c.walkers == 16 and c.seed == 7
+    assert c.priors["g_v"].scale == "log"
+    assert c.data_files[0].endswith("exp.csv")
+    # the hash ignores where the file lives and the output folder
+    c2 = parse_config({**_toml(GOOD), "outputs": {"dir": "elsewhere"}}, base=cfg_dir)
+    assert c2.hash() == c.hash()
+    c3 = parse_config({**_toml(GOOD), "sampler": {"seed": 8}}, base=cfg_dir)
+    assert c3.hash() != c.hash()
+
+
+def _toml(text):
+    import tomllib
+
+    return tomllib.loads(text)
+
+
+BAD = [
+    # (description, toml text, key named in the message)
+    ("unknown section", '[data]\nfiles=["exp.csv"]\n[samplr]\nwalkers=4', "[samplr]"),
+    ("unknown key", '[data]\nfiles=["exp.csv"]\n[sampler]\nwalker=4', "[sampler.walker]"),
+    ("missing data", "[sampler]\nwalkers=8", "[data.files]"),
+    ("empty data list", "[data]\nfiles=[]", "[data.files]"),
+    ("missing file", '[data]\nfiles=["nope.mat"]', "file not found"),
+    ("wrong type walkers", '[data]\nfiles=["exp.csv"]\n[sampler]\nwalkers="many"',
+     "[sampler.walkers]"),
+    ("bool as int", '[data]\nfiles=["exp.csv"]\n[sampler]\nsteps=true', "[sampler.steps]"),
+    ("too few walkers", '[data]\nfiles=["exp.csv"]\n[sampler]\nwalkers=2', "[sampler.walkers]"),
+    ("burn beyond steps", '[data]\nfiles=["exp.csv"]\n[sampler]\nsteps=10\nburn=10',
+     "[sampler.burn]"),
+    ("unknown damping", '[data]\nfiles=["exp.csv"]\n[model]\ndamping="rayleighish"',
+     "[model.damping]"),
+    ("unknown noise", '[data]\nfiles=["exp.csv"]\n[likelihood]\nnoise="pink"',
+     "[likelihood.noise]"),
+    ("unknown move", '[data]\nfiles=["exp.csv"]\n[sampler]\nmoves="hamiltonian"',
+     "[sampler.moves]"),
+    ("bad move weight", '[data]\nfiles=["exp.csv"]\n[sampler]\nmoves="de:-1"',
+     "[sampler.moves]"),
+    ("unknown extension", '[data]\nfiles=["exp.csv"]\n[model]\nextensions=["magic"]',
+     "[model.extensions]"),
+    ("prior lo >= hi", '[data]\nfiles=["exp.csv"]\n[priors]\nm1=[3.0, 1.0]', "[priors.m1]"),
+    ("negative mass prior", '[data]\nfiles=["exp.csv"]\n[priors]\nm2=[-1.0, 1.0]',
+     "[priors.m2]"),
+    ("negative damping prior", '[data]\nfiles=["exp.csv"]\n[priors]\nc1=[-1.0, 1.0]',
+     "[priors.c1]"),
+    ("log prior at zero", '[data]\nfiles=["exp.csv"]\n[priors]\nc2={lo=0.0, hi=1.0, scale="log"}',
+     "[priors.c2]"),
+    ("prior of unknown parameter", '[data]\nfiles=["exp.csv"]\n[priors]\nk9=[0.0, 1.0]',
+     "[priors.k9]"),
+    ("prior not numbers", '[data]\nfiles=["exp.csv"]\n[priors]\nm1=["a", "b"]', "[priors.m1]"),
+    ("output escapes root", '[data]\nfiles=["exp.csv"]\n[outputs]\ndir="../../etc"',
+     "[outputs.dir]"),
+    ("absolute output", '[data]\nfiles=["exp.csv"]\n[outputs]\ndir="/tmp/x"', "[outputs.dir]"),
+    ("negative springs", '[data]\nfiles=["exp.csv"]\n[rig]\nsprings_n_m=[774, -1, 396]',
+     "[rig.springs_n_m]"),
+    ("bad counts factor", '[data]\nfiles=["exp.csv"]\nm_per_count=0', "[data.m_per_count]"),
+]
+
+
+@pytest.mark.parametrize("desc,text,key", BAD, ids=[b[0] for b in BAD])
+def test_bad_configs_are_refused_naming_the_key(cfg_dir, desc, text, key):
+    p = cfg_dir / "bad.toml"
+    p.write_text(textwrap.dedent(text))
+    with pytest.raises(ConfigError) as info:
+        load_config(p)
+    msg = str(info.value)
+    assert key in msg
+    assert str(p) in msg
+
+
+def test_all_problems_reported_at_once(cfg_dir):
+    p = cfg_dir / "many.toml"
+    p.write_text('[data]\nfiles=["exp.csv"]\n[sampler]\nwalkers=1\nseed=-3\n[oops]\nx=1\n')
+    with pytest.raises(ConfigError, match="3 problem") as info:
+        load_config(p)
+    for key in ("[sampler.walkers]", "[sampler.seed]", "[oops]"):
+        assert key in str(info.value)
+
+
+def test_broken_toml_and_missing_file(cfg_dir):
+    p = cfg_dir / "broken.toml"
+    p.write_text("[data\nfiles = [")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(p)
+    with pytest.raises(ConfigError, match="no such configuration file"):
+        load_config(cfg_dir / "absent.toml")
