@@ -404,7 +404,9 @@ def _param_table(title: str, res: LSQResult, report: dict) -> list[str]:
     se = dict(zip(res.model.names, res.stderr, strict=True))
     for name, value in res.params.items():
         rep = report[name]
-        lines.append(f"{name:6s}{rep:12.5g}{value:12.5g}{se[name]:11.2g}{_rel(value, rep):>9s}")
+        # a parameter that is zero within its standard error has no meaningful % difference
+        diff = "~0 both" if max(abs(rep), abs(value)) < se[name] else _rel(value, rep)
+        lines.append(f"{name:6s}{rep:12.5g}{value:12.5g}{se[name]:11.2g}{diff:>9s}")
     return lines
 
 
