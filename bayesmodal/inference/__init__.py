@@ -1,0 +1,1 @@
+"""Bayesian inference for the rig: priors, likelihood, sampling, propagation, comparison."""

@@ -1,0 +1,353 @@
+"""Prior distributions and the transformed sampling space.
+
+Every parameter has a prior density ``p(theta_i)`` in physical units and a bijective
+transform ``theta_i = f_i(z_i)`` to an unbounded (or half-bounded) sampling coordinate:
+
+- ``"log"`` for strictly positive parameters (g_v, masses, ca, sigma):
+  ``theta = exp(z)``, ``log |f'(z)| = z``;
+- ``"tanh"`` for the AR(1) coefficient ``phi`` in (-1, 1): ``phi = tanh(z)``,
+  ``log |f'(z)| = log(1 - phi^2)``;
+- ``"identity"`` for parameters whose posterior may sit on a zero bound (every damper of
+  the free model and the stiffness-proportional cb): a log transform would send
+  ``z -> -inf`` for a damper that is not there, and the walkers would need ever longer to
+  come back.
+
+The sampler works with the density of ``z``,
+
+    log p_z(z) = sum_i [ log p_i(f_i(z_i)) + log |f_i'(z_i)| ],
+
+so that the draws of ``theta = f(z)`` follow the prior (and posterior) stated in physical
+units.  Only the change of variables is added; the prior itself is never re-stated in z.
+
+Defaults (SI units):
+
+=============  ====================================  ==========
+parameter      prior                                 transform
+=============  ====================================  ==========
+g_v            Uniform(1, 15) N/V                    log
+m1..mn         Uniform(0.2, 5) kg                    log
+c1..cn         Uniform(0, 20) N s/m                  identity
+c12, c23, ...  Uniform(0, 20) N s/m                  identity
+ca             Uniform(0, 20) 1/s                    log
+cb             Uniform(0, 0.01) s                    identity
+sigma_k        LogUniform(1e-7, 0.1) m               log
+phi_k          Uniform(-1, 1)                        tanh
+=============  ====================================  ==========
+
+``sigma_k`` is the white-noise standard deviation of output ``k`` or, for AR(1) noise, the
+standard deviation of the innovations.  ``ca`` up to 20 1/s covers a mass-proportional
+damping ratio ``ca / (2 omega)`` of 1 at 10 rad/s; ``cb`` up to 0.01 s covers a stiffness-
+proportional ratio ``cb omega / 2`` of 0.2 at the highest mode (about 42 rad/s).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._errors import ConfigError
+
+__all__ = [
+    "Uniform",
+    "LogUniform",
+    "Normal",
+    "PriorSet",
+    "TRANSFORMS",
+    "default_priors",
+    "noise_names",
+]
+
+#: Transforms from the sampling coordinate z to the physical parameter.
+TRANSFORMS = ("identity", "log", "tanh")
+
+_LOG_2PI = float(np.log(2 * np.pi))
+
+
+@dataclass(frozen=True)
+class Uniform:
+    """Uniform prior on ``[lo, hi]``.
+
+    Parameters
+    ----------
+    lo, hi : float
+        Bounds, in the parameter's unit; ``lo < hi``.
+    """
+
+    lo: float
+    hi: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.lo) and np.isfinite(self.hi) and self.lo < self.hi):
+            raise ConfigError(f"Uniform prior needs finite lo < hi, got ({self.lo}, {self.hi})")
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (float(self.lo), float(self.hi))
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self.lo) & (x <= self.hi)
+        return np.where(inside, -np.log(self.hi - self.lo), -np.inf)
+
+    def ppf(self, u: np.ndarray) -> np.ndarray:
+        """Quantile function (used as the nested-sampling prior transform)."""
+        return self.lo + np.asarray(u, dtype=float) * (self.hi - self.lo)
+
+
+@dataclass(frozen=True)
+class LogUniform:
+    """Log-uniform (Jeffreys) prior, density proportional to ``1/x`` on ``[lo, hi]``, lo > 0."""
+
+    lo: float
+    hi: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.lo) and np.isfinite(self.hi) and 0 < self.lo < self.hi):
+            raise ConfigError(
+                f"LogUniform prior needs finite 0 < lo < hi, got ({self.lo}, {self.hi})"
+            )
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (float(self.lo), float(self.hi))
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self.lo) & (x <= self.hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            val = -np.log(x) - np.log(np.log(self.hi / self.lo))
+        return np.where(inside, val, -np.inf)
+
+    def ppf(self, u: np.ndarray) -> np.ndarray:
+        return self.lo * (self.hi / self.lo) ** np.asarray(u, dtype=float)
+
+
+@dataclass(frozen=True)
+class Normal:
+    """Gaussian prior ``N(mu, sd^2)``, optionally truncated to ``[lo, hi]``.
+
+    The truncated density is renormalised, so evidences stay correct.
+    """
+
+    mu: float
+    sd: float
+    lo: float = -np.inf
+    hi: float = np.inf
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.mu) and np.isfinite(self.sd) and self.sd > 0):
+            raise ConfigError(
+                f"Normal prior needs finite mu and sd > 0, got ({self.mu}, {self.sd})"
+            )
+        if not self.lo < self.hi:
+            raise ConfigError(f"Normal prior needs lo < hi, got ({self.lo}, {self.hi})")
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (float(self.lo), float(self.hi))
+
+    def _mass(self) -> float:
+        from scipy.stats import norm
+
+        return float(norm.cdf(self.hi, self.mu, self.sd) - norm.cdf(self.lo, self.mu, self.sd))
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        val = -0.5 * ((x - self.mu) / self.sd) ** 2 - np.log(self.sd) - 0.5 * _LOG_2PI
+        val = val - np.log(self._mass())
+        return np.where((x >= self.lo) & (x <= self.hi), val, -np.inf)
+
+    def ppf(self, u: np.ndarray) -> np.ndarray:
+        from scipy.stats import norm
+
+        a = norm.cdf(self.lo, self.mu, self.sd)
+        b = norm.cdf(self.hi, self.mu, self.sd)
+        return norm.ppf(a + np.asarray(u, dtype=float) * (b - a), self.mu, self.sd)
+
+
+def noise_names(n_outputs: int, noise: str) -> tuple[str, ...]:
+    """Names of the noise parameters: ``sigma_1..n`` and, for AR(1), ``phi_1..n``."""
+    sig = tuple(f"sigma_{k + 1}" for k in range(n_outputs))
+    if noise == "white":
+        return sig
+    if noise == "ar1":
+        return sig + tuple(f"phi_{k + 1}" for k in range(n_outputs))
+    raise ConfigError(f"noise must be 'ar1' or 'white', got {noise!r}")
+
+
+@dataclass(frozen=True)
+class PriorSet:
+    """Joint (independent) prior over named parameters, with its sampling transforms.
+
+    Parameters
+    ----------
+    names : tuple of str, length P
+        Parameter names in vector order.
+    priors : tuple of prior objects, length P
+        Each with ``logpdf``, ``ppf`` and ``support``.
+    transforms : tuple of str, length P
+        One of ``TRANSFORMS`` per parameter.
+
+    Examples
+    --------
+    >>> from bayesmodal.system import LinearModel, Rig
+    >>> ps = default_priors(LinearModel(Rig(), "proportional"), noise="white")
+    >>> ps.names[-3:]
+    ('sigma_1', 'sigma_2', 'sigma_3')
+    """
+
+    names: tuple[str, ...]
+    priors: tuple
+    transforms: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if not (len(self.names) == len(self.priors) == len(self.transforms)):
+            raise ConfigError("names, priors and transforms must have the same length")
+        if len(set(self.names)) != len(self.names):
+            raise ConfigError(f"duplicated parameter names {self.names}")
+        for name, prior, tr in zip(self.names, self.priors, self.transforms, strict=True):
+            if tr not in TRANSFORMS:
+                raise ConfigError(f"{name}: unknown transform {tr!r}; use one of {TRANSFORMS}")
+            lo, hi = prior.support
+            if tr == "log" and lo < 0:
+                raise ConfigError(f"{name}: a log transform needs a prior on x >= 0, got {prior}")
+            if tr == "tanh" and (lo < -1 or hi > 1):
+                raise ConfigError(f"{name}: a tanh transform needs a prior inside [-1, 1]")
+        object.__setattr__(self, "_log", np.array([t == "log" for t in self.transforms]))
+        object.__setattr__(self, "_tanh", np.array([t == "tanh" for t in self.transforms]))
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise ConfigError(f"unknown parameter {name!r}; known: {self.names}") from None
+
+    def replace(self, overrides: Mapping[str, object]) -> PriorSet:
+        """A copy with some priors replaced, ``{name: prior}``; unknown names are rejected."""
+        priors = list(self.priors)
+        for name, prior in overrides.items():
+            priors[self.index(name)] = prior
+        return PriorSet(self.names, tuple(priors), self.transforms)
+
+    # ---------------------------------------------------------------- transforms
+    def to_physical(self, z: np.ndarray) -> np.ndarray:
+        """Physical parameters ``theta = f(z)``, shape (..., P)."""
+        z = np.asarray(z, dtype=float)
+        th = z.copy()
+        with np.errstate(over="ignore"):
+            th[..., self._log] = np.exp(z[..., self._log])
+        th[..., self._tanh] = np.tanh(z[..., self._tanh])
+        return th
+
+    def to_sampling(self, theta: np.ndarray) -> np.ndarray:
+        """Sampling coordinates ``z = f^-1(theta)``, shape (..., P)."""
+        theta = np.asarray(theta, dtype=float)
+        z = theta.copy()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z[..., self._log] = np.log(theta[..., self._log])
+            z[..., self._tanh] = np.arctanh(theta[..., self._tanh])
+        return z
+
+    def log_jacobian(self, z: np.ndarray) -> np.ndarray:
+        """``sum_i log |d theta_i / d z_i|``, shape (...,)."""
+        z = np.asarray(z, dtype=float)
+        out = np.sum(z[..., self._log], axis=-1)
+        # log(1 - tanh^2 z) = log(4) - 2 |z| - 2 log(1 + exp(-2 |z|)), stable for large |z|
+        a = np.abs(z[..., self._tanh])
+        out = out + np.sum(np.log(4.0) - 2 * a - 2 * np.log1p(np.exp(-2 * a)), axis=-1)
+        return out
+
+    # ---------------------------------------------------------------- densities
+    def log_prior(self, theta: np.ndarray) -> np.ndarray:
+        """Log prior density in physical units, shape (...,); ``-inf`` outside the support."""
+        theta = np.asarray(theta, dtype=float)
+        out = np.zeros(theta.shape[:-1])
+        for i, prior in enumerate(self.priors):
+            out = out + prior.logpdf(theta[..., i])
+        return np.where(np.isnan(out), -np.inf, out)
+
+    def log_prior_z(self, z: np.ndarray) -> np.ndarray:
+        """Log density of the sampling coordinates, ``log p(f(z)) + log |f'(z)|``."""
+        z = np.asarray(z, dtype=float)
+        lp = self.log_prior(self.to_physical(z))
+        with np.errstate(invalid="ignore"):
+            out = lp + self.log_jacobian(z)
+        return np.where(np.isfinite(lp), out, -np.inf)
+
+    def prior_transform(self, u: np.ndarray) -> np.ndarray:
+        """Map the unit cube to physical parameters (the nested-sampling prior transform).
+
+        Parameters
+        ----------
+        u : ndarray, shape (..., P), values in [0, 1]
+        """
+        u = np.asarray(u, dtype=float)
+        return np.stack([p.ppf(u[..., i]) for i, p in enumerate(self.priors)], axis=-1)
+
+    def sample(self, n: int, rng=None) -> np.ndarray:
+        """Draws from the prior, shape (n, P)."""
+        rng = np.random.default_rng(rng)
+        return self.prior_transform(rng.random((n, self.n_params)))
+
+
+def _positive_log(names: Sequence[str], prior) -> tuple[list, list, list]:
+    return list(names), [prior] * len(names), ["log"] * len(names)
+
+
+def default_priors(
+    model,
+    *,
+    noise: str = "ar1",
+    n_outputs: int | None = None,
+    overrides: Mapping[str, object] | None = None,
+) -> PriorSet:
+    """Documented default priors for a rig model and a noise model.
+
+    Parameters
+    ----------
+    model : LinearModel
+    noise : {"ar1", "white"}
+    n_outputs : int, optional
+        Number of measured outputs (default: the number of carts).
+    overrides : mapping of str to prior, optional
+        Per-parameter replacements, e.g. ``{"g_v": Normal(6.2, 0.5, lo=0)}``.
+
+    Returns
+    -------
+    PriorSet
+        Parameters ordered as ``model.names`` followed by ``noise_names(n_outputs, noise)``.
+    """
+    n = model.n_carts
+    n_out = n if n_outputs is None else int(n_outputs)
+    names, priors, trs = [], [], []
+
+    def add(nm, prior, tr):
+        names.append(nm)
+        priors.append(prior)
+        trs.append(tr)
+
+    add("g_v", Uniform(1.0, 15.0), "log")
+    for i in range(n):
+        add(f"m{i + 1}", Uniform(0.2, 5.0), "log")
+    mech = model.names
+    if model.damping == "proportional":
+        add("ca", Uniform(0.0, 20.0), "log")
+        add("cb", Uniform(0.0, 0.01), "identity")
+    else:
+        for nm in mech[1 + n :]:
+            add(nm, Uniform(0.0, 20.0), "identity")
+    if tuple(names) != tuple(mech):  # pragma: no cover - guards against a model change
+        raise ConfigError(f"default priors do not match the model parameters {mech}")
+    for nm in noise_names(n_out, noise):
+        if nm.startswith("sigma"):
+            add(nm, LogUniform(1e-7, 0.1), "log")
+        else:
+            add(nm, Uniform(-1.0, 1.0), "tanh")
+    ps = PriorSet(tuple(names), tuple(priors), tuple(trs))
+    return ps.replace(overrides) if overrides else ps
