@@ -69,8 +69,8 @@ class IterationModes(UndampedModes):
         mode; dimensionless.
     """
 
-    n_iterations: np.ndarray = None
-    error_bound: np.ndarray = None
+    n_iterations: np.ndarray
+    error_bound: np.ndarray
 
 
 def _mv(A, x):

@@ -58,7 +58,7 @@ class RayleighModes(UndampedModes):
         0 at a minimum, ``n - 1`` at a maximum, in between at a saddle.
     """
 
-    hessian_index: np.ndarray = None
+    hessian_index: np.ndarray
 
     @property
     def kind(self) -> np.ndarray:
