@@ -1,8 +1,44 @@
-"""InferenceData assembly and NetCDF I/O (the only module that builds ArviZ objects)."""
+"""ArviZ InferenceData assembly and NetCDF I/O (the only module that builds ArviZ objects).
+
+Groups written by :func:`to_inference_data`:
+
+``posterior``
+    One variable per parameter (``g_v``, ``m1``, ..., ``sigma_1``, ``phi_1``, ...), physical
+    units, dims ``(chain, draw)``; walkers are chains, draws are the retained steps.
+``sample_stats``
+    ``lp`` (log posterior of the sampling coordinates, up to a constant) and
+    ``total_log_likelihood``, dims ``(chain, draw)``.
+``log_likelihood``
+    ``y``: pointwise terms, dims ``(chain, draw, obs, output)`` (see ``likelihood``); the
+    ``obs`` dimension runs over the samples of all experiments, with coordinates
+    ``experiment`` and ``t_s``.  Stored as float32 (with some 20 000 observations and
+    1000 draws it is the bulk of the file); PSIS-LOO and WAIC from float32 and float64
+    terms agree to better than 1e-6 relative on the rig data.
+``posterior_predictive``
+    ``y`` (replicated measurements: model output plus a draw of the noise model) and
+    ``y_hat`` (noise-free model output), dims ``(chain, draw, obs, output)``, for a subset
+    of the draws (about ``n_predictive``), float32.
+``observed_data``
+    ``y``, dims ``(obs, output)``, m.
+``constant_data``
+    ``v_volt``, dims ``(obs,)``, the motor voltage.
+
+Attributes (every group): package version, configuration hash and JSON, the least-squares
+estimate, noise model, damping model, sampling time and data hashes.
+"""
 
 from __future__ import annotations
 
+import json
+import os
 import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .likelihood import simulate_noise
+
+__all__ = ["arviz", "to_inference_data", "save_idata", "load_idata", "posterior_matrix"]
 
 
 def arviz():
@@ -17,3 +53,188 @@ def arviz():
                                 category=FutureWarning)
         import arviz as az
     return az
+
+
+def _obs_coords(experiments) -> dict:
+    names = np.concatenate([[e.name] * e.n_samples for e in experiments])
+    t = np.concatenate([e.t_s for e in experiments])
+    return {
+        "obs": np.arange(t.size),
+        "experiment": ("obs", names.astype(str)),
+        "t_s": ("obs", t),
+        "output": [f"x{j + 1}" for j in range(experiments[0].n_outputs)],
+    }
+
+
+def _attrs(run) -> dict:
+    import emcee
+
+    from .. import __version__
+
+    lik = run.likelihood
+    attrs = {
+        "inference_library": "emcee",
+        "inference_library_version": emcee.__version__,
+        "bayesmodal_version": __version__,
+        "config_hash": run.config_hash,
+        "config_json": json.dumps(run.config, sort_keys=True, default=str),
+        "damping": lik.model.damping,
+        "noise": lik.noise,
+        "parameter_names": json.dumps(list(run.names)),
+        "mechanical_names": json.dumps(list(lik.model.names)),
+        "springs_n_m": json.dumps(list(lik.model.rig.springs_n_m)),
+        "burn": int(run.burn),
+        "thin": int(run.thin),
+        "n_steps": int(run.chain.shape[0]),
+        "sampling_time_s": float(run.elapsed_s),
+        "n_evaluations": int(run.n_evaluations),
+        "data_sha256": json.dumps([e.sha256 for e in lik.experiments]),
+        "data_names": json.dumps([e.name for e in lik.experiments]),
+        "start_json": json.dumps(run.start.tolist()),
+        "diagnostics_json": json.dumps({
+            "tau": run.diagnostics.tau.tolist(),
+            "n_over_tau": run.diagnostics.n_over_tau,
+            "acceptance": run.diagnostics.acceptance,
+            "max_rhat": run.diagnostics.max_rhat,
+            "min_ess": run.diagnostics.min_ess,
+            "converged": run.diagnostics.converged,
+            "problems": list(run.diagnostics.problems),
+        }),
+    }
+    if run.lsq is not None:
+        attrs["lsq_theta_json"] = json.dumps(run.lsq.theta.tolist())
+        attrs["lsq_fit_percent_json"] = json.dumps(run.lsq.fit_percent.tolist())
+    return attrs
+
+
+def _chunks(n: int, size: int):
+    for i in range(0, n, size):
+        yield slice(i, min(i + size, n))
+
+
+def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, rng=None):
+    """Assemble an ``arviz.InferenceData`` from a :class:`~.sampling.PosteriorRun`.
+
+    Parameters
+    ----------
+    run : PosteriorRun
+    n_predictive : int
+        Approximate number of draws (over all chains) for the posterior predictive group;
+        0 leaves the group out.
+    pointwise : bool
+        Compute the ``log_likelihood`` group (one simulation per retained draw).
+    rng : numpy.random.Generator or int, optional
+        For the noise draws of the posterior predictive.
+
+    Returns
+    -------
+    arviz.InferenceData
+    """
+    import xarray as xr
+
+    az = arviz()
+    rng = np.random.default_rng(rng)
+    lik = run.likelihood
+    exps = lik.experiments
+    draws = run.draws  # (chain, draw, P)
+    n_chain, n_draw, n_par = draws.shape
+    cd = {"chain": np.arange(n_chain), "draw": np.arange(n_draw)}
+    attrs = _attrs(run)
+
+    posterior = xr.Dataset(
+        {nm: (("chain", "draw"), draws[:, :, i]) for i, nm in enumerate(run.names)},
+        coords=cd, attrs=attrs,
+    )
+    sample_stats = xr.Dataset(
+        {
+            "lp": (("chain", "draw"), run.retained_log_prob),
+            "total_log_likelihood": (("chain", "draw"), run.retained_log_likelihood),
+        },
+        coords=cd, attrs=attrs,
+    )
+    obs = _obs_coords(exps)
+    n_out = exps[0].n_outputs
+    y_obs = np.concatenate([e.y_m for e in exps])
+    observed = xr.Dataset({"y": (("obs", "output"), y_obs)}, coords=obs, attrs=attrs)
+    constant = xr.Dataset(
+        {"v_volt": (("obs",), np.concatenate([e.v_volt for e in exps]))},
+        coords={k: v for k, v in obs.items() if k != "output"}, attrs=attrs,
+    )
+    groups = {
+        "posterior": posterior,
+        "sample_stats": sample_stats,
+        "observed_data": observed,
+        "constant_data": constant,
+    }
+
+    flat = draws.reshape(-1, n_par)
+    if pointwise:
+        ll = np.empty((flat.shape[0], y_obs.shape[0], n_out))
+        for sl in _chunks(flat.shape[0], 64):
+            ll[sl] = np.concatenate(lik.pointwise(flat[sl]), axis=1)
+        groups["log_likelihood"] = xr.Dataset(
+            {"y": (("chain", "draw", "obs", "output"),
+                   ll.reshape(n_chain, n_draw, y_obs.shape[0], n_out).astype(np.float32))},
+            coords={**cd, **obs}, attrs=attrs,
+        )
+
+    if n_predictive > 0:
+        step = max(1, round(n_chain * n_draw / n_predictive))
+        idx = np.arange(0, n_draw, step)
+        sub = draws[:, idx].reshape(-1, n_par)
+        mech, sigma, phi = lik.split(sub)
+        y_hat = np.concatenate(lik.predict(mech), axis=1)
+        noise = np.concatenate(
+            [simulate_noise(sigma, phi, e.n_samples, rng) for e in exps], axis=1
+        )
+        shape = (n_chain, idx.size, y_obs.shape[0], n_out)
+        groups["posterior_predictive"] = xr.Dataset(
+            {
+                "y": (("chain", "draw", "obs", "output"),
+                      (y_hat + noise).reshape(shape).astype(np.float32)),
+                "y_hat": (("chain", "draw", "obs", "output"),
+                          y_hat.reshape(shape).astype(np.float32)),
+            },
+            coords={"chain": cd["chain"], "draw": idx, **obs}, attrs=attrs,
+        )
+    return az.InferenceData(**groups)
+
+
+def posterior_matrix(idata, names=None) -> np.ndarray:
+    """Posterior draws as an array of shape (chain, draw, P) in ``names`` order.
+
+    ``names`` defaults to the ``parameter_names`` attribute written by
+    :func:`to_inference_data`.
+    """
+    post = idata.posterior
+    if names is None:
+        names = json.loads(post.attrs["parameter_names"])
+    return np.stack([post[nm].values for nm in names], axis=-1)
+
+
+def save_idata(idata, path: str | os.PathLike) -> Path:
+    """Write InferenceData to NetCDF atomically (temporary file, then rename).
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    idata.to_netcdf(str(tmp))
+    os.replace(tmp, path)
+    return path
+
+
+def load_idata(path: str | os.PathLike):
+    """Read InferenceData from NetCDF fully into memory (no file handle stays open)."""
+    az = arviz()
+    path = Path(path)
+    if not path.is_file():
+        from .._errors import DataError
+
+        raise DataError(f"{path}: no such InferenceData file")
+    with az.rc_context({"data.load": "eager"}):
+        return az.from_netcdf(str(path))

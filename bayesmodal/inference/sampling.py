@@ -148,7 +148,8 @@ def convergence_diagnostics(
 
     az = arviz()
     n_steps = chain.shape[0]
-    tau = emcee.autocorr.integrated_time(chain, quiet=True) if n_steps > 1 else np.full(
+    # tol=0: always return the estimate; the length check is ours (below), not emcee's log
+    tau = emcee.autocorr.integrated_time(chain, tol=0) if n_steps > 1 else np.full(
         chain.shape[-1], np.inf)
     tau = np.asarray(tau, dtype=float)
     tau_max = float(np.nanmax(tau)) if tau.size else np.inf
