@@ -1,0 +1,127 @@
+"""Experimental modal analysis (lecture 11): modal parameters from measured FRFs and IRFs.
+
+These methods use only input/output data, never the physical rig model, so they are an
+independent check of the model-based identification.
+
+FRF estimation (:mod:`.frf`):
+
+- :func:`welch_frf` -- H1/H2 and coherence from Welch-averaged spectra;
+- :func:`pulse_frf` -- the same over the pulse-to-pulse transients of a pulse train;
+- :func:`frf_from_experiment` -- chooses between them for an ``Experiment`` (m/V);
+- :func:`impulse_response` -- IRF by inverse FFT; :func:`free_decay_segments`;
+- :func:`spectrum`, :func:`spectrogram`, :func:`band_coherence`, :func:`peak_prominence`.
+
+Modal parameter fits (one module each):
+
+- :func:`circle_fit`, :func:`circle_fit_modes` -- single-mode circle fit (11b);
+- :func:`multimode_fit` -- frequency-domain fit with residual mass and flexibility (11c);
+- :func:`lsce`, :func:`lsce_frf`, :func:`error_curve`, :func:`stabilization_diagram` --
+  least-squares complex exponential with several IRFs (11d);
+- :func:`tfest` -- rational (transfer-function) least-squares fit of a chosen order;
+- :func:`pick_peaks` -- first estimates from the FRF peaks;
+- :func:`mac`, :func:`mac_estimates` -- Modal Assurance Criterion.
+
+Every fit returns a frozen dataclass holding a :class:`ModalEstimate` (natural
+frequencies, damping ratios, poles, residues, mode shapes normalised on cart 1 and an
+``identified`` flag per mode).  :func:`identify` runs a method on an ``Experiment``.
+
+Test structures: :class:`CantileverBeam` (lecture's 36-DOF beam) and
+:func:`lecture_irfs` (lecture's three-mode LSCE example).  Plots are in
+:mod:`bayesmodal.plots.ema`.
+"""
+
+from .analyze import METHODS, EMAResult, check_resonances, default_band, identify
+from .beam import CANTILEVER_BETA_L, CantileverBeam
+from .circle import CircleFit, CircleFitModes, circle_fit, circle_fit_modes, fit_circle
+from .examples import LECTURE_POLES, LECTURE_SHAPES, ModalSystem, lecture_irfs, lecture_system
+from .frf import (
+    FRF,
+    IRF,
+    Spectrogram,
+    Spectrum,
+    band_coherence,
+    free_decay_segments,
+    frequency_grid,
+    frf_from_experiment,
+    impulse_response,
+    is_pulse_train,
+    peak_prominence,
+    pulse_frf,
+    pulse_segments,
+    spectrogram,
+    spectrum,
+    welch_frf,
+    zoh_factor,
+)
+from .lsce import (
+    ErrorCurve,
+    LSCEResult,
+    StabilizationDiagram,
+    error_curve,
+    lsce,
+    lsce_frf,
+    stabilization_diagram,
+)
+from .mac import mac, mac_estimates
+from .multimode import MultiModeFit, modal_basis, multimode_fit
+from .peaks import Peaks, mode_indicator, pick_peaks
+from .result import ModalEstimate, match_modes, modal_estimate, normalise_shapes
+from .tfest import TFEstimate, tfest
+
+__all__ = [
+    "METHODS",
+    "EMAResult",
+    "check_resonances",
+    "default_band",
+    "identify",
+    "CANTILEVER_BETA_L",
+    "CantileverBeam",
+    "CircleFit",
+    "CircleFitModes",
+    "circle_fit",
+    "circle_fit_modes",
+    "fit_circle",
+    "LECTURE_POLES",
+    "LECTURE_SHAPES",
+    "ModalSystem",
+    "lecture_irfs",
+    "lecture_system",
+    "FRF",
+    "IRF",
+    "Spectrogram",
+    "Spectrum",
+    "band_coherence",
+    "free_decay_segments",
+    "frequency_grid",
+    "frf_from_experiment",
+    "impulse_response",
+    "is_pulse_train",
+    "peak_prominence",
+    "pulse_frf",
+    "pulse_segments",
+    "spectrogram",
+    "spectrum",
+    "welch_frf",
+    "zoh_factor",
+    "ErrorCurve",
+    "LSCEResult",
+    "StabilizationDiagram",
+    "error_curve",
+    "lsce",
+    "lsce_frf",
+    "stabilization_diagram",
+    "mac",
+    "mac_estimates",
+    "MultiModeFit",
+    "modal_basis",
+    "multimode_fit",
+    "Peaks",
+    "mode_indicator",
+    "pick_peaks",
+    "ModalEstimate",
+    "match_modes",
+    "modal_estimate",
+    "normalise_shapes",
+    "TFEstimate",
+    "tfest",
+]

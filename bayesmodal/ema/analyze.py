@@ -1,0 +1,217 @@
+"""From a measured experiment to modal parameters with a chosen EMA method.
+
+This glues the methods together the way lecture 11 describes the workflow: estimate the
+FRF column (motor volts to cart positions, m/V), choose the band from the resonance
+peaks, fit, and check the result against the FRF.
+
+- ``"circle"``: circle fit of the ``n_modes`` most prominent peaks;
+- ``"multimode"``: multi-mode fit with residual terms over the band, started from circle
+  fits;
+- ``"tfest"``: rational fit with ``2 * order`` poles over the band;
+- ``"lsce"``: LSCE with ``order`` modes on the free decays after the pulses (pulse data)
+  or on the IRF from the FRF (other data).  The order is over-specified by default
+  (``2 n_modes``) so that the extra roots absorb noise and the dry-friction offset; they
+  are flagged computational.
+
+Whatever the method, a mode is finally kept as identified only if the FRF shows a
+resonance where it lies (``peak_prominence`` of at least ``min_prominence`` in some output
+over ``nu +- 3 zeta omega``).  This is how a mode that the excitation did not reach (the
+third mode in the sine sweeps, report section 5) is reported as not identified.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from .circle import circle_fit_modes
+from .frf import FRF, free_decay_segments, frf_from_experiment, is_pulse_train, peak_prominence
+from .lsce import lsce, lsce_frf
+from .multimode import _linear, modal_basis, multimode_fit
+from .peaks import pick_peaks
+from .result import ModalEstimate
+from .tfest import tfest
+
+__all__ = ["EMAResult", "identify", "METHODS", "default_band", "check_resonances"]
+
+METHODS = ("lsce", "circle", "multimode", "tfest")
+
+
+@dataclass(frozen=True)
+class EMAResult:
+    """Modal estimate of one experiment with the data it came from.
+
+    Attributes
+    ----------
+    estimate : ModalEstimate
+    frf : FRF
+        The measured FRF (m/V).
+    fitted : ndarray of complex, shape (n_freq, n_outputs), or None
+        The identified model on ``frf.omega_rad_s`` (for plots).
+    band : ndarray, shape (2,)
+        Band used, rad/s.
+    details : object
+        The method's own result (``CircleFitModes``, ``MultiModeFit``, ``TFEstimate`` or
+        ``LSCEResult``).
+    """
+
+    estimate: ModalEstimate
+    frf: FRF
+    fitted: np.ndarray | None
+    band: np.ndarray
+    details: object
+
+
+def default_band(frf: FRF, n_modes: int) -> tuple[float, float]:
+    """Band around the ``n_modes`` most prominent peaks: 0.4 x lowest to 1.4 x highest."""
+    pk = pick_peaks(frf, n_modes)
+    if pk.omega_rad_s.size == 0:
+        raise DataError("the FRF shows no resonance peak; give the band explicitly")
+    lo = max(frf.omega_rad_s[0], 0.4 * pk.omega_rad_s.min())
+    hi = min(frf.omega_rad_s[-1], 1.4 * pk.omega_rad_s.max())
+    return float(lo), float(hi)
+
+
+def check_resonances(
+    estimate: ModalEstimate, frf: FRF, *, min_prominence: float = 1.2, width: float = 3.0
+) -> ModalEstimate:
+    """Mark modes not identified where the FRF shows no resonance peak.
+
+    Parameters
+    ----------
+    estimate : ModalEstimate
+    frf : FRF
+    min_prominence : float
+        Required ``peak_prominence`` (in at least one output).
+    width : float
+        Half-width of the band checked, in ``zeta omega`` (at least 3 frequency steps, at
+        most 15 % of the frequency, so that a heavily damped pole cannot borrow the peak
+        of a neighbouring mode).
+
+    Returns
+    -------
+    ModalEstimate
+        A copy with updated ``identified`` and notes.
+    """
+    ident = np.array(estimate.identified, bool)
+    notes = list(estimate.notes)
+    step = float(np.median(np.diff(frf.omega_rad_s)))
+    for k in np.flatnonzero(ident):
+        nu = estimate.poles[k].imag
+        half = min(max(width * abs(estimate.poles[k].real), 3 * step), 0.15 * nu)
+        lo, hi = nu - half, nu + half
+        if lo < frf.omega_rad_s[0] or hi > frf.omega_rad_s[-1]:
+            continue
+        prom = float(np.max(peak_prominence(frf, (lo, hi))))
+        if prom < min_prominence:
+            ident[k] = False
+            notes.append(
+                f"mode at {estimate.omega_rad_s[k]:.4g} rad/s not identified: no resonance "
+                f"peak in the FRF (prominence {prom:.3g} < {min_prominence})"
+            )
+    return replace(estimate, identified=ident, notes=tuple(notes))
+
+
+def _fitted_from_poles(frf: FRF, poles: np.ndarray, band) -> np.ndarray:
+    # residues and residual terms by linear least squares with the poles fixed
+    sub = frf.band(*band)
+    G, _ = modal_basis(sub.omega_rad_s, poles, frf.derivative_order)
+    a, _ = _linear(G, sub.H)
+    Gall, _ = modal_basis(frf.omega_rad_s, poles, frf.derivative_order)
+    return Gall @ a
+
+
+def identify(
+    experiment,
+    method: str = "lsce",
+    *,
+    n_modes: int = 3,
+    order: int | None = None,
+    band: tuple[float, float] | None = None,
+    frf: FRF | None = None,
+    stride: int | None = None,
+    decay_s: float | None = 3.0,
+    min_prominence: float = 1.2,
+    reference: int = 0,
+) -> EMAResult:
+    """Experimental modal analysis of one experiment.
+
+    Parameters
+    ----------
+    experiment : bayesmodal.data.Experiment
+        Motor voltage and cart positions.
+    method : {"lsce", "circle", "multimode", "tfest"}
+    n_modes : int
+        Number of modes sought (peaks for circle and multi-mode fits).
+    order : int, optional
+        Model order in modes: LSCE polynomial order ``2 order`` (default ``2 n_modes``),
+        tfest denominator order ``2 order`` (default ``n_modes``).
+    band : (lo, hi), optional
+        Band, rad/s (default ``default_band``).
+    frf : FRF, optional
+        Precomputed FRF (default ``frf_from_experiment(experiment)``).
+    stride : int, optional
+        LSCE sample stride (default: Nyquist frequency about 1.5 times the band's upper
+        end, which conditions the polynomial far better than dense sampling).
+    decay_s : float or None
+        Length of each free decay used by LSCE on pulse data, s (None: until the next
+        pulse).  Dry friction stops the rig within a few seconds.
+    min_prominence : float
+        See ``check_resonances``.
+    reference : int
+        Output the mode shapes are normalised on (0 = cart 1).
+
+    Returns
+    -------
+    EMAResult
+
+    Raises
+    ------
+    ConfigError
+        Unknown method or invalid order.
+    """
+    if method not in METHODS:
+        raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
+    if n_modes < 1 or (order is not None and order < 1):
+        raise ConfigError(f"n_modes and order must be >= 1, got {n_modes}, {order}")
+    if frf is None:
+        frf = frf_from_experiment(experiment)
+    if band is None:
+        band = default_band(frf, n_modes)
+    band = (float(band[0]), float(band[1]))
+    dt = experiment.dt
+    fitted = None
+    if method == "circle":
+        det = circle_fit_modes(frf, n_modes, search_band=band, reference=reference)
+        est = det.estimate
+        fitted = _fitted_from_poles(frf, est.poles[np.isfinite(est.poles)], band)
+    elif method == "multimode":
+        det = multimode_fit(frf, band=band, n_modes=n_modes, reference=reference)
+        est = det.estimate
+        fitted = det.model(frf.omega_rad_s)
+    elif method == "tfest":
+        det = tfest(frf, 2 * (order or n_modes), band=band, reference=reference)
+        est = det.estimate
+        fitted = det.frf(frf.omega_rad_s)
+    else:
+        n = order or 2 * n_modes
+        if stride is None:
+            stride = max(1, int(np.floor(np.pi / (dt * 1.5 * band[1]))))
+        if is_pulse_train(experiment.v_volt):
+            seg = free_decay_segments(experiment.v_volt, dt, duration_s=decay_s)
+            recs = [experiment.y_m[a:b] for a, b in seg]
+            det = lsce(recs, dt, n, stride=stride, reference=reference)
+        else:
+            det = lsce_frf(frf, n, stride=stride, reference=reference)
+        est = det.estimate
+        inband = (est.poles.imag >= band[0]) & (est.poles.imag <= band[1])
+        notes = list(est.notes)
+        for k in np.flatnonzero(est.identified & ~inband):
+            notes.append(f"mode at {est.omega_rad_s[k]:.4g} rad/s outside the band")
+        est = replace(est, identified=est.identified & inband, notes=tuple(notes))
+        if np.any(est.identified):
+            fitted = _fitted_from_poles(frf, est.poles[est.identified], band)
+    est = check_resonances(est, frf, min_prominence=min_prominence)
+    return EMAResult(est, frf, fitted, np.array(band), det)

@@ -1,0 +1,659 @@
+"""Frequency response functions from input/output records, and the signal tools around them.
+
+Estimators (lecture 11, "system identification" stage).  With auto and cross spectra
+``S_uu``, ``S_yu = E[Y U*]``, ``S_yy`` averaged over records or Welch segments,
+
+    H1 = S_yu / S_uu          (unbiased for noise on the output),
+    H2 = S_yy / S_uy          (unbiased for noise on the input),
+    gamma^2 = |S_yu|^2 / (S_uu S_yy) = H1 / H2     (ordinary coherence, 0..1).
+
+Zero-order hold.  The rig's command voltage is held constant between samples, so the
+sampled output spectrum is ``Y_d = H(j w) V_d (1 - e^{-j w dt}) / (j w dt)`` (aliases of a
+low-pass mechanical FRF neglected).  The factor is a half-sample delay times
+``sinc(w dt / 2)``; with ``zoh=True`` it is divided out, so that the estimate is the
+continuous FRF ``H(j w)`` of ``M x'' + C x' + K x = b v`` in m/V, directly comparable
+with ``C (j w I - A)^-1 B`` of the state-space model.
+
+Pulse data.  The impulse records hold a train of short pulses, each followed by a free
+decay that dies out before the next pulse.  Each pulse-to-pulse segment is then a complete
+transient, and a rectangular window (zero-padded FFT) introduces no leakage; the segments
+serve as the averages of H1/H2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import signal
+
+from .._errors import DataError
+
+__all__ = [
+    "FRF",
+    "IRF",
+    "Spectrum",
+    "Spectrogram",
+    "ESTIMATORS",
+    "welch_frf",
+    "pulse_frf",
+    "pulse_segments",
+    "free_decay_segments",
+    "frf_from_experiment",
+    "is_pulse_train",
+    "impulse_response",
+    "frequency_grid",
+    "zoh_factor",
+    "spectrum",
+    "spectrogram",
+    "band_coherence",
+    "peak_prominence",
+]
+
+ESTIMATORS = ("H1", "H2")
+
+
+@dataclass(frozen=True)
+class FRF:
+    """A measured or computed frequency response function, one input to several outputs.
+
+    Attributes
+    ----------
+    omega_rad_s : ndarray, shape (n_freq,)
+        Angular frequencies, increasing, rad/s.
+    H : ndarray of complex, shape (n_freq, n_outputs)
+        Response per unit input (m/V for the rig positions per motor volt).
+    coherence : ndarray, shape (n_freq, n_outputs), or None
+        Ordinary coherence (None when there was a single average or no data).
+    estimator : str
+        ``"H1"``, ``"H2"`` or ``"model"``.
+    units : str
+        Units of H, e.g. ``"m/V"``.
+    n_averages : int
+        Number of records or Welch segments averaged.
+    dt : float or None
+        Sample interval of the data, s (None for an analytical FRF).
+    derivative_order : int
+        0 for displacement (receptance), 1 for velocity (mobility), 2 for acceleration
+        responses; sets the residual terms of the multi-mode fit.
+    input_power : ndarray, shape (n_freq,), or None
+        Input auto-spectrum divided by its maximum; where it is small (near the zeros of
+        a pulse's spectrum) the estimate is noise and peak picking ignores it.
+    """
+
+    omega_rad_s: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray | None = None
+    estimator: str = "H1"
+    units: str = "m/V"
+    n_averages: int = 1
+    dt: float | None = None
+    derivative_order: int = 0
+    input_power: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        w = np.asarray(self.omega_rad_s, dtype=float)
+        H = np.asarray(self.H, dtype=complex)
+        if H.ndim == 1:
+            H = H[:, None]
+        if w.ndim != 1 or H.ndim != 2 or H.shape[0] != w.size:
+            raise DataError(
+                f"FRF needs omega of shape (n_freq,) and H of shape (n_freq, n_outputs); got "
+                f"{w.shape} and {H.shape}"
+            )
+        if w.size < 2 or np.any(np.diff(w) <= 0):
+            raise DataError("FRF frequencies must be strictly increasing (at least two)")
+        if not np.all(np.isfinite(H)):
+            raise DataError("FRF values contain NaN or inf")
+        if self.derivative_order not in (0, 1, 2):
+            raise DataError(f"derivative_order must be 0, 1 or 2, got {self.derivative_order}")
+        object.__setattr__(self, "omega_rad_s", w)
+        object.__setattr__(self, "H", H)
+        if self.coherence is not None:
+            c = np.asarray(self.coherence, dtype=float).reshape(H.shape)
+            object.__setattr__(self, "coherence", c)
+        if self.input_power is not None:
+            p = np.asarray(self.input_power, dtype=float).reshape(w.shape)
+            object.__setattr__(self, "input_power", p)
+
+    @property
+    def n_outputs(self) -> int:
+        return int(self.H.shape[1])
+
+    def band(self, lo: float, hi: float) -> FRF:
+        """The FRF restricted to ``lo <= omega <= hi`` (rad/s)."""
+        sel = (self.omega_rad_s >= lo) & (self.omega_rad_s <= hi)
+        if np.count_nonzero(sel) < 2:
+            raise DataError(
+                f"band [{lo:g}, {hi:g}] rad/s holds {np.count_nonzero(sel)} frequency point(s); "
+                f"the FRF covers [{self.omega_rad_s[0]:g}, {self.omega_rad_s[-1]:g}] rad/s"
+            )
+        coh = None if self.coherence is None else self.coherence[sel]
+        pw = None if self.input_power is None else self.input_power[sel]
+        return replace(self, omega_rad_s=self.omega_rad_s[sel], H=self.H[sel], coherence=coh,
+                       input_power=pw)
+
+    def select(self, outputs) -> FRF:
+        """The FRF of a subset of outputs (index or sequence of indices)."""
+        idx = np.atleast_1d(outputs)
+        coh = None if self.coherence is None else self.coherence[:, idx]
+        return replace(self, H=self.H[:, idx], coherence=coh)
+
+
+@dataclass(frozen=True)
+class IRF:
+    """Sampled impulse response functions (or free decays) of several outputs.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (N,)
+        Times, s (uniform, ``t_s[k] = t0 + k dt``).
+    h : ndarray, shape (N, n_outputs)
+        Response per unit impulse (m/(V s) for an FRF in m/V).
+    dt : float
+        Sample interval, s.
+    """
+
+    t_s: np.ndarray
+    h: np.ndarray
+    dt: float
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    """One-sided amplitude spectrum.
+
+    Attributes
+    ----------
+    omega_rad_s : ndarray, shape (n_freq,)
+    amplitude : ndarray, shape (n_freq,) or (n_freq, n_signals)
+        Amplitude of the sinusoid each bin stands for (signal units).
+    """
+
+    omega_rad_s: np.ndarray
+    amplitude: np.ndarray
+
+
+@dataclass(frozen=True)
+class Spectrogram:
+    """Short-time power spectral density.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (n_times,)
+        Centre of each segment, s.
+    omega_rad_s : ndarray, shape (n_freq,)
+    psd : ndarray, shape (n_freq, n_times)
+        Power spectral density, (signal units)^2 s/rad.
+    """
+
+    t_s: np.ndarray
+    omega_rad_s: np.ndarray
+    psd: np.ndarray
+
+
+# --------------------------------------------------------------------------- helpers
+def _check_io(u, y, dt) -> tuple[np.ndarray, np.ndarray, float]:
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    if u.ndim != 1 or y.ndim != 2 or y.shape[0] != u.size:
+        raise DataError(
+            f"u must have shape (N,) and y shape (N, n_outputs); got {u.shape} and {y.shape}"
+        )
+    if u.size < 8:
+        raise DataError(f"only {u.size} samples; need at least 8 for a spectrum")
+    if not (np.isfinite(dt) and dt > 0):
+        raise DataError(f"sample interval dt must be finite and > 0 s, got {dt!r}")
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+        raise DataError("input or output contains NaN or inf")
+    if not np.any(u != 0):
+        raise DataError("the input is all zeros; no FRF can be estimated")
+    return u, y, float(dt)
+
+
+def zoh_factor(omega_rad_s: np.ndarray, dt: float) -> np.ndarray:
+    """Zero-order-hold factor ``(1 - exp(-j w dt)) / (j w dt)`` (1 at w = 0).
+
+    Parameters
+    ----------
+    omega_rad_s : ndarray, shape (n,)
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+        ``exp(-j w dt / 2) sinc(w dt / 2)``.
+    """
+    w = np.asarray(omega_rad_s, dtype=float)
+    return np.exp(-0.5j * w * dt) * np.sinc(w * dt / (2 * np.pi))
+
+
+def _estimate(Syu, Suu, Syy, estimator):
+    if estimator == "H1":
+        H = Syu / Suu[:, None]
+    elif estimator == "H2":
+        # H2 = S_yy / S_uy with S_uy = conj(S_yu)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            H = Syy / np.conj(Syu)
+    else:
+        raise DataError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coh = np.abs(Syu) ** 2 / (Suu[:, None] * Syy)
+    return H, np.clip(np.nan_to_num(coh), 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------- Welch
+def welch_frf(
+    u,
+    y,
+    dt: float,
+    *,
+    estimator: str = "H1",
+    window: str | tuple = "hann",
+    nperseg: int | None = None,
+    noverlap: int | None = None,
+    detrend: str | bool = "constant",
+    zoh: bool = True,
+    units: str = "m/V",
+) -> FRF:
+    """FRF by Welch-averaged spectra (``scipy.signal.csd`` / ``welch``).
+
+    Parameters
+    ----------
+    u : ndarray, shape (N,)
+        Input, e.g. motor voltage, V.
+    y : ndarray, shape (N,) or (N, n_outputs)
+        Outputs, e.g. cart positions, m.
+    dt : float
+        Sample interval, s.
+    estimator : {"H1", "H2"}
+    window : str or tuple
+        Any window ``scipy.signal.get_window`` accepts (``"hann"``, ``"boxcar"``,
+        ``("tukey", 0.25)``, ...).
+    nperseg : int, optional
+        Segment length; by default the largest power of two not above ``N / 2``.
+    noverlap : int, optional
+        Overlap, samples (default half a segment).
+    detrend : str or False
+        Passed to scipy (``"constant"`` removes each segment's mean).
+    zoh : bool
+        Divide out the zero-order hold of a sampled, held input (see module notes).
+    units : str
+        Units of the FRF, for labels.
+
+    Returns
+    -------
+    FRF
+        On the one-sided grid ``0 .. pi/dt`` rad/s (DC excluded).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(4096)
+    >>> frf = welch_frf(u, 2.0 * u, 0.01, zoh=False)
+    >>> bool(np.allclose(frf.H, 2.0))
+    True
+    """
+    u, y, dt = _check_io(u, y, dt)
+    n = u.size
+    if nperseg is None:
+        nperseg = 1 << int(np.floor(np.log2(max(n // 2, 8))))
+    if not 8 <= nperseg <= n:
+        raise DataError(f"nperseg must be between 8 and the record length {n}, got {nperseg}")
+    fs = 1.0 / dt
+    kw = dict(fs=fs, window=window, nperseg=nperseg, noverlap=noverlap, detrend=detrend)
+    f, Suu = signal.welch(u, **kw)
+    _, Syu = signal.csd(u[:, None], y, axis=0, **kw)  # scipy: conj(U) Y, i.e. E[Y U*]
+    _, Syy = signal.welch(y, axis=0, **kw)
+    step = nperseg - (nperseg // 2 if noverlap is None else noverlap)
+    n_avg = 1 + (n - nperseg) // step
+    keep = (f > 0) & (Suu > 0)
+    w = 2 * np.pi * f[keep]
+    H, coh = _estimate(Syu[keep], Suu[keep], Syy[keep].real, estimator)
+    if zoh:
+        H = H / zoh_factor(w, dt)[:, None]
+    H = np.nan_to_num(H)
+    power = Suu[keep] / np.max(Suu[keep])
+    return FRF(w, H, coh if n_avg > 1 else None, estimator, units, n_avg, dt, 0, power)
+
+
+# --------------------------------------------------------------------------- pulses
+def pulse_segments(u, *, min_gap: int = 20) -> np.ndarray:
+    """Split a pulse train into pulse-to-pulse segments.
+
+    Parameters
+    ----------
+    u : ndarray, shape (N,)
+        Input with isolated pulses on a zero background.
+    min_gap : int
+        Runs of at least this many zero samples separate two pulses.
+
+    Returns
+    -------
+    ndarray of int, shape (n_pulses, 3)
+        Rows ``(start, pulse_end, stop)``: the pulse occupies ``start:pulse_end`` and the
+        free decay ``pulse_end:stop``; ``stop`` is the next pulse's start (or N).
+
+    Raises
+    ------
+    DataError
+        If the input has no pulse.
+
+    Examples
+    --------
+    >>> u = np.zeros(100); u[5:8] = 1.0; u[55:58] = 1.0
+    >>> pulse_segments(u).tolist()
+    [[5, 8, 55], [55, 58, 100]]
+    """
+    u = np.asarray(u, dtype=float)
+    nz = np.flatnonzero(u != 0)
+    if nz.size == 0:
+        raise DataError("the input is all zeros; it holds no pulse")
+    breaks = np.flatnonzero(np.diff(nz) > min_gap)
+    starts = np.r_[nz[0], nz[breaks + 1]]
+    ends = np.r_[nz[breaks], nz[-1]] + 1
+    stops = np.r_[starts[1:], u.size]
+    return np.column_stack([starts, ends, stops]).astype(int)
+
+
+def is_pulse_train(u, *, max_duty: float = 0.1) -> bool:
+    """True if the input is zero on all but a fraction ``max_duty`` of the samples."""
+    u = np.asarray(u, dtype=float)
+    return bool(np.any(u != 0) and np.mean(u != 0) <= max_duty)
+
+
+def pulse_frf(
+    u,
+    y,
+    dt: float,
+    *,
+    segments: np.ndarray | None = None,
+    n_fft: int | None = None,
+    pad: int = 4,
+    estimator: str = "H1",
+    zoh: bool = True,
+    baseline: bool = True,
+    units: str = "m/V",
+) -> FRF:
+    """FRF from transient records (pulse train), each segment one average.
+
+    Parameters
+    ----------
+    u : ndarray, shape (N,)
+        Input, V.
+    y : ndarray, shape (N,) or (N, n_outputs)
+        Outputs, m.
+    dt : float
+        Sample interval, s.
+    segments : ndarray of int, shape (n_segments, 2 or 3), optional
+        Rows ``(start, ..., stop)``; by default ``pulse_segments(u)``.  A whole record is
+        ``[[0, N]]``.
+    n_fft : int, optional
+        FFT length; by default ``pad`` times the longest segment (zero padding
+        interpolates the spectrum of a complete transient without adding information).
+    pad : int
+        Zero-padding factor used when ``n_fft`` is not given.
+    estimator : {"H1", "H2"}
+    zoh : bool
+        Divide out the zero-order hold (see module notes).
+    baseline : bool
+        Subtract each segment's first output sample (the rest position before the pulse,
+        which dry friction leaves slightly off zero).
+    units : str
+
+    Returns
+    -------
+    FRF
+        On the grid ``2 pi k / (n_fft dt)``, ``k = 1 .. n_fft // 2``; coherence over the
+        segments when there are at least two.
+
+    Examples
+    --------
+    >>> u = np.zeros(400); u[0] = 1.0
+    >>> y = 0.5 ** np.arange(400)      # first-order system y[k] = 0.5^k
+    >>> frf = pulse_frf(u, y, 1.0, segments=np.array([[0, 400]]), zoh=False, baseline=False)
+    >>> bool(np.allclose(frf.H[:, 0], 1 / (1 - 0.5 * np.exp(-1j * frf.omega_rad_s))))
+    True
+    """
+    u, y, dt = _check_io(u, y, dt)
+    seg = pulse_segments(u) if segments is None else np.asarray(segments, dtype=int)
+    if seg.ndim != 2 or seg.shape[1] < 2 or seg.shape[0] < 1:
+        raise DataError(f"segments must have shape (n, 2) or (n, 3), got {seg.shape}")
+    starts, stops = seg[:, 0], seg[:, -1]
+    if np.any(starts < 0) or np.any(stops > u.size) or np.any(stops - starts < 8):
+        raise DataError(f"segments must lie in 0..{u.size} and span >= 8 samples: {seg.tolist()}")
+    longest = int(np.max(stops - starts))
+    if n_fft is None:
+        n_fft = int(pad) * longest
+    if n_fft < longest:
+        raise DataError(f"n_fft = {n_fft} is shorter than the longest segment ({longest})")
+    Suu = 0.0
+    Syu = 0.0
+    Syy = 0.0
+    for a, b in zip(starts, stops, strict=True):
+        ys = y[a:b] - (y[a] if baseline else 0.0)
+        U = np.fft.rfft(u[a:b], n_fft)
+        Y = np.fft.rfft(ys, n_fft, axis=0)
+        Suu = Suu + np.abs(U) ** 2
+        Syu = Syu + Y * U.conj()[:, None]
+        Syy = Syy + np.abs(Y) ** 2
+    w = 2 * np.pi * np.fft.rfftfreq(n_fft, dt)
+    keep = (w > 0) & (Suu > 1e-300)
+    H, coh = _estimate(Syu[keep], Suu[keep], Syy[keep], estimator)
+    w = w[keep]
+    if zoh:
+        H = H / zoh_factor(w, dt)[:, None]
+    n_avg = int(seg.shape[0])
+    power = Suu[keep] / np.max(Suu[keep])
+    return FRF(w, np.nan_to_num(H), coh if n_avg > 1 else None, estimator, units, n_avg, dt, 0,
+               power)
+
+
+def free_decay_segments(
+    u,
+    dt: float,
+    *,
+    skip_s: float = 0.0,
+    duration_s: float | None = None,
+    min_gap: int = 20,
+) -> np.ndarray:
+    """Index ranges of the free decays that follow each pulse.
+
+    Parameters
+    ----------
+    u : ndarray, shape (N,)
+        Pulse-train input.
+    dt : float
+        Sample interval, s.
+    skip_s : float
+        Time skipped after the end of each pulse, s.
+    duration_s : float, optional
+        Length kept, s (default: until the next pulse).
+    min_gap : int
+        See ``pulse_segments``.
+
+    Returns
+    -------
+    ndarray of int, shape (n_segments, 2)
+        Rows ``(start, stop)`` with zero input on ``start:stop``.
+    """
+    seg = pulse_segments(u, min_gap=min_gap)
+    start = seg[:, 1] + int(round(skip_s / dt))
+    stop = seg[:, 2].copy()
+    if duration_s is not None:
+        stop = np.minimum(stop, start + int(round(duration_s / dt)))
+    ok = stop - start >= 8
+    if not np.any(ok):
+        raise DataError("no free decay of at least 8 samples after the pulses")
+    return np.column_stack([start[ok], stop[ok]])
+
+
+def frf_from_experiment(experiment, *, method: str = "auto", **kwargs) -> FRF:
+    """FRF of an Experiment (motor volts to cart positions, m/V).
+
+    Parameters
+    ----------
+    experiment : bayesmodal.data.Experiment
+    method : {"auto", "pulse", "welch", "transient"}
+        ``"pulse"``: segment a pulse train (``pulse_frf``); ``"welch"``: Welch averaging;
+        ``"transient"``: one segment spanning the whole record; ``"auto"`` picks
+        ``"pulse"`` for a pulse train and ``"welch"`` otherwise.
+    **kwargs
+        Passed to ``pulse_frf`` or ``welch_frf``.
+
+    Returns
+    -------
+    FRF
+    """
+    u, y, dt = experiment.v_volt, experiment.y_m, experiment.dt
+    if method == "auto":
+        method = "pulse" if is_pulse_train(u) else "welch"
+    if method == "pulse":
+        return pulse_frf(u, y, dt, **kwargs)
+    if method == "transient":
+        return pulse_frf(u, y, dt, segments=np.array([[0, u.size]]), **kwargs)
+    if method == "welch":
+        return welch_frf(u, y, dt, **kwargs)
+    raise DataError(f"method must be auto, pulse, welch or transient, got {method!r}")
+
+
+# --------------------------------------------------------------------------- IRF
+def frequency_grid(n_samples: int, dt: float) -> np.ndarray:
+    """The one-sided FFT grid ``2 pi k / (n_samples dt)``, ``k = 0 .. n_samples // 2``, rad/s."""
+    return 2 * np.pi * np.fft.rfftfreq(int(n_samples), dt)
+
+
+def impulse_response(frf: FRF, *, n_samples: int | None = None) -> IRF:
+    """Impulse response by inverse FFT of an FRF on a full one-sided FFT grid.
+
+    Parameters
+    ----------
+    frf : FRF
+        Values at ``k d_omega`` for ``k = k0 .. n_samples // 2`` (``k0`` is 0 or 1; a
+        missing DC value is extrapolated as the first value's real part).
+    n_samples : int, optional
+        Length of the time record ``N``; by default ``2 (n_freq - 1)`` (even N).  The
+        sample interval is ``dt = 2 pi / (N d_omega)``.
+
+    Returns
+    -------
+    IRF
+        ``h[k] ~ h(k dt)`` in FRF units per second, periodic with period ``N dt`` (a pole
+        ``lambda`` stays the same pole after this time aliasing; only its residue is
+        scaled by ``1 / (1 - exp(lambda N dt))``).
+
+    Raises
+    ------
+    DataError
+        If the frequencies are not uniform multiples of one step.
+    """
+    w = frf.omega_rad_s
+    dw = w[1] - w[0]
+    k = w / dw
+    if not np.allclose(k, np.round(k), atol=1e-6) or not np.allclose(np.diff(k), 1, atol=1e-6):
+        raise DataError("impulse_response needs an FRF on a uniform grid k * d_omega")
+    k0 = int(round(k[0]))
+    if k0 not in (0, 1):
+        raise DataError(f"the FRF grid must start at 0 or d_omega; it starts at {w[0]:g} rad/s")
+    H = frf.H
+    if k0 == 1:
+        H = np.vstack([H[:1].real, H])
+    n_freq = H.shape[0]
+    N = 2 * (n_freq - 1) if n_samples is None else int(n_samples)
+    if N // 2 + 1 != n_freq:
+        raise DataError(f"n_samples = {N} does not match {n_freq} one-sided frequencies")
+    dt = 2 * np.pi / (N * dw)
+    h = np.fft.irfft(H, N, axis=0) / dt
+    return IRF(np.arange(N) * dt, h, dt)
+
+
+# --------------------------------------------------------------------------- spectra
+def spectrum(x, dt: float, *, window: str | tuple = "boxcar") -> Spectrum:
+    """One-sided amplitude spectrum of one or several signals.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N,) or (N, n_signals)
+    dt : float
+        Sample interval, s.
+    window : str or tuple
+        Window (amplitude-corrected by its mean).
+
+    Returns
+    -------
+    Spectrum
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.shape[0]
+    win = signal.get_window(window, n)
+    shape = (n,) + (1,) * (x.ndim - 1)
+    X = np.fft.rfft(x * win.reshape(shape), axis=0)
+    amp = 2 * np.abs(X) / (n * np.mean(win))
+    amp[0] /= 2
+    return Spectrum(2 * np.pi * np.fft.rfftfreq(n, dt), amp)
+
+
+def spectrogram(
+    x, dt: float, *, nperseg: int = 256, noverlap: int | None = None, window="hann"
+) -> Spectrogram:
+    """Spectrogram (``scipy.signal.spectrogram``) on an angular-frequency axis.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N,)
+    dt : float
+        Sample interval, s.
+    nperseg, noverlap, window
+        As in scipy.
+
+    Returns
+    -------
+    Spectrogram
+        PSD converted to per rad/s.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 1:
+        raise DataError(f"spectrogram needs a 1-D signal, got shape {x.shape}")
+    f, t, S = signal.spectrogram(x, 1 / dt, window=window, nperseg=nperseg, noverlap=noverlap)
+    return Spectrogram(t, 2 * np.pi * f, S / (2 * np.pi))
+
+
+# --------------------------------------------------------------------------- checks
+def band_coherence(frf: FRF, band: tuple[float, float]) -> np.ndarray:
+    """Mean coherence in a band, shape (n_outputs,) (NaN without coherence)."""
+    sub = frf.band(*band)
+    if sub.coherence is None:
+        return np.full(frf.n_outputs, np.nan)
+    return sub.coherence.mean(axis=0)
+
+
+def peak_prominence(frf: FRF, band: tuple[float, float]) -> np.ndarray:
+    """How much a resonance stands out of the FRF magnitude in a band.
+
+    The ratio of ``max |H|`` inside the band to the straight line (on log-log axes)
+    joining ``|H|`` at the two band edges, evaluated at the frequency of the maximum.  A
+    lightly damped mode inside the band gives a ratio well above 1 (about
+    ``1 / (2 zeta)`` times the background); a band without a resonance gives about 1 or
+    less.
+
+    Parameters
+    ----------
+    frf : FRF
+    band : (lo, hi)
+        rad/s; a few half-power bandwidths either side of the expected mode.
+
+    Returns
+    -------
+    ndarray, shape (n_outputs,)
+    """
+    sub = frf.band(*band)
+    w = sub.omega_rad_s
+    mag = np.log(np.abs(sub.H) + 1e-300)
+    k = np.argmax(mag, axis=0)
+    x = (np.log(w[k]) - np.log(w[0])) / (np.log(w[-1]) - np.log(w[0]))
+    base = mag[0] + x * (mag[-1] - mag[0])
+    peak = mag[k, np.arange(mag.shape[1])]
+    return np.exp(peak - base)
