@@ -38,7 +38,17 @@ import numpy as np
 
 from .likelihood import simulate_noise
 
-__all__ = ["arviz", "to_inference_data", "save_idata", "load_idata", "posterior_matrix"]
+__all__ = [
+    "arviz",
+    "to_inference_data",
+    "save_idata",
+    "load_idata",
+    "posterior_matrix",
+    "model_from_idata",
+    "priors_from_idata",
+    "experiments_from_idata",
+    "likelihood_from_idata",
+]
 
 
 def arviz():
@@ -91,6 +101,7 @@ def _attrs(run) -> dict:
         "data_sha256": json.dumps([e.sha256 for e in lik.experiments]),
         "data_names": json.dumps([e.name for e in lik.experiments]),
         "start_json": json.dumps(run.start.tolist()),
+        "priors_json": run.priors.to_json(),
         "diagnostics_json": json.dumps({
             "tau": run.diagnostics.tau.tolist(),
             "n_over_tau": run.diagnostics.n_over_tau,
@@ -210,6 +221,48 @@ def posterior_matrix(idata, names=None) -> np.ndarray:
     if names is None:
         names = json.loads(post.attrs["parameter_names"])
     return np.stack([post[nm].values for nm in names], axis=-1)
+
+
+def model_from_idata(idata):
+    """The ``LinearModel`` a run was made with (from the posterior attributes)."""
+    from ..system import LinearModel, Rig
+
+    a = idata.posterior.attrs
+    return LinearModel(Rig(tuple(json.loads(a["springs_n_m"]))), a["damping"])
+
+
+def priors_from_idata(idata):
+    """The ``PriorSet`` of a run."""
+    from .priors import PriorSet
+
+    return PriorSet.from_json(idata.posterior.attrs["priors_json"])
+
+
+def experiments_from_idata(idata) -> list:
+    """The experiments a run was fitted to, rebuilt from observed and constant data."""
+    from ..data import Experiment
+
+    obs = idata.observed_data
+    y = obs["y"].values
+    v = idata.constant_data["v_volt"].values
+    names = obs["experiment"].values.astype(str)
+    t = obs["t_s"].values
+    shas = json.loads(idata.posterior.attrs.get("data_sha256", "[]"))
+    out = []
+    order = list(dict.fromkeys(names.tolist()))
+    for i, nm in enumerate(order):
+        sel = names == nm
+        out.append(Experiment(t[sel], v[sel], y[sel], name=nm,
+                              sha256=shas[i] if i < len(shas) else ""))
+    return out
+
+
+def likelihood_from_idata(idata, experiments=None):
+    """A ``Likelihood`` with the run's model and noise, on its own or other experiments."""
+    from .likelihood import Likelihood
+
+    exps = experiments_from_idata(idata) if experiments is None else experiments
+    return Likelihood(model_from_idata(idata), tuple(exps), idata.posterior.attrs["noise"])
 
 
 def save_idata(idata, path: str | os.PathLike) -> Path:

@@ -42,7 +42,8 @@ proportional ratio ``cb omega / 2`` of 0.2 at the highest mode (about 42 rad/s).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -290,14 +291,31 @@ class PriorSet:
         u = np.asarray(u, dtype=float)
         return np.stack([p.ppf(u[..., i]) for i, p in enumerate(self.priors)], axis=-1)
 
+    def to_json(self) -> str:
+        """JSON description (names, prior types and arguments, transforms)."""
+        items = []
+        for name, prior, tr in zip(self.names, self.priors, self.transforms, strict=True):
+            args = {k: float(v) for k, v in vars(prior).items()}
+            items.append({"name": name, "prior": type(prior).__name__, "args": args,
+                          "transform": tr})
+        return json.dumps(items)
+
+    @classmethod
+    def from_json(cls, text: str) -> PriorSet:
+        """Inverse of :meth:`to_json`."""
+        kinds = {"Uniform": Uniform, "LogUniform": LogUniform, "Normal": Normal}
+        try:
+            items = json.loads(text)
+            priors = tuple(kinds[it["prior"]](**it["args"]) for it in items)
+            return cls(tuple(it["name"] for it in items), priors,
+                       tuple(it["transform"] for it in items))
+        except (KeyError, TypeError, json.JSONDecodeError) as exc:
+            raise ConfigError(f"not a prior description: {exc}") from exc
+
     def sample(self, n: int, rng=None) -> np.ndarray:
         """Draws from the prior, shape (n, P)."""
         rng = np.random.default_rng(rng)
         return self.prior_transform(rng.random((n, self.n_params)))
-
-
-def _positive_log(names: Sequence[str], prior) -> tuple[list, list, list]:
-    return list(names), [prior] * len(names), ["log"] * len(names)
 
 
 def default_priors(
