@@ -10,8 +10,9 @@ peaks, fit, and check the result against the FRF.
 - ``"tfest"``: rational fit with ``2 * order`` poles over the band;
 - ``"lsce"``: LSCE with ``order`` modes on the free decays after the pulses (pulse data)
   or on the IRF from the FRF (other data).  The order is over-specified by default
-  (``2 n_modes``) so that the extra roots absorb noise and the dry-friction offset; they
-  are flagged computational.
+  (``2 n_modes``) so that the extra roots absorb noise and the dry-friction offset; roots
+  outside the band (real poles, noise modes near the Nyquist frequency) are left out of
+  the estimate (they remain in ``details``) and in-band computational modes are flagged.
 
 Whatever the method, a mode is finally kept as identified only if the FRF shows a
 resonance where it lies (``peak_prominence`` of at least ``min_prominence`` in some output
@@ -27,8 +28,15 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from .circle import circle_fit_modes
-from .frf import FRF, free_decay_segments, frf_from_experiment, is_pulse_train, peak_prominence
-from .lsce import lsce, lsce_frf
+from .frf import (
+    FRF,
+    free_decay_segments,
+    frf_from_experiment,
+    impulse_response,
+    is_pulse_train,
+    peak_prominence,
+)
+from .lsce import StabilizationDiagram, lsce, lsce_frf, stabilization_diagram
 from .multimode import _linear, modal_basis, multimode_fit
 from .peaks import pick_peaks
 from .result import ModalEstimate
@@ -55,6 +63,8 @@ class EMAResult:
     details : object
         The method's own result (``CircleFitModes``, ``MultiModeFit``, ``TFEstimate`` or
         ``LSCEResult``).
+    stabilization : StabilizationDiagram or None
+        LSCE fits over a range of orders (only when requested).
     """
 
     estimate: ModalEstimate
@@ -62,6 +72,19 @@ class EMAResult:
     fitted: np.ndarray | None
     band: np.ndarray
     details: object
+    stabilization: StabilizationDiagram | None = None
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary: the estimate plus the band and FRF settings."""
+        out = self.estimate.as_dict()
+        out.update({
+            "band_rad_s": self.band.tolist(),
+            "frf_units": self.frf.units,
+            "frf_estimator": self.frf.estimator,
+            "frf_averages": int(self.frf.n_averages),
+            "mode_shape_reference": f"output {self.estimate.reference + 1} (cart 1 = 1)",
+        })
+        return out
 
 
 def default_band(frf: FRF, n_modes: int) -> tuple[float, float]:
@@ -86,9 +109,9 @@ def check_resonances(
     min_prominence : float
         Required ``peak_prominence`` (in at least one output).
     width : float
-        Half-width of the band checked, in ``zeta omega`` (at least 3 frequency steps, at
-        most 15 % of the frequency, so that a heavily damped pole cannot borrow the peak
-        of a neighbouring mode).
+        Half-width of the band checked, in ``zeta omega`` (at most 15 % of the frequency,
+        so that a heavily damped pole cannot borrow the peak of a neighbouring mode, and
+        at least 3 frequency steps).
 
     Returns
     -------
@@ -100,7 +123,7 @@ def check_resonances(
     step = float(np.median(np.diff(frf.omega_rad_s)))
     for k in np.flatnonzero(ident):
         nu = estimate.poles[k].imag
-        half = min(max(width * abs(estimate.poles[k].real), 3 * step), 0.15 * nu)
+        half = max(min(width * abs(estimate.poles[k].real), 0.15 * nu), 3 * step)
         lo, hi = nu - half, nu + half
         if lo < frf.omega_rad_s[0] or hi > frf.omega_rad_s[-1]:
             continue
@@ -112,6 +135,12 @@ def check_resonances(
                 f"peak in the FRF (prominence {prom:.3g} < {min_prominence})"
             )
     return replace(estimate, identified=ident, notes=tuple(notes))
+
+
+def _subset(est: ModalEstimate, keep: np.ndarray) -> ModalEstimate:
+    return replace(est, omega_rad_s=est.omega_rad_s[keep], zeta=est.zeta[keep],
+                   poles=est.poles[keep], residues=est.residues[keep],
+                   mode_shapes=est.mode_shapes[keep], identified=est.identified[keep])
 
 
 def _fitted_from_poles(frf: FRF, poles: np.ndarray, band) -> np.ndarray:
@@ -135,6 +164,7 @@ def identify(
     decay_s: float | None = 3.0,
     min_prominence: float = 1.2,
     reference: int = 0,
+    stabilization_orders=None,
 ) -> EMAResult:
     """Experimental modal analysis of one experiment.
 
@@ -162,6 +192,8 @@ def identify(
         See ``check_resonances``.
     reference : int
         Output the mode shapes are normalised on (0 = cart 1).
+    stabilization_orders : sequence of int, optional
+        With ``method="lsce"``, also fit these orders for a stabilisation diagram.
 
     Returns
     -------
@@ -183,6 +215,7 @@ def identify(
     band = (float(band[0]), float(band[1]))
     dt = experiment.dt
     fitted = None
+    stab = None
     if method == "circle":
         det = circle_fit_modes(frf, n_modes, search_band=band, reference=reference)
         est = det.estimate
@@ -203,15 +236,23 @@ def identify(
             seg = free_decay_segments(experiment.v_volt, dt, duration_s=decay_s)
             recs = [experiment.y_m[a:b] for a, b in seg]
             det = lsce(recs, dt, n, stride=stride, reference=reference)
+            if stabilization_orders is not None:
+                stab = stabilization_diagram(recs, dt, stabilization_orders, stride=stride)
         else:
             det = lsce_frf(frf, n, stride=stride, reference=reference)
+            if stabilization_orders is not None:
+                irf = impulse_response(frf)
+                stab = stabilization_diagram(irf.h, irf.dt, stabilization_orders, stride=stride)
         est = det.estimate
-        inband = (est.poles.imag >= band[0]) & (est.poles.imag <= band[1])
-        notes = list(est.notes)
-        for k in np.flatnonzero(est.identified & ~inband):
-            notes.append(f"mode at {est.omega_rad_s[k]:.4g} rad/s outside the band")
-        est = replace(est, identified=est.identified & inband, notes=tuple(notes))
+        # keep the oscillating poles of the band; the rest (real poles, noise modes near
+        # the Nyquist frequency) stay in ``details``
+        keep = (est.poles.imag >= band[0]) & (est.poles.imag <= band[1])
+        dropped = [f"{lam:.4g}" for lam in est.poles[~keep]]
+        est = _subset(est, keep)
+        if dropped:
+            est = replace(est, notes=est.notes + (
+                f"{len(dropped)} root(s) outside the band left out: {', '.join(dropped)} 1/s",))
         if np.any(est.identified):
             fitted = _fitted_from_poles(frf, est.poles[est.identified], band)
     est = check_resonances(est, frf, min_prominence=min_prominence)
-    return EMAResult(est, frf, fitted, np.array(band), det)
+    return EMAResult(est, frf, fitted, np.array(band), det, stab)

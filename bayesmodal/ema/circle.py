@@ -129,7 +129,9 @@ def fit_circle(z: np.ndarray) -> tuple[complex, float]:
     return z0 + s * c, float(s * np.sqrt(r2))
 
 
-def circle_fit(omega_rad_s, H, band: tuple[float, float] | None = None) -> CircleFit:
+def circle_fit(
+    omega_rad_s, H, band: tuple[float, float] | None = None, *, refine: float | None = 3.0
+) -> CircleFit:
     """Circle fit of one mode in one FRF.
 
     Parameters
@@ -141,6 +143,11 @@ def circle_fit(omega_rad_s, H, band: tuple[float, float] | None = None) -> Circl
     band : (lo, hi), optional
         Band around the resonance, rad/s (all points by default); a few half-power
         bandwidths either side of the peak works well.
+    refine : float or None
+        If given, fit a second time on the points with ``|w - nu| <= refine |mu|`` from
+        the first fit (``phi`` within ``+-2 arctan(refine)``), provided there are at least
+        6: points far from the resonance crowd together and carry the other modes'
+        influence rather than this mode's circle.
 
     Returns
     -------
@@ -167,6 +174,19 @@ def circle_fit(omega_rad_s, H, band: tuple[float, float] | None = None) -> Circl
     if band is not None:
         sel = (w >= band[0]) & (w <= band[1])
         w, H = w[sel], H[sel]
+    fit = _circle_fit_once(w, H)
+    if refine is not None:
+        mu, nu = fit.pole.real, fit.pole.imag
+        sel = np.abs(w - nu) <= refine * abs(mu)
+        if 6 <= np.count_nonzero(sel) < w.size:
+            try:
+                fit = _circle_fit_once(w[sel], H[sel])
+            except DataError:
+                pass
+    return fit
+
+
+def _circle_fit_once(w: np.ndarray, H: np.ndarray) -> CircleFit:
     if w.size < 6:
         raise DataError(f"circle fit needs at least 6 FRF points in the band, got {w.size}")
     centre, r = fit_circle(H)
@@ -315,7 +335,10 @@ def circle_fit_modes(
         poles.append(lam)
         residues.append(R)
         good_circle = min(f.circle_error for f in ok) <= max_circle_error
-        prominent = np.nanmax(peak_prominence(frf, (lo, hi))) >= min_prominence
+        try:
+            prominent = np.nanmax(peak_prominence(frf, (lo, hi))) >= min_prominence
+        except DataError:  # band too narrow for the frequency grid
+            prominent = False
         ident.append(bool(good_circle and prominent))
         if not good_circle:
             notes.append(f"mode {k + 1}: points do not lie on a circle")

@@ -2,12 +2,15 @@
 
 The mode indicator is the sum of magnitudes over the outputs,
 ``MIF(w) = sum_i |H_i(w)| / max |H_i|`` (each output scaled to unit maximum so that one
-sensor does not dominate).  Its local maxima with a prominence of at least a fraction of
-its maximum are resonance candidates (on a linear scale, so that noise where ``|H|`` is
-tiny does not count); each is refined by a parabola through the three points around the
-maximum (on a log scale), and its damping is estimated from the half-power bandwidth
-(``MIF`` down by ``sqrt(2)``), ``zeta ~ (w_b - w_a) / (2 w_r)``.  These values
-seed the circle fit and the multi-mode fit; they are not final estimates.
+sensor does not dominate).  Its local maxima with a prominence on a log scale (a lightly
+damped mode rises by about ``1 / (2 zeta)`` above its surroundings, whatever its level)
+are resonance candidates; frequencies where the input had no energy and peaks below
+0.1 % of the largest are ignored.  Noise where ``|H|`` is tiny is prominent on a log
+scale too, so when a number of peaks is asked for, the candidates are ranked by their
+prominence on a linear scale.  Each peak is refined by a parabola through the three
+points around the maximum (on the log scale), and its damping is estimated from the
+half-power bandwidth (``MIF`` down by ``sqrt(2)``), ``zeta ~ (w_b - w_a) / (2 w_r)``.
+These values seed the circle fit and the multi-mode fit; they are not final estimates.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ class Peaks:
     zeta : ndarray, shape (n_peaks,)
         Half-power-bandwidth damping ratio (NaN when a half-power point is missing).
     prominence : ndarray, shape (n_peaks,)
-        Prominence of the peak in the mode indicator, as a fraction of its maximum.
+        Prominence of the peak in the log mode indicator (natural log units).
     band : ndarray, shape (n_peaks, 2)
         Suggested fitting band around each peak, rad/s: a few half-power widths, clipped
         halfway to the neighbouring peaks.
@@ -59,9 +62,10 @@ def pick_peaks(
     n_peaks: int | None = None,
     *,
     band: tuple[float, float] | None = None,
-    min_prominence: float = 0.02,
+    min_prominence: float = 0.2,
     half_widths: float = 3.0,
     min_input_power: float = 0.01,
+    min_level: float = 1e-3,
 ) -> Peaks:
     """Find the resonance peaks of an FRF.
 
@@ -69,16 +73,19 @@ def pick_peaks(
     ----------
     frf : FRF
     n_peaks : int, optional
-        Keep the ``n_peaks`` most prominent peaks (all by default).
+        Keep the ``n_peaks`` peaks with the largest linear prominence (all by default).
     band : (lo, hi), optional
         Search band, rad/s.
     min_prominence : float
-        Minimum prominence as a fraction of the maximum of the mode indicator.
+        Minimum prominence in the log mode indicator (0.2: a rise of about 22 %).
     half_widths : float
         Half-width of each suggested fitting band, in half-power bandwidths.
     min_input_power : float
         Frequencies where ``frf.input_power`` is below this are ignored (the FRF estimate
         is noise where the input has no energy).
+    min_level : float
+        Peaks lower than this fraction of the largest value of the mode indicator are
+        ignored.
 
     Returns
     -------
@@ -95,17 +102,23 @@ def pick_peaks(
     sub = frf if band is None else frf.band(*band)
     w = sub.omega_rad_s
     lin = mode_indicator(sub)
+    mif = np.log(lin + 1e-300)
     if sub.input_power is not None:
-        lin = np.where(sub.input_power >= min_input_power, lin, 0.0)
-    idx, props = signal.find_peaks(lin, prominence=min_prominence * lin.max())
+        # no peak where the input has no energy: flatten the indicator there
+        mif = np.where(sub.input_power >= min_input_power, mif, mif.min())
+    # a resonance must also stand out in level: noise where |H| is tiny makes peaks
+    # that are prominent on a log scale only
+    floor = np.log(min_level * lin.max())
+    idx, props = signal.find_peaks(mif, prominence=min_prominence, height=floor)
     if idx.size == 0:
         return Peaks(np.empty(0), np.empty(0), np.empty(0), np.empty((0, 2)))
-    prom = props["prominences"] / lin.max()
-    mif = np.log(lin + 1e-300)
+    prom = props["prominences"]
     if n_peaks is not None:
         if n_peaks < 1:
             raise DataError(f"n_peaks must be >= 1, got {n_peaks}")
-        keep = np.sort(np.argsort(prom)[::-1][:n_peaks])
+        # the strongest peaks: ranked by their rise on a linear scale
+        lin_prom = signal.peak_prominences(np.exp(mif), idx)[0]
+        keep = np.sort(np.argsort(lin_prom)[::-1][:n_peaks])
         idx, prom = idx[keep], prom[keep]
     omega = np.empty(idx.size)
     zeta = np.full(idx.size, np.nan)

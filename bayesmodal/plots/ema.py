@@ -15,6 +15,7 @@ __all__ = [
     "plot_error_curve",
     "plot_coherence",
     "plot_spectrogram",
+    "save_ema_figures",
 ]
 
 
@@ -27,8 +28,8 @@ def _new(ax, nrows=1, **kw):
     return axes
 
 
-def plot_frf(frf, *, fitted=None, estimate=None, ax=None, band=None, outputs=None,
-             labels=None):
+def plot_frf(frf, *, fitted=None, estimate=None, ax=None, band=None, fit_band=None,
+             outputs=None, labels=None):
     """Magnitude and phase of a measured FRF, with a fitted model and the modes found.
 
     Parameters
@@ -42,6 +43,8 @@ def plot_frf(frf, *, fitted=None, estimate=None, ax=None, band=None, outputs=Non
         Magnitude and phase axes.
     band : (lo, hi), optional
         Frequency range shown, rad/s.
+    fit_band : (lo, hi), optional
+        Range where the fitted model is drawn (the band it was fitted on), rad/s.
     outputs : sequence of int, optional
         Outputs to draw (all by default).
     labels : sequence of str, optional
@@ -69,9 +72,10 @@ def plot_frf(frf, *, fitted=None, estimate=None, ax=None, band=None, outputs=Non
         axes[0].semilogy(w[sel], np.abs(frf.H[sel, i]), color=color, label=f"{name} measured")
         axes[1].plot(w[sel], np.degrees(np.unwrap(np.angle(frf.H[sel, i]))), color=color)
         if fitted is not None:
-            f = np.asarray(fitted)[sel, i]
-            axes[0].semilogy(w[sel], np.abs(f), "--", color=color, label=f"{name} fit")
-            axes[1].plot(w[sel], np.degrees(np.unwrap(np.angle(f))), "--", color=color)
+            fsel = sel if fit_band is None else sel & (w >= fit_band[0]) & (w <= fit_band[1])
+            f = np.asarray(fitted)[fsel, i]
+            axes[0].semilogy(w[fsel], np.abs(f), "--", color=color, label=f"{name} fit")
+            axes[1].plot(w[fsel], np.degrees(np.unwrap(np.angle(f))), "--", color=color)
     if estimate is not None:
         for k in range(estimate.n_modes):
             if estimate.identified[k] and np.isfinite(estimate.poles[k]):
@@ -262,3 +266,55 @@ def plot_spectrogram(sg, *, ax=None, omega_max=None, db: bool = True):
     ax.set_ylabel("frequency (rad/s)")
     ax.set_title("spectrogram")
     return ax
+
+
+def save_ema_figures(result, directory) -> list:
+    """Write the figures of an ``EMAResult`` as PNG files.
+
+    Files: ``frf.png`` (FRF with the fitted model and the modes), ``coherence.png`` (when
+    the FRF has coherence), ``nyquist_mode<k>.png`` (circle fits, output with the largest
+    circle), ``stabilization.png`` (LSCE with a stabilisation diagram).
+
+    Parameters
+    ----------
+    result : bayesmodal.ema.EMAResult
+    directory : path-like
+        Created if missing.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    def save(ax, name):
+        fig = np.ravel(ax)[0].figure
+        path = out / name
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+
+    lo, hi = result.band
+    band = (0.0, 1.2 * hi)
+    save(plot_frf(result.frf, fitted=result.fitted, estimate=result.estimate, band=band,
+                  fit_band=(lo, hi)), "frf.png")
+    if result.frf.coherence is not None:
+        save(plot_coherence(result.frf, band=band), "coherence.png")
+    fits = getattr(result.details, "fits", None)
+    if fits is not None:
+        for k, row in enumerate(fits):
+            ok = [f for f in row if f is not None]
+            if ok:
+                best = max(ok, key=lambda f: f.radius)
+                save(plot_nyquist(best), f"nyquist_mode{k + 1}.png")
+    if result.stabilization is not None:
+        save(plot_stabilization(result.stabilization, frf=result.frf, band=band),
+             "stabilization.png")
+    return written
