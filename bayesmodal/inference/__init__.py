@@ -1,1 +1,121 @@
-"""Bayesian inference for the rig: priors, likelihood, sampling, propagation, comparison."""
+"""Bayesian inference for the rig: priors, likelihood, sampling, propagation, comparison.
+
+Layers: :mod:`.priors` and :mod:`.likelihood` are NumPy only; :mod:`.sampling` adds emcee;
+:mod:`.idata`, :mod:`.summary` and :mod:`.compare` build on ArviZ (0.x InferenceData API).
+
+Typical use::
+
+    from bayesmodal.inference import sample_posterior, to_inference_data, write_run
+    run = sample_posterior(experiment, LinearModel(Rig(), "free"), noise="ar1", rng=1)
+    idata = to_inference_data(run, rng=1)
+    summary = write_run(idata, "runs/free")      # posterior.nc, summary.json, plots
+"""
+
+from .compare import (
+    BayesFactor,
+    Evidence,
+    InformationCriteria,
+    ModelChoice,
+    PredictiveScore,
+    bayes_factor,
+    choose_model,
+    information_criteria,
+    kass_raftery,
+    model_choice,
+    nested_evidence,
+    predictive_check,
+)
+from .idata import (
+    experiments_from_idata,
+    likelihood_from_idata,
+    load_idata,
+    model_from_idata,
+    posterior_matrix,
+    priors_from_idata,
+    save_idata,
+    to_inference_data,
+)
+from .likelihood import NOISE_MODELS, Likelihood, ar1_terms, simulate_noise, white_terms
+from .priors import LogUniform, Normal, PriorSet, Uniform, default_priors, noise_names
+from .propagate import (
+    Interval,
+    ModalSamples,
+    credible_interval,
+    hdi,
+    modal_intervals,
+    propagate_modes,
+)
+from .sampling import (
+    ConvergenceWarning,
+    Diagnostics,
+    LogPosterior,
+    PosteriorRun,
+    convergence_diagnostics,
+    default_moves,
+    posterior_mode,
+    sample_posterior,
+)
+from .summary import (
+    ComparisonRow,
+    comparison_markdown,
+    lsq_vs_posterior,
+    parameter_intervals,
+    posterior_modes,
+    summary_dict,
+    write_run,
+)
+
+__all__ = [
+    "BayesFactor",
+    "ComparisonRow",
+    "ConvergenceWarning",
+    "Diagnostics",
+    "Evidence",
+    "InformationCriteria",
+    "Interval",
+    "Likelihood",
+    "LogPosterior",
+    "LogUniform",
+    "ModalSamples",
+    "ModelChoice",
+    "NOISE_MODELS",
+    "Normal",
+    "PosteriorRun",
+    "PredictiveScore",
+    "PriorSet",
+    "Uniform",
+    "ar1_terms",
+    "bayes_factor",
+    "choose_model",
+    "comparison_markdown",
+    "convergence_diagnostics",
+    "credible_interval",
+    "default_moves",
+    "default_priors",
+    "experiments_from_idata",
+    "hdi",
+    "information_criteria",
+    "kass_raftery",
+    "likelihood_from_idata",
+    "load_idata",
+    "lsq_vs_posterior",
+    "modal_intervals",
+    "model_choice",
+    "model_from_idata",
+    "nested_evidence",
+    "noise_names",
+    "parameter_intervals",
+    "posterior_matrix",
+    "posterior_mode",
+    "posterior_modes",
+    "predictive_check",
+    "priors_from_idata",
+    "propagate_modes",
+    "sample_posterior",
+    "save_idata",
+    "simulate_noise",
+    "summary_dict",
+    "to_inference_data",
+    "white_terms",
+    "write_run",
+]

@@ -48,6 +48,7 @@ __all__ = [
     "predictive_check",
     "ModelChoice",
     "model_choice",
+    "choose_model",
 ]
 
 
@@ -536,3 +537,52 @@ def model_choice(
     return ModelChoice(models=models, criteria=crit, loo_compare=table,
                        evidence=evidences, bayes_factor=bf, predictive=predictive,
                        preferred=pref, verdict=" ".join(words))
+
+
+def choose_model(
+    idatas: Mapping[str, object],
+    *,
+    test=None,
+    evidence: bool = True,
+    nlive: int = 250,
+    dlogz: float = 0.5,
+    rng=None,
+    maxcall: int | None = None,
+) -> ModelChoice:
+    """Model choice between two finished runs (e.g. free vs proportional damping).
+
+    Parameters
+    ----------
+    idatas : mapping of str to InferenceData
+        Two runs on the same data (as written by ``to_inference_data``).
+    test : Experiment or sequence of Experiment, optional
+        Held-out experiments for the predictive check.
+    evidence : bool
+        Compute the evidence of each model by nested sampling (minutes on the rig data).
+    nlive, dlogz, maxcall
+        Passed to :func:`nested_evidence`.
+    rng : numpy.random.Generator or int, optional
+
+    Returns
+    -------
+    ModelChoice
+    """
+    from .idata import likelihood_from_idata, posterior_matrix, priors_from_idata
+
+    gen = np.random.default_rng(rng)
+    evs = {}
+    if evidence:
+        for m, idt in idatas.items():
+            lik = likelihood_from_idata(idt)
+            evs[m] = nested_evidence(lik, priors_from_idata(idt), nlive=nlive, dlogz=dlogz,
+                                     rng=gen, maxcall=maxcall)
+    pred = {}
+    if test is not None:
+        from .likelihood import as_experiments
+
+        tests = as_experiments(test)
+        for m, idt in idatas.items():
+            lik = likelihood_from_idata(idt, tests)
+            draws = posterior_matrix(idt, list(lik.names)).reshape(-1, lik.n_params)
+            pred[m] = predictive_check(lik, draws)
+    return model_choice(idatas, evidences=evs, predictive=pred)

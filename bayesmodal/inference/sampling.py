@@ -545,6 +545,8 @@ def sample_posterior(
         "n_walkers": n_walkers,
         "data": [e.sha256 or e.name for e in exps],
         "moves": _moves_key(moves),
+        # an integer seed is part of the identity of a run; a Generator cannot be recorded
+        "seed": int(rng) if isinstance(rng, (int, np.integer)) else None,
         "refine": bool(refine),
     }
     # the hash identifies the target and ensemble; a resumed run may extend n_steps
@@ -592,9 +594,7 @@ def sample_posterior(
             ConvergenceWarning,
             stacklevel=2,
         )
-    config.update({"n_steps": n_steps, "burn": burn, "thin": thin,
-                   "rng": int(rng) if isinstance(rng, (int, np.integer)) else None,
-                   "config_hash": chash})
+    config.update({"n_steps": n_steps, "burn": burn, "thin": thin, "config_hash": chash})
     return PosteriorRun(
         likelihood=lik,
         priors=priors,

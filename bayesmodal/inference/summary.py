@@ -21,6 +21,7 @@ __all__ = [
     "lsq_vs_posterior",
     "comparison_markdown",
     "summary_dict",
+    "write_run",
 ]
 
 
@@ -206,3 +207,90 @@ def summary_dict(idata, *, prob: float = 0.9, modal: ModalSamples | None = None)
     if "mac_reference" in mi:
         out["mac_lsq"] = _triple(mi["mac_reference"])
     return out
+
+
+def _write_json(obj, path) -> None:
+    import os
+    from pathlib import Path
+
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(_jsonable(obj), indent=2) + "\n")
+    os.replace(tmp, path)
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def write_run(idata, out_dir, *, prob: float = 0.9, plots: bool = True) -> dict:
+    """Write a run folder: ``posterior.nc``, ``summary.json``, ``lsq_vs_posterior.md`` and
+    the plots (``trace.png``, ``corner.png``, ``predictive.png``, ``bode.png``,
+    ``modal_intervals.png``).  Files are written atomically.
+
+    Returns
+    -------
+    dict
+        The summary (as in ``summary.json``).
+    """
+    from pathlib import Path
+
+    from .idata import save_idata
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    save_idata(idata, out / "posterior.nc")
+    modal = posterior_modes(idata)
+    summary = summary_dict(idata, prob=prob, modal=modal)
+    _write_json(summary, out / "summary.json")
+    rows = lsq_vs_posterior(idata, prob=prob, modal=modal)
+    if rows:
+        tmp = out / "lsq_vs_posterior.md.tmp"
+        tmp.write_text(comparison_markdown(rows) + "\n")
+        tmp.replace(out / "lsq_vs_posterior.md")
+    if plots:
+        _write_plots(idata, modal, out, prob)
+    return summary
+
+
+def _save(fig, path) -> None:
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    tmp.replace(path)
+
+
+def _write_plots(idata, modal, out, prob) -> None:
+    from ..plots.posterior import (
+        plot_bode_bands,
+        plot_corner,
+        plot_modal_intervals,
+        plot_predictive,
+        plot_trace,
+    )
+
+    model = model_from_idata(idata)
+    theta = lsq_theta(idata)
+    ref = None if theta is None else propagate_modes(model, theta[None], methods=("eig",))
+    refd = None if theta is None else dict(zip(model.names, theta.tolist(), strict=True))
+    _save(plot_trace(idata).flat[0].figure, out / "trace.png")
+    _save(plot_corner(idata, reference=refd).flat[0].figure, out / "corner.png")
+    if "posterior_predictive" in idata.groups():
+        _save(plot_predictive(idata, prob=prob)[0].figure, out / "predictive.png")
+    _save(plot_bode_bands(idata, prob=prob)[0].figure, out / "bode.png")
+    _save(plot_modal_intervals(modal, reference=ref, prob=prob).flat[0].figure,
+          out / "modal_intervals.png")

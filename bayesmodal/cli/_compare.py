@@ -1,0 +1,79 @@
+"""``bayesmodal compare``: free versus proportional damping (LOO, WAIC, evidence, test data)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .._errors import ConfigError
+from ..data import ECP_M_PER_COUNT, load_experiment
+from ._common import print_json
+from ._sample import add_sampler_args, sample_to_dir
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "compare",
+        help="model choice: free vs proportional damping",
+        description="Run both damping models on DATA (or take two finished run folders with "
+                    "--runs) and compare them by PSIS-LOO, WAIC, the Bayesian evidence "
+                    "(dynesty) with its Bayes factor, and the predictive score on --test "
+                    "records.  Writes model_choice.json and model_choice.md into --out.",
+    )
+    p.add_argument("data", nargs="*", metavar="DATA",
+                   help="data files to fit (.mat/.txt ECP in counts, .csv in SI)")
+    p.add_argument("--runs", nargs=2, metavar=("DIR_A", "DIR_B"), default=None,
+                   help="two finished `bayesmodal sample` folders instead of DATA")
+    p.add_argument("--test", nargs="+", default=None, metavar="TEST",
+                   help="held-out data files for the predictive check (e.g. data_steps.mat)")
+    p.add_argument("--m-per-count", type=float, default=ECP_M_PER_COUNT,
+                   help="metres per encoder count for ECP files (default %(default).6g)")
+    add_sampler_args(p)
+    p.add_argument("--nlive", type=int, default=250, help="dynesty live points (default 250)")
+    p.add_argument("--dlogz", type=float, default=0.5, help="dynesty stopping dlogz (0.5)")
+    p.add_argument("--no-evidence", action="store_true",
+                   help="skip nested sampling (the slow part: minutes per model)")
+    p.add_argument("--out", default="runs/compare", metavar="DIR",
+                   help="output folder (default runs/compare)")
+    p.add_argument("--json", action="store_true", help="print the model_choice JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no text output")
+    p.set_defaults(func=run, fresh=False, no_plots=False)
+
+
+def run(args) -> int:
+    from ..inference import choose_model, load_idata
+    from ..inference.summary import _write_json
+
+    out = Path(args.out)
+    if args.runs:
+        if args.data:
+            raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both")
+        idatas = {}
+        for d in args.runs:
+            idt = load_idata(Path(d) / "posterior.nc")
+            label = idt.posterior.attrs["damping"]
+            idatas[label if label not in idatas else f"{label}:{d}"] = idt
+    else:
+        if not args.data:
+            raise ConfigError("no DATA files and no --runs given")
+        exps = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.data]
+        idatas = {}
+        for damping in ("free", "proportional"):
+            _, idatas[damping] = sample_to_dir(exps, args, damping, out / damping)
+    tests = None
+    if args.test:
+        tests = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.test]
+    choice = choose_model(idatas, test=tests, evidence=not args.no_evidence,
+                          nlive=args.nlive, dlogz=args.dlogz, rng=args.seed)
+    result = {"model_choice": choice.as_dict()}
+    out.mkdir(parents=True, exist_ok=True)
+    _write_json(result, out / "model_choice.json")
+    tmp = out / "model_choice.md.tmp"
+    tmp.write_text(choice.to_markdown() + "\n\n" + choice.verdict + "\n")
+    tmp.replace(out / "model_choice.md")
+    if args.json:
+        print_json(result)
+    elif not args.quiet:
+        print(choice.to_markdown())
+        print()
+        print(choice.verdict)
+    return 0

@@ -1,0 +1,95 @@
+"""``bayesmodal sample``: posterior of the rig parameters with emcee, written to a folder."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ._common import add_data_args, load_args, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "sample",
+        help="posterior sampling (emcee) with modal credible intervals",
+        description="Sample the posterior of g_v, masses, damping and noise parameters; write "
+                    "posterior.nc (ArviZ InferenceData), summary.json, plots and the emcee "
+                    "checkpoint chain.h5 into --out.  Re-running the same command resumes "
+                    "from the checkpoint.",
+    )
+    add_data_args(p, many=True)
+    add_sampler_args(p)
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="output folder (default runs/sample-<damping>-<noise>)")
+    p.add_argument("--fresh", action="store_true",
+                   help="discard an existing checkpoint in --out instead of resuming")
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.add_argument("--json", action="store_true", help="print summary.json to stdout")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no text output")
+    p.set_defaults(func=run)
+
+
+def add_sampler_args(p) -> None:
+    """Options shared by ``sample`` and ``compare``."""
+    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    p.add_argument("--noise", choices=["ar1", "white"], default="ar1",
+                   help="residual model (default ar1: AR(1) Gaussian per output)")
+    p.add_argument("--walkers", type=int, default=32, help="ensemble size (default 32)")
+    p.add_argument("--steps", type=int, default=5000, help="steps per walker (default 5000)")
+    p.add_argument("--burn", type=int, default=None,
+                   help="burn-in steps to discard (default steps/5)")
+    p.add_argument("--thin", type=int, default=None,
+                   help="keep every N-th step (default: about 1000 retained draws)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+
+
+def sample_to_dir(exps, args, damping: str, out: Path):
+    """Sample one model into ``out``; return (summary, idata) (shared with ``compare``)."""
+    from ..inference import sample_posterior, to_inference_data, write_run
+    from ..system import LinearModel, Rig
+
+    out.mkdir(parents=True, exist_ok=True)
+    ckpt = out / "chain.h5"
+    if getattr(args, "fresh", False) and ckpt.exists():
+        ckpt.unlink()
+    run = sample_posterior(
+        exps, LinearModel(Rig(), damping), noise=args.noise, n_walkers=args.walkers,
+        n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
+        progress=not args.quiet,
+    )
+    idata = to_inference_data(run, rng=args.seed)
+    summary = write_run(idata, out, plots=not getattr(args, "no_plots", False))
+    return summary, idata
+
+
+def _print_text(summary: dict, out: Path) -> None:
+    print(f"damping: {summary['damping']}, noise: {summary['noise']}  -> {out}")
+    print(f"{'parameter':>10s} {'median':>12s}   90 % interval")
+    for nm, d in summary["parameters"].items():
+        print(f"{nm:>10s} {d['median']:12.6g}   [{d['lo']:.6g}, {d['hi']:.6g}]")
+    for key in ("omega_rad_s", "zeta"):
+        d = summary[key]
+        cells = ", ".join(f"{m:.5g} [{lo:.5g}, {hi:.5g}]"
+                          for m, lo, hi in zip(d["median"], d["lo"], d["hi"], strict=True))
+        print(f"{key}: {cells}")
+    dg = summary["diagnostics"]
+    perf = summary["performance"]
+    print(f"diagnostics: max R-hat {dg['max_rhat']:.3f}, min ESS {dg['min_ess']:.0f}, "
+          f"N/tau {dg['n_over_tau']:.0f}, acceptance {dg['acceptance']:.2f}, "
+          f"converged {dg['converged']}")
+    print(f"performance: {perf['evaluations_per_s']:.0f} likelihood evaluations/s, "
+          f"{perf['ess_per_s']:.1f} effective samples/s, {perf['sampling_time_s']:.1f} s")
+    if summary["lsq_outside_interval"]:
+        print("LSQ outside the 90 % interval:", ", ".join(summary["lsq_outside_interval"]))
+
+
+def run(args) -> int:
+    exps = load_args(args)
+    out = Path(args.out or f"runs/sample-{args.damping}-{args.noise}")
+    summary, _ = sample_to_dir(exps, args, args.damping, out)
+    if args.json:
+        print_json(summary)
+    elif not args.quiet:
+        _print_text(summary, out)
+        sys.stdout.flush()
+    return 0
