@@ -1,0 +1,275 @@
+"""Model extensions: reduction to the linear model, closed forms, the independent reference
+simulators of tests/reference_sim.py, validation, and the least-squares fit."""
+
+import numpy as np
+import pytest
+from conftest import TABLE3
+from reference_sim import REFERENCES, simulate_linear_ref
+
+from bayesmodal import ModelError
+from bayesmodal.data import ECP_M_PER_COUNT, Experiment
+from bayesmodal.extensions import (
+    EXTENSIONS,
+    Backlash,
+    CoulombFriction,
+    CubicStiffness,
+    Extension,
+    fit_extension_lsq,
+    get_extension,
+)
+from bayesmodal.metrics import fit_percent
+from bayesmodal.simulate import simulate_linear
+from bayesmodal.system import LinearModel, Rig
+
+RIG = Rig()
+DT = 0.005
+COUNT = ECP_M_PER_COUNT
+
+#: Realistic sizes of each effect on the rig (used against the reference simulators).
+EFFECTS = {
+    "coulomb_friction": [0.1, 0.15, 0.08, 0.15, 0.2, 0.12],
+    "motor_lag": [0.01],
+    "input_delay": [0.0123],
+    "backlash": [3e-4, 0.2],
+    "cubic_stiffness": [1e5, -5e4, 1e5],
+    "input_saturation": [2.5],
+}
+
+
+def _input(N=700):
+    # a 3 V pulse, a held step and a negative pulse: sticking, reversals, held forces
+    u = np.zeros(N)
+    u[1:10] = 3.0
+    u[200:300] = 0.4
+    u[400:410] = -2.0
+    return u
+
+
+def test_registry_is_complete_and_consistent():
+    assert set(EXTENSIONS) == set(EFFECTS)
+    lin_names = LinearModel(RIG, "free").names
+    for name, ext in EXTENSIONS.items():
+        assert isinstance(ext, Extension) and ext.name == name
+        names = ext.names(RIG)
+        assert names[: len(lin_names)] == lin_names
+        assert len(set(names)) == len(names)
+        bounds = ext.default_bounds(RIG)
+        assert bounds.shape == (len(ext.specs(RIG)), 2)
+        assert np.all(bounds[:, 0] < bounds[:, 1])
+        assert len(EFFECTS[name]) == len(ext.specs(RIG))
+        for spec in ext.specs(RIG):
+            assert spec.unit and spec.meaning and spec.scale > 0
+    with pytest.raises(ModelError, match="unknown model extension"):
+        get_extension("friction")
+
+
+@pytest.mark.parametrize("name", sorted(EXTENSIONS))
+def test_null_parameters_reduce_to_simulate_linear(name):
+    ext = EXTENSIONS[name]
+    u = np.zeros(3000)
+    u[1:10] = 3.0
+    u[1500:2200] = 0.5
+    theta = ext.null_theta(RIG, TABLE3)
+    y = ext.simulate(RIG, theta, u, DT)
+    y_lin = simulate_linear(LinearModel(RIG, "free"), TABLE3, u, DT)
+    scale = np.max(np.abs(y_lin))
+    np.testing.assert_allclose(y, y_lin, rtol=0, atol=1e-11 * scale)
+
+
+@pytest.mark.parametrize("name", sorted(EXTENSIONS))
+def test_batch_equals_single_and_shapes(name):
+    ext = EXTENSIONS[name]
+    u = _input(400)
+    th = np.r_[TABLE3, EFFECTS[name]]
+    other = np.r_[TABLE3 * 1.05, EFFECTS[name]]
+    other[-1] = th[-1] * 0.7 if np.isfinite(th[-1]) else th[-1]
+    batch = ext.simulate(RIG, np.stack([th, other, th]), u, DT)
+    assert batch.shape == (3, 400, 3)
+    np.testing.assert_array_equal(batch[0], ext.simulate(RIG, th, u, DT))
+    np.testing.assert_array_equal(batch[0], batch[2])
+    np.testing.assert_array_equal(batch[1], ext.simulate(RIG, other, u, DT))
+
+
+def test_reference_simulator_matches_the_linear_closed_form():
+    # the reference integrator itself, checked against the exact ZOH linear simulator
+    u = _input()
+    y_ref = simulate_linear_ref(RIG.springs_n_m, TABLE3, u, DT)
+    y = simulate_linear(LinearModel(RIG, "free"), TABLE3, u, DT)
+    np.testing.assert_allclose(y_ref, y, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(EXTENSIONS))
+def test_agrees_with_independent_reference(name):
+    """Exact extensions to the ODE tolerance; the others to well below one encoder count.
+
+    The nonlinear schemes are second order in the sub-step (see test_convergence_order);
+    at the default sub-step the error is a fraction of the 4.4 um quantisation.
+    """
+    ext = EXTENSIONS[name]
+    u = _input()
+    theta = np.r_[TABLE3, EFFECTS[name]]
+    y_ref = REFERENCES[name](RIG.springs_n_m, theta, u, DT)
+    y = ext.simulate(RIG, theta, u, DT)
+    y_lin = simulate_linear(LinearModel(RIG, "free"), TABLE3, u, DT)
+    effect = np.max(np.abs(y_ref - y_lin))
+    err = np.max(np.abs(y - y_ref))
+    assert effect > 20 * COUNT  # the effect is visible at the encoder resolution
+    tol = 1e-9 if ext.exact else 0.75 * COUNT
+    assert err < tol, f"{name}: max error {err / COUNT:.3g} counts"
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda k: CoulombFriction(n_sub=k),
+        lambda k: CubicStiffness(n_sub=k),
+        lambda k: Backlash(n_sub=k),
+    ],
+    ids=["coulomb", "cubic", "backlash"],
+)
+def test_convergence_order(make):
+    # halving the sub-step twice shrinks the error by about 4 each time (second order)
+    name = make(1).name
+    u = _input()
+    theta = np.r_[TABLE3, EFFECTS[name]]
+    y_ref = REFERENCES[name](RIG.springs_n_m, theta, u, DT)
+    base = 4 if name == "backlash" else 1
+    errs = [np.max(np.abs(make(base * f).simulate(RIG, theta, u, DT) - y_ref)) for f in (1, 2, 4)]
+    assert errs[0] / errs[1] > 2.5 and errs[1] / errs[2] > 2.5, errs
+
+
+def test_coulomb_sdof_free_decay_closed_form():
+    """Undamped SDOF released from x0 with Coulomb friction: half-cycles of a cosine about
+    +-Fc/k losing 2 Fc/k of amplitude each, until it sticks where k |x| < Fs."""
+    k, m, fc, fs, x0 = 400.0, 1.2, 0.8, 1.1, 0.02
+    rig = Rig((k,))
+    ext = CoulombFriction()
+    theta = np.array([1.0, m, 0.0, fc, fs])
+    N = 1200
+    y = ext.simulate(rig, theta, np.zeros(N), DT, x0=np.array([x0, 0.0]))[:, 0]
+    w = np.sqrt(k / m)
+    t = np.arange(N) * DT
+    exact = np.full(N, np.nan)
+    p0, t0, d = x0, 0.0, fc / k
+    while True:
+        # from rest at p0 the cart swings half a cycle about the centre sign(p0) Fc/k
+        centre = np.sign(p0) * d
+        sel = (t >= t0) & (t < t0 + np.pi / w)
+        exact[sel] = centre + (p0 - centre) * np.cos(w * (t[sel] - t0))
+        p0, t0 = 2 * centre - p0, t0 + np.pi / w
+        if k * abs(p0) < fs:  # at rest where the spring cannot break it loose: stuck
+            exact[t >= t0] = p0
+            break
+    assert t0 < t[-1] - 0.5 and np.all(np.isfinite(exact))
+    # second-order scheme: the error is a small fraction of the friction offset Fc/k
+    err = np.max(np.abs(y - exact))
+    assert err < 0.02 * d, (err, d)
+    assert y[-1] == pytest.approx(exact[-1], abs=1e-3 * d)
+
+
+def test_cubic_conserves_energy_without_damping():
+    # SDOF Duffing oscillator: E = m v^2/2 + k x^2/2 + k3 x^4/4 is constant
+    k, m, k3 = 400.0, 1.2, 2e6
+    rig = Rig((k,))
+    theta = np.array([1.0, m, 0.0, k3])
+    N, dt = 10000, 0.001
+    x0 = np.array([0.02, 0.0])
+    y = CubicStiffness(n_sub=1).simulate(rig, theta, np.zeros(N), dt, x0=x0)[:, 0]
+    E0 = 0.5 * k * x0[0] ** 2 + 0.25 * k3 * x0[0] ** 4
+    # turning points (v = 0) have E = k x^2/2 + k3 x^4/4; locate them by parabolic
+    # interpolation of the sampled extrema
+    a = np.abs(y)
+    i = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:])) + 1
+    curv = a[i - 1] - 2 * a[i] + a[i + 1]
+    amp = a[i] - 0.125 * (a[i + 1] - a[i - 1]) ** 2 / curv
+    E_peaks = 0.5 * k * amp**2 + 0.25 * k3 * amp**4
+    assert len(E_peaks) > 50
+    # the cubic force doubles the stiffness at 2 cm; ETD2RK loses energy at O(h^2): a
+    # relative 5e-4 over 50 cycles here
+    np.testing.assert_allclose(E_peaks, E0, rtol=1e-3)
+    # and the hardening spring oscillates faster than the linear one
+    crossings = np.flatnonzero(np.diff(np.sign(y)) != 0)
+    period = 2 * np.mean(np.diff(crossings)) * dt
+    assert period < 2 * np.pi / np.sqrt(k / m)
+
+
+def test_integer_delay_is_a_shift_and_saturation_a_clip():
+    u = _input(600)
+    model = LinearModel(RIG, "free")
+    y_lin = simulate_linear(model, TABLE3, u, DT)
+    y = EXTENSIONS["input_delay"].simulate(RIG, np.r_[TABLE3, 3 * DT], u, DT)
+    np.testing.assert_allclose(y[3:], y_lin[:-3], atol=1e-12)
+    np.testing.assert_allclose(y[:3], 0.0, atol=1e-15)
+    y = EXTENSIONS["input_saturation"].simulate(RIG, np.r_[TABLE3, 1.0], u, DT)
+    np.testing.assert_allclose(y, simulate_linear(model, TABLE3, np.clip(u, -1, 1), DT),
+                               atol=1e-12)
+
+
+def test_motor_lag_preserves_static_gain():
+    # a lag changes the transient, not the steady state K^-1 b v
+    u = np.full(8000, 0.5)
+    y = EXTENSIONS["motor_lag"].simulate(RIG, np.r_[TABLE3, 0.02], u, DT)
+    y_lin = simulate_linear(LinearModel(RIG, "free"), TABLE3, u, DT)
+    np.testing.assert_allclose(y[-1], y_lin[-1], rtol=1e-9)
+    assert np.max(np.abs(y[:200] - y_lin[:200])) > 1e-5
+
+
+def test_validation_and_location():
+    ext = EXTENSIONS["coulomb_friction"]
+    bad = np.r_[TABLE3, 0.2, 0.1, 0.1, 0.1, 0.1, 0.1]  # Fs1 < Fc1
+    with pytest.raises(ModelError, match="Fs"):
+        ext.simulate(RIG, bad, np.ones(10), DT)
+    with pytest.raises(ModelError, match="length"):
+        ext.simulate(RIG, TABLE3, np.ones(10), DT)
+    with pytest.raises(ModelError, match="m_p"):
+        EXTENSIONS["backlash"].check(RIG, np.r_[TABLE3, 1e-4, 2.0])
+    with pytest.raises(ValueError, match="dt"):
+        ext.simulate(RIG, ext.null_theta(RIG, TABLE3), np.ones(10), 0.0)
+    loc = ext.location_of(RIG, np.r_[TABLE3, 0.1, 0.1, 0.1, 0.1, 0.3, 0.1])
+    assert (loc.kind, loc.index, loc.label) == ("cart", 1, "cart 2")
+    loc = EXTENSIONS["cubic_stiffness"].location_of(RIG, np.r_[TABLE3, 0.0, 0.0, 1e4])
+    assert (loc.kind, loc.index) == ("spring", 2) and "frame" in loc.label
+    assert EXTENSIONS["motor_lag"].location_of(RIG, np.r_[TABLE3, 0.01]).kind == "input"
+    assert EXTENSIONS["backlash"].location_of(RIG, np.r_[TABLE3, 1e-4, 0.2]).kind == "drive"
+
+
+def _synthetic(theta_true, name, seed, N=2400, sigma=2 * COUNT):
+    rng = np.random.default_rng(seed)
+    u = np.zeros(N)
+    for start in range(1, N, 800):
+        u[start : start + 9] = 3.0 if (start // 800) % 2 == 0 else -3.0
+    y = EXTENSIONS[name].simulate(RIG, theta_true, u, DT)
+    y = np.round((y + sigma * rng.standard_normal(y.shape)) / COUNT) * COUNT
+    return Experiment(np.arange(N) * DT, u, y, name=f"synthetic {name}")
+
+
+def test_fit_recovers_delay():
+    # exact extension, smooth cost: recover a 7 ms delay to within a few standard errors
+    truth = np.r_[TABLE3, 0.007]
+    e = _synthetic(truth, "input_delay", seed=3)
+    res = fit_extension_lsq(e, EXTENSIONS["input_delay"], RIG)
+    assert res.params["delay_s"] == pytest.approx(0.007, abs=3e-4)
+    assert np.all(res.fit_percent > res.linear.fit_percent)
+
+
+def test_fit_recovers_friction():
+    truth = np.r_[TABLE3, 0.25, 0.15, 0.2, 0.3, 0.2, 0.25]
+    truth[4:7] = [0.5, 0.3, 0.4]  # less viscous damping, friction does part of it
+    e = _synthetic(truth, "coulomb_friction", seed=5, N=3200)
+    res = fit_extension_lsq(e, EXTENSIONS["coulomb_friction"], RIG)
+    assert np.all(res.fit_percent > 97)
+    assert np.all(res.fit_percent > res.linear.fit_percent + 3)
+    fc = np.array([res.params[f"Fc{i}"] for i in (1, 2, 3)])
+    np.testing.assert_allclose(fc, truth[9:12], atol=0.05)
+
+
+def test_friction_on_measured_impulses(impulses, steps):
+    """The report's data: friction raises the fit and the held-out prediction of steps."""
+    ext = EXTENSIONS["coulomb_friction"]
+    res = fit_extension_lsq(impulses, ext, RIG)
+    assert np.all(res.linear.fit_percent > 80)
+    assert np.all(res.fit_percent > res.linear.fit_percent + 5)
+    held_lin = fit_percent(steps.y_m, simulate_linear(LinearModel(RIG, "free"),
+                                                      res.linear.theta, steps.v_volt, steps.dt))
+    held = fit_percent(steps.y_m, ext.simulate(RIG, res.theta, steps.v_volt, steps.dt))
+    assert np.mean(held) > np.mean(held_lin)
