@@ -32,7 +32,7 @@ the records' amplitudes.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -295,6 +295,7 @@ def lsce_frf(
     *,
     t_start: float = 0.0,
     duration: float | None = None,
+    min_input_power: float | None = 0.01,
     **kwargs,
 ) -> LSCEResult:
     """LSCE on the impulse responses obtained from an FRF by inverse FFT.
@@ -309,6 +310,10 @@ def lsce_frf(
         and the truncation of the FRF at the Nyquist frequency leave their mark).
     duration : float, optional
         Length of the IRF used, s (default: the rest of the period).
+    min_input_power : float or None
+        Where ``frf.input_power`` is below this the FRF is set to zero before the inverse
+        FFT: there the estimate is noise divided by a vanishing input spectrum, and it
+        would swamp the IRF.
     **kwargs
         Passed to ``lsce`` (``M``, ``P``, ``stride``, ...).
 
@@ -317,6 +322,9 @@ def lsce_frf(
     LSCEResult
         Residues in FRF units times rad/s, referred to ``t = 0``.
     """
+    if min_input_power is not None and frf.input_power is not None:
+        quiet = frf.input_power < min_input_power
+        frf = replace(frf, H=np.where(quiet[:, None], 0.0, frf.H))
     irf = impulse_response(frf)
     k0 = int(round(t_start / irf.dt))
     k1 = irf.h.shape[0]

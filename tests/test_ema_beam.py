@@ -1,0 +1,127 @@
+"""The lecture's cantilever beam: FE model against theory, EMA methods on its FRF."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayesmodal._errors import ModelError
+from bayesmodal.ema import (
+    CantileverBeam,
+    circle_fit_modes,
+    frequency_grid,
+    lsce_frf,
+    multimode_fit,
+    pick_peaks,
+)
+
+BAND = (20.0, 1200.0)  # modes 1, 2, 3 of the beam
+
+
+@pytest.fixture(scope="module")
+def beam():
+    return CantileverBeam()  # l = 1.8 m, 18 elements, E = 2.1e11 Pa, B = 0.1 M + 2e-5 K
+
+
+@pytest.fixture(scope="module")
+def tip_frf(beam):
+    # collocated velocity / force at the free end on an FFT grid: dt = 1 ms (Nyquist
+    # 3142 rad/s), 2^18 samples (frequency step 0.024 rad/s, 6 points per half-power
+    # bandwidth of the first mode)
+    return beam.frf(frequency_grid(2**18, 1e-3), response="velocity")
+
+
+@pytest.fixture(scope="module")
+def truth(beam):
+    omega, zeta, _ = beam.modes()
+    inband = (omega > BAND[0]) & (omega < BAND[1])
+    assert inband.sum() == 3
+    return omega[inband], zeta[inband]
+
+
+def test_matrices_shape_symmetry_and_static_tip_compliance(beam):
+    M, B, K = beam.matrices()
+    assert M.shape == B.shape == K.shape == (36, 36)
+    np.testing.assert_allclose(M, M.T)
+    np.testing.assert_allclose(K, K.T)
+    np.testing.assert_allclose(B, 0.1 * M + 2e-5 * K)
+    # Hermite elements are exact for nodal loads: tip compliance L^3 / (3 EI)
+    compliance = np.linalg.inv(K)[beam.tip_dof, beam.tip_dof]
+    np.testing.assert_allclose(compliance, 1.8**3 / (3 * 2.1e11 * 7e-8), rtol=1e-10)
+
+
+def test_first_five_frequencies_match_theory(beam):
+    fe = beam.natural_frequencies()[:5]
+    exact = beam.analytical_frequencies(5)
+    # (beta_n L)^2 sqrt(EI / (rho A L^4)) with beta_n L = 1.8751, 4.6941, ...
+    EI, rA = 2.1e11 * 7e-8, 7800 * 9e-4
+    np.testing.assert_allclose(exact[0], 1.8751**2 * np.sqrt(EI / (rA * 1.8**4)))
+    np.testing.assert_allclose(fe, exact, rtol=5e-3)
+    assert np.all(fe >= exact * (1 - 1e-4))  # a conforming FE model is stiffer
+
+
+def test_rayleigh_damping_ratios(beam):
+    omega, zeta, phi = beam.modes()
+    np.testing.assert_allclose(zeta, 0.1 / (2 * omega) + 2e-5 * omega / 2)
+    M, B, K = beam.matrices()
+    # mass-normalised modes diagonalise B
+    Bm = phi.T @ B @ phi
+    np.testing.assert_allclose(np.diag(Bm), 2 * zeta * omega, rtol=1e-8)
+    assert np.max(np.abs(Bm - np.diag(np.diag(Bm)))) < 1e-8 * np.max(np.abs(Bm))
+
+
+def test_collocated_frf_against_direct_solve(beam):
+    M, B, K = beam.matrices()
+    w = np.array([30.0, 311.0, 700.0])
+    frf = beam.frf(w, response="velocity")
+    e = np.zeros(36)
+    e[beam.tip_dof] = 1.0
+    direct = [1j * wi * e @ np.linalg.solve(K - wi**2 * M + 1j * wi * B, e) for wi in w]
+    np.testing.assert_allclose(frf.H[:, 0], direct, rtol=1e-8)
+    # a collocated mobility is positive real (passive structure)
+    assert np.all(frf.H.real > 0)
+    assert frf.units == "m/(N s)" and frf.derivative_order == 1
+
+
+def test_peaks_in_band(tip_frf, truth):
+    pk = pick_peaks(tip_frf, band=BAND)
+    np.testing.assert_allclose(pk.omega_rad_s, truth[0], rtol=1e-3)
+
+
+def test_lsce_on_irf(tip_frf, truth):
+    # IRF by inverse FFT; skip 0.1 s (modes far above the band have died out) and use
+    # 10 s; the order is over-specified and extra roots are flagged computational
+    res = lsce_frf(tip_frf, 6, t_start=0.1, duration=10.0)
+    est = res.estimate.physical()
+    sel = (est.omega_rad_s > BAND[0]) & (est.omega_rad_s < BAND[1])
+    np.testing.assert_allclose(est.omega_rad_s[sel], truth[0], rtol=0.01)
+    np.testing.assert_allclose(est.zeta[sel], truth[1], rtol=0.10)
+
+
+def test_circle_fit(tip_frf, truth):
+    res = circle_fit_modes(tip_frf, 3, search_band=BAND)
+    assert res.estimate.identified.all()
+    np.testing.assert_allclose(res.estimate.omega_rad_s, truth[0], rtol=0.01)
+    np.testing.assert_allclose(res.estimate.zeta, truth[1], rtol=0.10)
+
+
+def test_multimode_fit(tip_frf, truth):
+    # lecture band: 200..1000 rad/s with modes 2 and 3, residual mass for mode 1 and
+    # residual flexibility for modes 4, 5, ...
+    fit = multimode_fit(tip_frf, band=(200.0, 1000.0), n_modes=2)
+    np.testing.assert_allclose(fit.estimate.omega_rad_s, truth[0][1:], rtol=0.01)
+    np.testing.assert_allclose(fit.estimate.zeta, truth[1][1:], rtol=0.10)
+    assert fit.relative_error < 0.01
+    # the wide band with all three modes
+    fit = multimode_fit(tip_frf, band=BAND, n_modes=3)
+    np.testing.assert_allclose(fit.estimate.omega_rad_s, truth[0], rtol=0.01)
+    np.testing.assert_allclose(fit.estimate.zeta, truth[1], rtol=0.10)
+
+
+def test_validation():
+    with pytest.raises(ModelError, match="length_m"):
+        CantileverBeam(length_m=-1.0)
+    with pytest.raises(ModelError, match="response"):
+        CantileverBeam().frf(np.array([1.0, 2.0]), response="strain")
+    with pytest.raises(ModelError, match="between 1 and 5"):
+        CantileverBeam().analytical_frequencies(6)
