@@ -154,8 +154,11 @@ def convergence_diagnostics(
     tau = np.asarray(tau, dtype=float)
     tau_max = float(np.nanmax(tau)) if tau.size else np.inf
     n_over = n_steps / tau_max if tau_max > 0 else np.inf
-    # arviz wants (chain, draw)
-    ds = az.convert_to_dataset({nm: chain[:, :, i].T for i, nm in enumerate(names)})
+    import xarray as xr
+
+    # (chain, draw) as ArviZ wants; built directly, because convert_to_dataset warns for
+    # short runs with more walkers than steps
+    ds = xr.Dataset({nm: (("chain", "draw"), chain[:, :, i].T) for i, nm in enumerate(names)})
     rh = az.rhat(ds)
     es = az.ess(ds, method="bulk")
     rhat = np.array([float(rh[nm]) for nm in names])
