@@ -17,7 +17,8 @@ algorithm:
    ``psi = theta(nu)`` is the phase of the residue;
 3. with ``phi_a``, ``phi_b`` at ``w_a < nu < w_b``,
    ``mu = (w_a - w_b) / (tan(phi_a / 2) - tan(phi_b / 2))`` (< 0); the median over all
-   such pairs is used;
+   such pairs is used; by default ``psi, nu, mu`` are then refined together by least
+   squares on the angles of all points (robust to noise on a fine grid);
 4. ``|A| = r |2 mu|``, ``A = |A| e^{j psi}`` and ``R + j I = centre + A / (2 mu)`` (the
    point of the circle opposite the resonance).
 """
@@ -27,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from .._errors import DataError
 from .frf import FRF, peak_prominence
@@ -130,7 +132,12 @@ def fit_circle(z: np.ndarray) -> tuple[complex, float]:
 
 
 def circle_fit(
-    omega_rad_s, H, band: tuple[float, float] | None = None, *, refine: float | None = 3.0
+    omega_rad_s,
+    H,
+    band: tuple[float, float] | None = None,
+    *,
+    refine: float | None = 3.0,
+    angle_fit: bool = True,
 ) -> CircleFit:
     """Circle fit of one mode in one FRF.
 
@@ -148,6 +155,11 @@ def circle_fit(
         the first fit (``phi`` within ``+-2 arctan(refine)``), provided there are at least
         6: points far from the resonance crowd together and carry the other modes'
         influence rather than this mode's circle.
+    angle_fit : bool
+        Finish by a least-squares fit of ``theta(w) = psi + 2 arctan((w - nu) / mu)`` to
+        the angles of all points, started from the lecture's estimates (steps 2-3).  On a
+        fine frequency grid the angle differences of neighbouring points are dominated
+        by noise, and the largest one is a poor estimate of ``nu``.
 
     Returns
     -------
@@ -174,19 +186,19 @@ def circle_fit(
     if band is not None:
         sel = (w >= band[0]) & (w <= band[1])
         w, H = w[sel], H[sel]
-    fit = _circle_fit_once(w, H)
+    fit = _circle_fit_once(w, H, angle_fit)
     if refine is not None:
         mu, nu = fit.pole.real, fit.pole.imag
         sel = np.abs(w - nu) <= refine * abs(mu)
         if 6 <= np.count_nonzero(sel) < w.size:
             try:
-                fit = _circle_fit_once(w[sel], H[sel])
+                fit = _circle_fit_once(w[sel], H[sel], angle_fit)
             except DataError:
                 pass
     return fit
 
 
-def _circle_fit_once(w: np.ndarray, H: np.ndarray) -> CircleFit:
+def _circle_fit_once(w: np.ndarray, H: np.ndarray, angle_fit: bool = True) -> CircleFit:
     if w.size < 6:
         raise DataError(f"circle fit needs at least 6 FRF points in the band, got {w.size}")
     centre, r = fit_circle(H)
@@ -226,6 +238,20 @@ def _circle_fit_once(w: np.ndarray, H: np.ndarray) -> CircleFit:
     mu = float(np.median(mus))
     q75, q25 = np.percentile(mus, [75, 25])
     spread = float(abs(q75 - q25) / abs(mu)) if mu != 0 else np.inf
+    if angle_fit and mu < 0 and w.size >= 6:
+        # all points at once: least squares of theta(w) = psi + 2 arctan((w - nu) / mu),
+        # started from the estimates above (a differenced angle is noisy on a fine grid)
+        def resid(x):
+            return theta - (x[0] + 2 * np.arctan((w - x[1]) / x[2]))
+
+        x0 = np.array([psi, nu, mu])
+        try:
+            sol = least_squares(resid, x0, x_scale=np.array([1.0, abs(mu), abs(mu)]),
+                                bounds=([-np.inf, w[0], -np.inf], [np.inf, w[-1], 0.0]))
+            if sol.success and sol.x[2] < 0:
+                psi, nu, mu = (float(v) for v in sol.x)
+        except ValueError:
+            pass
     A = r * abs(2 * mu) * np.exp(1j * psi)
     residual = centre + A / (2 * mu)
     return CircleFit(complex(mu, nu), complex(A), complex(residual), complex(centre), r,
