@@ -50,7 +50,8 @@ def test_two_modes_with_noise_within_the_bandwidth_error():
     w = np.arange(5.0, 35.0, 0.02)
     rng = np.random.default_rng(11)
     H = two_mode(w, lam, A)
-    noise = 0.01 * np.abs(H).max() * (rng.standard_normal(w.size) + 1j * rng.standard_normal(w.size))
+    noise = rng.standard_normal(w.size) + 1j * rng.standard_normal(w.size)
+    noise *= 0.01 * np.abs(H).max()
     res = circle_fit_modes(FRF(w, (H + noise)[:, None]), 2)
     est = res.estimate
     assert est.identified.all()

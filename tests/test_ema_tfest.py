@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import TABLE3
 
 from bayesmodal._errors import DataError
 from bayesmodal.ema import FRF, tfest
 from bayesmodal.system import LinearModel, Rig
-from conftest import TABLE3
 
 
 def rig_frf(w, theta=TABLE3):
