@@ -80,12 +80,16 @@ def test_lecture_example_n4_resolves_all_and_flags_computational():
 
 def test_lecture_example_n4_holds_over_seeds():
     # not a lucky seed: the n = 4 fit meets the tolerances for every one of 20 seeds,
-    # and the n = 3 fit fails for every one
+    # and the n = 3 fit fails for every one; the extra pair is flagged computational in
+    # nearly all (97 of 100 seeds when this was written; one of these 20 keeps it)
+    n_flagged = 0
     for seed in range(20):
         _, h, _ = lecture_irfs(seed)
-        assert _matched(lsce(h, 1.0, 4, M=40, P=40).estimate.physical().poles,
-                        LECTURE_POLES).all()
+        est = lsce(h, 1.0, 4, M=40, P=40).estimate
+        assert _matched(est.physical().poles, LECTURE_POLES).all()
+        n_flagged += int(est.identified.sum() == 3)
         assert not _matched(lsce(h, 1.0, 3, M=40, P=40).estimate.poles, LECTURE_POLES).all()
+    assert n_flagged >= 18
 
 
 def test_error_curve_levels_off_at_n4():
