@@ -6,6 +6,7 @@ problem in a file is collected and reported at once, each naming the file and th
     [data]
     files = ["ecp210-3dof/data_impulses.mat"]   # relative to the config, or to a data root
     m_per_count = 0.0000044125                   # optional, m per encoder count
+    heldout = ["ecp210-3dof/data_steps.mat"]     # optional: records scored, not fitted
 
     [rig]
     springs_n_m = [774.0, 770.0, 396.0]
@@ -16,6 +17,7 @@ problem in a file is collected and reported at once, each naming the file and th
 
     [priors]                    # per-parameter overrides: [lo, hi] bounds of a uniform prior
     m1 = [0.5, 3.0]             # or { lo = 0.5, hi = 3.0, scale = "log" }
+    sigma_1 = { lo = 1e-7, hi = 1e-3, scale = "log" }   # noise: sigma_i (m), phi_i
 
     [likelihood]
     noise = "ar1"               # or "white"
@@ -33,6 +35,13 @@ problem in a file is collected and reported at once, each naming the file and th
     plots = true
     report = true
     predictive_draws = 200
+    ema = true                  # LSCE cross-check (bayesmodal.ema) in the report
+    checkpoint_every_s = 5.0    # seconds between atomic checkpoint writes
+
+    [evidence]                  # optional nested-sampling evidence (dynesty), slow
+    enabled = false
+    nlive = 250
+    dlogz = 0.5
 
 Data paths are looked up relative to the config file, then ``$BAYESMODAL_DATA``, then
 ``../shared/data`` beside the repository.
@@ -57,14 +66,16 @@ MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
 NOISE_MODELS = ("ar1", "white")
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
-    "data": {"files": list, "m_per_count": (int, float)},
+    "data": {"files": list, "m_per_count": (int, float), "heldout": list},
     "rig": {"springs_n_m": list},
     "model": {"damping": str, "extensions": list},
     "priors": {},  # free keys, checked against parameter names later
     "likelihood": {"noise": str},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
                 "moves": str},
-    "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int},
+    "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
+                "ema": bool, "checkpoint_every_s": (int, float)},
+    "evidence": {"enabled": bool, "nlive": int, "dlogz": (int, float)},
 }
 
 
@@ -100,6 +111,12 @@ class RunConfig:
     plots: bool = True
     report: bool = True
     predictive_draws: int = 200
+    heldout_files: tuple[str, ...] = ()
+    ema: bool = True
+    checkpoint_every_s: float = 5.0
+    evidence: bool = False
+    evidence_nlive: int = 250
+    evidence_dlogz: float = 0.5
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -109,10 +126,12 @@ class RunConfig:
     def hash(self) -> str:
         """SHA-256 of the canonical JSON of everything that affects the result."""
         d = self.to_dict()
-        for k in ("source", "name", "out_dir", "plots", "report"):
+        for k in ("source", "name", "out_dir", "plots", "report", "ema",
+                  "checkpoint_every_s"):
             d.pop(k)
         # where the data live does not change the result; their content is hashed separately
         d["data_files"] = [Path(f).name for f in self.data_files]
+        d["heldout_files"] = [Path(f).name for f in self.heldout_files]
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
 
 
@@ -202,6 +221,20 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         resolved.append(str(p) if p is not None else f)
     kw["data_files"] = tuple(resolved)
 
+    heldout = values.get(("data", "heldout"))
+    if heldout is not None:
+        if not all(isinstance(f, str) for f in heldout):
+            err("data.heldout", f"must be a list of paths, got {heldout!r}")
+        else:
+            found = []
+            for f in heldout:
+                p = _resolve_data(f, base)
+                if p is None and check_files:
+                    err("data.heldout", f"file not found: {f!r} (looked relative to {base} "
+                        "and in the data root $BAYESMODAL_DATA or ../shared/data)")
+                found.append(str(p) if p is not None else f)
+            kw["heldout_files"] = tuple(found)
+
     mpc = values.get(("data", "m_per_count"))
     if mpc is not None:
         if not (mpc > 0 and mpc < 1):
@@ -265,9 +298,26 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         if pp.is_absolute() or Path(out).is_absolute() or ".." in pp.parts or not out.strip():
             err("outputs.dir", f"must be a relative folder inside the output root, got {out!r}")
         kw["out_dir"] = out
-    for key in ("plots", "report"):
+    for key in ("plots", "report", "ema"):
         if ("outputs", key) in values:
             kw[key] = values[("outputs", key)]
+    ck = values.get(("outputs", "checkpoint_every_s"))
+    if ck is not None:
+        if not ck > 0:
+            err("outputs.checkpoint_every_s", f"must be > 0 seconds, got {ck!r}")
+        kw["checkpoint_every_s"] = float(ck)
+    if ("evidence", "enabled") in values:
+        kw["evidence"] = values[("evidence", "enabled")]
+    nlive = values.get(("evidence", "nlive"))
+    if nlive is not None:
+        if nlive < 10:
+            err("evidence.nlive", f"must be >= 10 live points, got {nlive}")
+        kw["evidence_nlive"] = nlive
+    dlogz = values.get(("evidence", "dlogz"))
+    if dlogz is not None:
+        if not dlogz > 0:
+            err("evidence.dlogz", f"must be > 0, got {dlogz!r}")
+        kw["evidence_dlogz"] = float(dlogz)
     pd = values.get(("outputs", "predictive_draws"))
     if pd is not None:
         if pd < 0:
@@ -300,7 +350,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
                 err(key, f"scale must be 'linear' or 'log', got {scale!r}")
             if scale == "log" and lo <= 0:
                 err(key, f"a log-uniform prior needs lo > 0, got {lo}")
-            priors[pname] = PriorOverride(float(lo), float(hi), str(scale))
+            priors[_noise_alias(pname)] = PriorOverride(float(lo), float(hi), str(scale))
         _check_prior_names(priors, kw, err)
     kw["priors"] = priors
 
@@ -318,8 +368,8 @@ def _check_prior_names(priors, kw, err) -> None:
     except ValueError:
         return
     n = model.n_carts
-    allowed = set(model.names) | {f"sigma{i + 1}" for i in range(n)} | {
-        f"phi{i + 1}" for i in range(n)}
+    allowed = set(model.names) | {f"sigma_{i + 1}" for i in range(n)} | {
+        f"phi_{i + 1}" for i in range(n)}
     try:
         from .extensions import EXTENSIONS  # noqa: PLC0415
 
@@ -335,6 +385,21 @@ def _check_prior_names(priors, kw, err) -> None:
             err(f"priors.{pname}", f"impossible prior: {pname} must be positive, lo = {pr.lo}")
         elif pname.startswith("c") and pr.lo < 0:
             err(f"priors.{pname}", f"impossible prior: damping cannot be negative, lo = {pr.lo}")
+        elif pname.startswith("sigma_") and pr.lo < 0:
+            err(f"priors.{pname}", f"impossible prior: a noise scale cannot be negative, "
+                f"lo = {pr.lo}")
+        elif pname.startswith("phi_") and not -1 <= pr.lo < pr.hi <= 1:
+            err(f"priors.{pname}", f"impossible prior: an AR(1) coefficient lies in [-1, 1], "
+                f"got [{pr.lo}, {pr.hi}]")
+
+
+def _noise_alias(name: str) -> str:
+    """``sigma1`` -> ``sigma_1`` and ``phi2`` -> ``phi_2`` (the inference names)."""
+    for stem in ("sigma", "phi"):
+        rest = name[len(stem):]
+        if name.startswith(stem) and rest.isdigit():
+            return f"{stem}_{rest}"
+    return name
 
 
 def load_config(path: str | os.PathLike, *, check_files: bool = True) -> RunConfig:

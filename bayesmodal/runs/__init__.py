@@ -1,0 +1,43 @@
+"""Posterior runs from configuration files: one folder per run, many runs in parallel.
+
+- :func:`run_config` -- check a TOML configuration (``bayesmodal.config``) against its data
+  and sample it into its own folder: emcee checkpoint (``chain.h5``, atomic, resumable to
+  the identical chain), ``posterior.nc``, ``summary.json`` with provenance, plots,
+  ``run.log``, ``status.json`` and a self-contained ``report.html``;
+- :func:`run_batch` -- many configurations on local processes or a Dask cluster;
+- :func:`compare_runs` -- model choice across finished run folders (LOO, WAIC, evidence,
+  held-out fit) with :func:`~.plots.plot_run_intervals`.
+
+Folder mechanics (lock, status, atomic writes) are in :mod:`.folder`, the checkpoint
+backend in :mod:`.checkpoint`, the report in :mod:`.report`.
+"""
+
+from .checkpoint import AtomicCheckpoint, checkpoint_iteration
+from .folder import RunExistsError, RunFolder, RunLockedError
+from .report import render_report, write_report
+from .runner import (
+    PreparedRun,
+    RunOutcome,
+    default_out_dir,
+    execute_run,
+    parse_moves,
+    prepare_run,
+    run_config,
+)
+
+__all__ = [
+    "AtomicCheckpoint",
+    "PreparedRun",
+    "RunExistsError",
+    "RunFolder",
+    "RunLockedError",
+    "RunOutcome",
+    "checkpoint_iteration",
+    "default_out_dir",
+    "execute_run",
+    "parse_moves",
+    "prepare_run",
+    "render_report",
+    "run_config",
+    "write_report",
+]

@@ -1,0 +1,553 @@
+"""One posterior run from a configuration, into its own folder.
+
+:func:`prepare_run` checks everything that can be checked before sampling (data readable
+and matching the rig, priors, ensemble size, moves) and raises a ``ConfigError`` naming
+the configuration key; :func:`execute_run` then samples with an atomic checkpoint
+(:class:`~.checkpoint.AtomicCheckpoint`), writes the InferenceData, summary and plots
+(``bayesmodal.inference.write_run``), the cross-checks, provenance and ``report.html``.
+
+A folder holding a finished run is not overwritten unless ``force``; an interrupted or
+failed run continues from its checkpoint with ``resume`` (same configuration hash only),
+and ends with the chain the uninterrupted run would have produced.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from ..config import RunConfig, load_config
+from ..data import Experiment, load_experiment
+from ..system import LinearModel, Rig
+from .checkpoint import AtomicCheckpoint, checkpoint_iteration
+from .folder import RunExistsError, RunFolder, _fsync_replace, now_iso
+
+__all__ = ["PreparedRun", "RunOutcome", "prepare_run", "execute_run", "run_config",
+           "default_out_dir", "parse_moves", "LOGGER_NAME"]
+
+#: Logger whose records go to ``run.log`` in the run folder.
+LOGGER_NAME = "bayesmodal"
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedRun:
+    """A configuration checked against its data, ready to sample.
+
+    Attributes
+    ----------
+    config : RunConfig
+    experiments : tuple of Experiment
+        The fitted records.
+    heldout : tuple of Experiment
+        Records scored, not fitted.
+    model : LinearModel
+    priors : bayesmodal.inference.PriorSet
+    moves : list of (emcee move, weight)
+    """
+
+    config: RunConfig
+    experiments: tuple[Experiment, ...]
+    heldout: tuple[Experiment, ...]
+    model: LinearModel
+    priors: object
+    moves: list
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What :func:`execute_run` did.
+
+    Attributes
+    ----------
+    name : str
+        Configuration name.
+    out_dir : Path
+    state : str
+        ``"finished"`` (also for a run that was already finished).
+    action : str
+        ``"fresh"``, ``"resume"`` or ``"none"`` (already finished, nothing done).
+    summary : dict
+        Content of ``summary.json``.
+    wall_time_s : float
+        Wall time of this call, s.
+    """
+
+    name: str
+    out_dir: Path
+    state: str
+    action: str
+    summary: dict
+    wall_time_s: float
+
+
+def parse_moves(text: str) -> list:
+    """emcee moves from a configuration string such as ``"de:0.8,de-snooker:0.2"``.
+
+    Examples
+    --------
+    >>> [type(m).__name__ for m, w in parse_moves("de:0.8,de-snooker:0.2")]
+    ['DEMove', 'DESnookerMove']
+    """
+    import emcee
+
+    kinds = {"stretch": emcee.moves.StretchMove, "de": emcee.moves.DEMove,
+             "de-snooker": emcee.moves.DESnookerMove, "walk": emcee.moves.WalkMove,
+             "kde": emcee.moves.KDEMove}
+    out = []
+    for part in text.split(","):
+        name, _, w = part.strip().partition(":")
+        if name not in kinds:
+            raise ConfigError(f"[sampler.moves] unknown move {name!r}; expected {sorted(kinds)}")
+        out.append((kinds[name](), float(w) if w else 1.0))
+    return out
+
+
+def _prior(ov):
+    from ..inference import LogUniform, Uniform
+
+    return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
+
+
+def _load(files, cfg: RunConfig, key: str) -> tuple[Experiment, ...]:
+    out = []
+    for f in files:
+        try:
+            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count))
+        except (DataError, OSError, ValueError) as exc:
+            raise ConfigError(f"{cfg.source}: [{key}] {exc}") from exc
+    return tuple(out)
+
+
+def prepare_run(config: RunConfig) -> PreparedRun:
+    """Check a configuration against its data before any sampling.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the key: unreadable data (``[data.files]``), outputs that do
+        not match the rig (``[rig.springs_n_m]``), priors the sampler cannot use
+        (``[priors.NAME]``), too few or an odd number of walkers (``[sampler.walkers]``).
+    """
+    from ..inference import default_priors
+
+    cfg = config
+    src = cfg.source
+    exps = _load(cfg.data_files, cfg, "data.files")
+    held = _load(cfg.heldout_files, cfg, "data.heldout")
+    try:
+        model = LinearModel(Rig(cfg.springs_n_m), cfg.damping)
+    except ValueError as exc:
+        raise ConfigError(f"{src}: [rig.springs_n_m] {exc}") from exc
+    for e in exps + held:
+        if e.n_outputs != model.n_carts:
+            raise ConfigError(
+                f"{src}: [rig.springs_n_m] {len(cfg.springs_n_m)} springs make "
+                f"{model.n_carts} carts, but {e.name} has {e.n_outputs} measured outputs")
+    base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts)
+    overrides = {}
+    for name, ov in cfg.priors.items():
+        if name not in base.names:
+            raise ConfigError(
+                f"{src}: [priors.{name}] the sampler samples {list(base.names)}; priors of "
+                "extension parameters are not used yet (extensions are fitted by least "
+                "squares only), remove this entry")
+        overrides[name] = _prior(ov)
+    try:
+        priors = base.replace(overrides)
+    except ConfigError as exc:
+        raise ConfigError(f"{src}: [priors] {exc}") from exc
+    n_par = priors.n_params
+    if cfg.walkers < 2 * n_par or cfg.walkers % 2:
+        raise ConfigError(
+            f"{src}: [sampler.walkers] must be even and at least 2 x {n_par} parameters = "
+            f"{2 * n_par} for {cfg.damping} damping with {cfg.noise} noise, got {cfg.walkers}")
+    try:
+        moves = parse_moves(cfg.moves)
+    except ConfigError as exc:
+        raise ConfigError(f"{src}: {exc}") from exc
+    return PreparedRun(cfg, exps, held, model, priors, moves)
+
+
+def default_out_dir(config: RunConfig, out_root: str | os.PathLike = "runs") -> Path:
+    """``out_root / (outputs.dir or the config name)``."""
+    return Path(out_root) / (config.out_dir or config.name)
+
+
+def _decide(folder: RunFolder, chash: str, resume: bool, force: bool) -> str:
+    """``"fresh"``, ``"resume"`` or ``"none"`` for a folder (raises when it may not be
+    touched)."""
+    st = folder.status()
+    if st is None:
+        if folder.checkpoint_path.exists() and not force:
+            raise RunExistsError(f"{folder.path} holds a checkpoint but no run status; "
+                                 "use --force to start over")
+        return "fresh"
+    if force:
+        return "fresh"
+    same = st.get("config_hash") == chash
+    if st["state"] == "finished":
+        if resume and same:
+            return "none"
+        raise RunExistsError(
+            f"{folder.path} holds a finished run"
+            + ("" if same else " of a different configuration")
+            + "; use --force to overwrite it or choose another --out")
+    done = checkpoint_iteration(folder.checkpoint_path)
+    if not resume:
+        raise RunExistsError(
+            f"{folder.path} holds a {st['state']} run ({done} of {st.get('steps', '?')} steps "
+            "in its checkpoint); use --resume to continue it or --force to start over")
+    if not same:
+        raise RunExistsError(
+            f"{folder.path} holds a run of a different configuration (hash "
+            f"{st.get('config_hash', '?')[:12]}, now {chash[:12]}); use --force to start over")
+    return "resume"
+
+
+@contextlib.contextmanager
+def _run_log(folder: RunFolder):
+    """Send ``bayesmodal`` log records (INFO and up) to ``run.log`` for the block."""
+    logger = logging.getLogger(LOGGER_NAME)
+    handler = logging.FileHandler(folder.path / "run.log", mode="a", encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    handler.setLevel(logging.INFO)
+    old = logger.level
+    logger.addHandler(handler)
+    if logger.getEffectiveLevel() > logging.INFO:
+        logger.setLevel(logging.INFO)
+    try:
+        yield logger
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old)
+        handler.close()
+
+
+def _save_fig(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    _fsync_replace(tmp, path)
+
+
+class _Stages:
+    """A progress bar over the named stages of a run (tqdm; silent when disabled)."""
+
+    def __init__(self, names, enabled: bool, title: str) -> None:
+        from tqdm.auto import tqdm
+
+        self.bar = tqdm(total=len(names), desc=title, unit="stage", disable=not enabled,
+                        leave=True)
+
+    @contextlib.contextmanager
+    def stage(self, name: str):
+        self.bar.set_postfix_str(name)
+        log.info("stage: %s", name)
+        t0 = time.perf_counter()
+        yield
+        log.info("stage done: %s (%.1f s)", name, time.perf_counter() - t0)
+        self.bar.update(1)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+_STAGES = ("sampling", "posterior", "outputs", "cross-checks", "report")
+
+
+def _posterior_median(summary: dict, names) -> np.ndarray:
+    return np.array([summary["parameters"][nm]["median"] for nm in names])
+
+
+def _verdict_detail(diag: dict) -> str:
+    if diag["converged"]:
+        return (f"max R-hat {diag['max_rhat']:.3f}, min bulk ESS {diag['min_ess']:.0f}, "
+                f"chain {diag['n_over_tau']:.0f} autocorrelation times long, acceptance "
+                f"{diag['acceptance']:.2f}")
+    return "; ".join(diag["problems"])
+
+
+def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolder,
+                  progress: bool) -> dict:
+    from tqdm.auto import tqdm
+
+    from .crosscheck import lsce_check, residual_check
+    from .plots import plot_residual_acf, plot_residuals
+
+    cfg = prep.config
+    model = prep.model
+    out: dict = {}
+    theta_med = _posterior_median(summary, model.names)
+    lsq = run.lsq
+    out["lsq"] = None if lsq is None else {
+        "theta": dict(zip(model.names, lsq.theta.tolist(), strict=True)),
+        "fit_percent": lsq.fit_percent.tolist(), "success": bool(lsq.success)}
+    work = [("residuals", e) for e in prep.experiments]
+    if cfg.ema:
+        work += [("lsce", e) for e in prep.experiments]
+    res_checks, lsce = [], []
+    for kind, e in tqdm(work, desc="cross-checks", unit="check", disable=not progress,
+                        leave=False):
+        if kind == "residuals":
+            res_checks.append(residual_check(e, model, theta_med))
+        else:
+            chk = lsce_check(e, model.n_carts)
+            if chk.error:
+                log.warning("LSCE on %s: %s", e.name, chk.error)
+            lsce.append(chk)
+    omega_med = np.asarray(summary["omega_rad_s"]["median"], float)
+    out["residuals"] = [c.as_dict() for c in res_checks]
+    out["lsce"] = []
+    for c in lsce:
+        om, ze = c.matched(omega_med)
+        d = c.as_dict()
+        d.update({"omega_matched": om.tolist(), "zeta_matched": ze.tolist()})
+        out["lsce"].append(d)
+    if cfg.plots:
+        _save_fig(plot_residuals(res_checks).flat[0].figure, folder.path / "residuals.png")
+        _save_fig(plot_residual_acf(res_checks).flat[0].figure,
+                  folder.path / "residual_acf.png")
+    return out
+
+
+def _heldout(prep: PreparedRun, idata) -> dict | None:
+    if not prep.heldout:
+        return None
+    from ..inference import likelihood_from_idata, posterior_matrix, predictive_check
+
+    lik = likelihood_from_idata(idata, prep.heldout)
+    draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
+    ps = predictive_check(lik, draws)
+    return {"experiments": list(ps.experiments), "lpd": ps.lpd,
+            "lpd_per_obs": ps.lpd_per_obs, "mean_log_lik": ps.mean_log_lik,
+            "fit_percent_median": np.asarray(ps.fit_percent_median).tolist(),
+            "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
+            "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist()}
+
+
+def _evidence(prep: PreparedRun, run) -> dict | None:
+    cfg = prep.config
+    if not cfg.evidence:
+        return None
+    from ..inference import nested_evidence
+
+    ev = nested_evidence(run.likelihood, prep.priors, nlive=cfg.evidence_nlive,
+                         dlogz=cfg.evidence_dlogz, rng=cfg.seed)
+    return {"log_z": ev.log_z, "log_z_err": ev.log_z_err,
+            "information_nats": ev.information_nats, "n_calls": ev.n_calls,
+            "elapsed_s": ev.elapsed_s, "nlive": cfg.evidence_nlive,
+            "dlogz": cfg.evidence_dlogz}
+
+
+def _extensions(prep: PreparedRun, run) -> dict:
+    out = {}
+    if not prep.config.extensions:
+        return out
+    from ..extensions import EXTENSIONS, fit_extension_lsq
+
+    lin = run.lsq if run.lsq is not None and run.lsq.model.damping == "free" else None
+    for name in prep.config.extensions:
+        fit = fit_extension_lsq(list(prep.experiments), EXTENSIONS[name],
+                                rig=prep.model.rig, linear=lin)
+        out[name] = {
+            "method": "least squares (the posterior above is of the linear model: the "
+                      "sampler does not sample extension parameters yet)",
+            "params": fit.params,
+            "fit_percent": fit.fit_percent.tolist(),
+            "linear_fit_percent": fit.linear.fit_percent.tolist(),
+            "improvement_percent": np.asarray(fit.improvement_percent).tolist(),
+            "success": bool(fit.success),
+            "message": str(fit.message),
+        }
+        log.info("extension %s: fit %s %% (linear %s %%)", name,
+                 np.round(fit.fit_percent, 2).tolist(), np.round(fit.linear.fit_percent,
+                                                                 2).tolist())
+    return out
+
+
+def _config_text(cfg: RunConfig) -> str:
+    p = Path(cfg.source)
+    if p.is_file():
+        return p.read_text(encoding="utf-8")
+    return json.dumps(cfg.to_dict(), indent=2)
+
+
+def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
+              t_start: float, started: str, caught: list) -> dict:
+    from .. import __version__
+    from ..inference import sample_posterior, to_inference_data, write_run
+    from .provenance import data_digests, dependency_versions
+    from .report import write_report
+
+    cfg = prep.config
+    stages = _Stages(_STAGES, progress, cfg.name)
+    try:
+        with stages.stage("sampling"):
+            backend = AtomicCheckpoint(folder.checkpoint_path, every_s=cfg.checkpoint_every_s)
+            steps_before = backend.iteration if backend.initialized else 0
+            log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
+                     cfg.walkers, cfg.steps, steps_before, cfg.seed)
+            run = sample_posterior(
+                list(prep.experiments), prep.model, noise=cfg.noise, priors=prep.priors,
+                n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
+                moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
+                warn=False)
+            log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
+                     run.elapsed_s)
+        with stages.stage("posterior"):
+            idata = to_inference_data(run, n_predictive=cfg.predictive_draws, rng=cfg.seed)
+        with stages.stage("outputs"):
+            summary = write_run(idata, folder.path, plots=cfg.plots)
+        with stages.stage("cross-checks"):
+            summary["crosscheck"] = _cross_checks(prep, run, idata, summary, folder, progress)
+            held = _heldout(prep, idata)
+            if held is not None:
+                summary["heldout"] = held
+            ev = _evidence(prep, run)
+            if ev is not None:
+                summary["evidence"] = ev
+            ext = _extensions(prep, run)
+            if ext:
+                summary["extensions"] = ext
+        diag = summary["diagnostics"]
+        detail = _verdict_detail(diag)
+        summary["convergence"] = {
+            "converged": bool(diag["converged"]),
+            "verdict": ("converged: " if diag["converged"] else "NOT converged: ") + detail,
+            "detail": detail, "problems": list(diag["problems"])}
+        summary["run"] = {
+            "name": cfg.name,
+            "config_source": cfg.source,
+            "config_hash": cfg.hash(),
+            "sampler_config_hash": summary["provenance"]["config_hash"],
+            "config": cfg.to_dict(),
+            "data": data_digests(cfg.data_files),
+            "heldout_data": data_digests(cfg.heldout_files),
+            "bayesmodal_version": __version__,
+            "dependencies": dependency_versions(),
+            "seed": cfg.seed,
+            "walkers": cfg.walkers, "steps": cfg.steps, "burn": cfg.burn, "thin": cfg.thin,
+            "moves": cfg.moves,
+            "action": action,
+            "steps_in_checkpoint_at_start": steps_before,
+            "started": started,
+            "finished": now_iso(),
+            "wall_time_s": time.perf_counter() - t_start,
+        }
+        summary["warnings"] = [f"{w.category.__name__}: {w.message}" for w in caught]
+        folder.write_json("summary.json", summary)
+        with stages.stage("report"):
+            if cfg.report:
+                write_report(folder.path, state="finished")
+    finally:
+        stages.close()
+    return summary
+
+
+def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bool = False,
+                force: bool = False, progress: bool = False) -> RunOutcome:
+    """Sample a prepared configuration into ``out_dir``.
+
+    Parameters
+    ----------
+    prepared : PreparedRun
+        From :func:`prepare_run`.
+    out_dir : str or path
+        The run folder (created).
+    resume : bool
+        Continue an interrupted or failed run of the same configuration from its
+        checkpoint (a finished one is left as it is).
+    force : bool
+        Start over, deleting the run files already in the folder.
+    progress : bool
+        Progress bars (tqdm) on stderr.
+
+    Returns
+    -------
+    RunOutcome
+
+    Raises
+    ------
+    RunLockedError
+        Another live process is writing the folder.
+    RunExistsError
+        The folder holds a run and neither ``resume`` nor ``force`` allows touching it.
+    """
+    cfg = prepared.config
+    t0 = time.perf_counter()
+    started = now_iso()
+    folder = RunFolder(out_dir)
+    chash = cfg.hash()
+    with folder.lock():
+        action = _decide(folder, chash, resume, force)
+        if action == "none":
+            summary = json.loads((folder.path / "summary.json").read_text(encoding="utf-8"))
+            return RunOutcome(cfg.name, folder.path, "finished", "none", summary,
+                              time.perf_counter() - t0)
+        if action == "fresh":
+            folder.clear()
+        folder.remove_temporaries()
+        with _run_log(folder) as logger, warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            logger.info("run %s (%s) in %s: %s, config hash %s", cfg.name, cfg.source,
+                        folder.path, action, chash[:16])
+            folder.write_text("config.toml", _config_text(cfg))
+            folder.write_json("config.json", cfg.to_dict())
+            folder.write_status("running", config=cfg.name, config_hash=chash,
+                                steps=cfg.steps, started=started, action=action)
+            try:
+                summary = _pipeline(prepared, folder, action, progress, t0, started, caught)
+            except BaseException as exc:
+                logger.exception("run failed")
+                folder.write_status("failed", error=f"{type(exc).__name__}: {exc}",
+                                    failed=now_iso())
+                raise
+            finally:
+                for w in caught:
+                    logger.warning("%s: %s", w.category.__name__, w.message)
+            wall = time.perf_counter() - t0
+            folder.write_status("finished", finished=now_iso(), wall_time_s=wall)
+            logger.info("run finished in %.1f s; converged: %s", wall,
+                        summary["convergence"]["converged"])
+    return RunOutcome(cfg.name, folder.path, "finished", action, summary, wall)
+
+
+def run_config(config: str | os.PathLike | RunConfig, out_dir: str | os.PathLike | None = None,
+               *, out_root: str | os.PathLike = "runs", resume: bool = False,
+               force: bool = False, progress: bool = False) -> RunOutcome:
+    """Load (if a path), check and run one configuration.
+
+    Parameters
+    ----------
+    config : path or RunConfig
+    out_dir : path, optional
+        Run folder (default :func:`default_out_dir` under ``out_root``).
+    out_root : path
+    resume, force, progress
+        See :func:`execute_run`.
+
+    Returns
+    -------
+    RunOutcome
+
+    Examples
+    --------
+    >>> # run_config("runs/impulses_free.toml", progress=True).summary["convergence"]
+    """
+    cfg = config if isinstance(config, RunConfig) else load_config(config)
+    prep = prepare_run(cfg)
+    out = Path(out_dir) if out_dir is not None else default_out_dir(cfg, out_root)
+    return execute_run(prep, out, resume=resume, force=force, progress=progress)
