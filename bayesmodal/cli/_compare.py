@@ -17,10 +17,15 @@ def register(sub) -> None:
         description="Run both damping models on DATA (or take two finished run folders with "
                     "--runs) and compare them by PSIS-LOO, WAIC, the Bayesian evidence "
                     "(dynesty) with its Bayes factor, and the predictive score on --test "
-                    "records.  Writes model_choice.json and model_choice.md into --out.",
+                    "records.  Writes model_choice.json and model_choice.md into --out.  "
+                    "Given RUN_DIR folders instead of DATA (`bayesmodal run` outputs on the "
+                    "same data), ranks them all by LOO and WAIC with their stored evidence "
+                    "and held-out fit, writing comparison.json, comparison.md and "
+                    "intervals.png (omega and zeta intervals overlaid) into --out.",
     )
-    p.add_argument("data", nargs="*", metavar="DATA",
-                   help="data files to fit (.mat/.txt ECP in counts, .csv in SI)")
+    p.add_argument("data", nargs="*", metavar="DATA|RUN_DIR",
+                   help="data files to fit (.mat/.txt ECP in counts, .csv in SI), or two or "
+                        "more finished run folders")
     p.add_argument("--runs", nargs=2, metavar=("DIR_A", "DIR_B"), default=None,
                    help="two finished `bayesmodal sample` folders instead of DATA")
     p.add_argument("--test", nargs="+", default=None, metavar="TEST",
@@ -44,6 +49,8 @@ def run(args) -> int:
     from ..inference.summary import _write_json
 
     out = Path(args.out)
+    if args.data and any(Path(d).is_dir() for d in args.data):
+        return _run_dirs(args, out)
     if args.runs:
         if args.data:
             raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both")
@@ -76,4 +83,30 @@ def run(args) -> int:
         print(choice.to_markdown())
         print()
         print(choice.verdict)
+    return 0
+
+
+def _run_dirs(args, out: Path) -> int:
+    """``compare RUN_DIR...``: model choice across finished run folders."""
+    from ..runs import compare_runs, write_comparison
+
+    dirs = [Path(d) for d in args.data]
+    files = [str(d) for d in dirs if not d.is_dir()]
+    if files:
+        raise ConfigError(f"give either data files or run folders, not both: {files} are not "
+                          "folders")
+    if args.runs:
+        raise ConfigError("give run folders either as arguments or with --runs, not both")
+    tests = None
+    if args.test:
+        tests = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.test]
+    comp = compare_runs(dirs, test=tests)
+    write_comparison(comp, out)
+    if args.json:
+        print_json(comp.as_dict())
+    elif not args.quiet:
+        print(comp.to_markdown())
+        print()
+        print(comp.verdict)
+        print(f"written to {out}/ (comparison.md, comparison.json, intervals.png)")
     return 0

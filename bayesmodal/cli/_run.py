@@ -30,17 +30,10 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def one_line(exc: ConfigError) -> str:
-    """All problems of a configuration error on one line."""
-    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
-    if len(lines) > 1 and lines[0].endswith("configuration:"):
-        lines = lines[1:]
-    return "; ".join(lines)
-
-
 def run(args) -> int:
     from ..config import load_config
     from ..runs import default_out_dir, execute_run, prepare_run
+    from ..runs.runner import one_line
 
     try:
         cfg = load_config(args.config)

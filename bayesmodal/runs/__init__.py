@@ -12,7 +12,9 @@ Folder mechanics (lock, status, atomic writes) are in :mod:`.folder`, the checkp
 backend in :mod:`.checkpoint`, the report in :mod:`.report`.
 """
 
+from .batch import BatchItem, BatchResult, run_batch, run_one
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration
+from .compare import RunComparison, RunRow, compare_runs, write_comparison
 from .folder import RunExistsError, RunFolder, RunLockedError
 from .report import render_report, write_report
 from .runner import (
@@ -27,6 +29,14 @@ from .runner import (
 
 __all__ = [
     "AtomicCheckpoint",
+    "BatchItem",
+    "BatchResult",
+    "RunComparison",
+    "RunRow",
+    "compare_runs",
+    "run_batch",
+    "run_one",
+    "write_comparison",
     "PreparedRun",
     "RunExistsError",
     "RunFolder",

@@ -32,6 +32,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "atomic_write_json",
+    "atomic_savefig",
     "STATES",
 ]
 
@@ -85,6 +86,18 @@ def atomic_write_json(path: str | os.PathLike, obj) -> Path:
     from ..inference.summary import _jsonable
 
     return atomic_write_text(path, json.dumps(_jsonable(obj), indent=2) + "\n")
+
+
+def atomic_savefig(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
+    """Save a matplotlib figure atomically (``name.tmp.png`` then rename) and close it."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    _fsync_replace(tmp, path)
+    return path
 
 
 def _pid_alive(pid: int) -> bool:

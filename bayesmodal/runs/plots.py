@@ -73,42 +73,43 @@ def plot_residual_acf(checks, *, axes=None):
 
 
 def plot_run_intervals(comparison, *, axes=None):
-    """Posterior medians and 90 % intervals of omega and zeta of several runs, overlaid.
+    """Posterior medians and 90 % intervals of omega and zeta, one panel per mode, runs as
+    rows, so that the intervals of the runs can be compared at the scale of each mode.
 
     Parameters
     ----------
     comparison : RunComparison
         From :func:`bayesmodal.runs.compare_runs`.
-    axes : array of Axes, shape (2,), optional
-        Natural frequency panel and damping-ratio panel.
+    axes : array of Axes, shape (2, n_modes), optional
+        Natural frequencies in the first row, damping ratios in the second.
 
     Returns
     -------
-    ndarray of Axes, shape (2,)
+    ndarray of Axes, shape (2, n_modes)
     """
     import matplotlib.pyplot as plt
 
-    if axes is None:
-        fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-        fig.set_layout_engine("constrained")
-    axes = np.asarray(axes).ravel()
     rows = comparison.rows
-    n_runs = len(rows)
-    for k, (key, label) in enumerate((("omega_rad_s", "natural frequency omega (rad/s)"),
-                                      ("zeta", "damping ratio zeta (-)"))):
-        a = axes[k]
-        for r, row in enumerate(rows):
-            iv = row.summary[key]
-            med, lo, hi = (np.asarray(iv[x], float) for x in ("median", "lo", "hi"))
-            modes = np.arange(1, med.size + 1)
-            y = modes + (r - (n_runs - 1) / 2) * 0.6 / max(n_runs, 1)
-            a.errorbar(med, y, xerr=[med - lo, hi - med], fmt="o", ms=4, capsize=3,
-                       color=f"C{r}", label=row.label if k == 0 else None)
-        a.set_xlabel(label)
-        a.set_ylabel("mode")
-        a.set_yticks(np.arange(1, rows[0].n_modes + 1))
-        if key == "zeta":
-            a.set_xscale("log")
-    axes[0].legend(fontsize=8, loc="best")
-    axes[0].figure.suptitle("posterior medians with 90 % intervals")
+    n_modes = rows[0].n_modes
+    if axes is None:
+        fig, axes = plt.subplots(2, n_modes, figsize=(3.4 * n_modes, 1.2 + 0.45 * len(rows) * 2),
+                                 squeeze=False, sharey=True)
+        fig.set_layout_engine("constrained")
+    axes = np.asarray(axes).reshape(2, n_modes)
+    y = np.arange(len(rows))[::-1]
+    for k, (key, label) in enumerate((("omega_rad_s", "omega_{} (rad/s)"),
+                                      ("zeta", "zeta_{} (-)"))):
+        for i in range(n_modes):
+            a = axes[k, i]
+            for r, row in enumerate(rows):
+                iv = row.summary[key]
+                med, lo, hi = (float(iv[x][i]) for x in ("median", "lo", "hi"))
+                a.errorbar([med], [y[r]], xerr=[[med - lo], [hi - med]], fmt="o", ms=4,
+                           capsize=3, color=f"C{r}")
+            a.set_xlabel(label.format(i + 1))
+            a.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4), useOffset=False)
+            a.grid(axis="x", alpha=0.3)
+        axes[k, 0].set_yticks(y, [row.label for row in rows])
+        axes[k, 0].set_ylabel("run")
+    axes[0, 0].figure.suptitle("posterior medians with 90 % intervals")
     return axes

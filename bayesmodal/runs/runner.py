@@ -29,10 +29,10 @@ from ..config import RunConfig, load_config
 from ..data import Experiment, load_experiment
 from ..system import LinearModel, Rig
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration
-from .folder import RunExistsError, RunFolder, _fsync_replace, now_iso
+from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 
 __all__ = ["PreparedRun", "RunOutcome", "prepare_run", "execute_run", "run_config",
-           "default_out_dir", "parse_moves", "LOGGER_NAME"]
+           "default_out_dir", "parse_moves", "one_line", "LOGGER_NAME"]
 
 #: Logger whose records go to ``run.log`` in the run folder.
 LOGGER_NAME = "bayesmodal"
@@ -89,6 +89,14 @@ class RunOutcome:
     action: str
     summary: dict
     wall_time_s: float
+
+
+def one_line(exc: BaseException) -> str:
+    """Every problem of a (configuration) error on one line, joined by ``"; "``."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    if len(lines) > 1 and lines[0].endswith("in the configuration:"):
+        lines = lines[1:]
+    return "; ".join(lines) or type(exc).__name__
 
 
 def parse_moves(text: str) -> list:
@@ -234,15 +242,6 @@ def _run_log(folder: RunFolder):
         handler.close()
 
 
-def _save_fig(fig, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    _fsync_replace(tmp, path)
-
-
 class _Stages:
     """A progress bar over the named stages of a run (tqdm; silent when disabled)."""
 
@@ -317,8 +316,8 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         d.update({"omega_matched": om.tolist(), "zeta_matched": ze.tolist()})
         out["lsce"].append(d)
     if cfg.plots:
-        _save_fig(plot_residuals(res_checks).flat[0].figure, folder.path / "residuals.png")
-        _save_fig(plot_residual_acf(res_checks).flat[0].figure,
+        atomic_savefig(plot_residuals(res_checks).flat[0].figure, folder.path / "residuals.png")
+        atomic_savefig(plot_residual_acf(res_checks).flat[0].figure,
                   folder.path / "residual_acf.png")
     return out
 
