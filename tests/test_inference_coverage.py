@@ -10,6 +10,7 @@ truth estimates the coverage, with binomial standard error sqrt(0.9 * 0.1 / R) p
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ def _benchmark():
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "coverage.py"
     spec = importlib.util.spec_from_file_location("bayesmodal_coverage_benchmark", path)
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up while being created
     spec.loader.exec_module(mod)
     return mod
 
