@@ -310,6 +310,8 @@ def backlash_kernel(n: int):
           f"{w}side = 1.0",
           f"{w}xm = x0",
           f"{w}vm = x{n}",
+          f"{w}fcon_prev = 0.0",
+          f"{w}u_prev = u[0]",
           f"{w}for k in range(N):"]
     w = "            "
     L += [f"{w}Y[b, k, {i}] = x{i}" for i in range(n)]
@@ -317,15 +319,30 @@ def backlash_kernel(n: int):
           f"{w}for sub in range(n_sub):"]
     w = "                "
     f1 = " + ".join(f"ge{j} * x{j}" for j in R)
-    L += [f"{w}if engaged:",
+    L += [f"{w}same = uk == u_prev",
+          f"{w}u_prev = uk",
+          f"{w}if engaged:",
           f"{w}    F1 = {f1}",
-          f"{w}    if side * (mc * fm - mp * F1) < 0.0:",
+          f"{w}    fcon = (mc * fm - mp * F1) / mt",
+          f"{w}    if side * fcon < 0.0:",
           f"{w}        if half == 0.0:",
           f"{w}            side = -side",
           f"{w}        else:",
           f"{w}            engaged = False",
           f"{w}            xm = x0 + side * half",
           f"{w}            vm = x{n}",
+          # the contact force crossed zero inside the last sub-step (same input): since
+          # then cart 1 and the motor have moved apart, second-order correction
+          f"{w}            if same and side * fcon_prev > 0.0:",
+          f"{w}                tau = h * fcon / (fcon - fcon_prev)",
+          f"{w}                a1e = (F1 + fm) / mt",
+          f"{w}                dv1 = (F1 / mc - a1e) * tau",
+          f"{w}                dvm = (am - a1e) * tau",
+          f"{w}                x0 += 0.5 * dv1 * tau",
+          f"{w}                x{n} += dv1",
+          f"{w}                xm += 0.5 * dvm * tau",
+          f"{w}                vm += dvm",
+          f"{w}    fcon_prev = fcon",
           f"{w}if engaged:"]
     for r in R:
         terms = " + ".join(f"a{r}_{j} * x{j}" for j in R)
@@ -358,12 +375,14 @@ def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0, Y):
     Engaged (``|delta| = gap / 2`` on side ``side``): motor and cart 1 move together; the
     exact linear step ``(Ae, Be)`` applies.  The contact force on cart 1 is
     ``Fcon = ((m1 - m_p) g_v u - m_p F1) / m1`` with ``F1 = Ge z`` the other forces on
-    cart 1; the contact opens when ``side * Fcon < 0``.  Disengaged: the carts follow the
-    exact unforced step ``Adis`` (cart 1 without the motor mass) and the motor is a free
-    mass ``m_p`` under ``g_v u``; when ``|delta|`` reaches ``gap / 2`` the contact closes
-    with a plastic impact that conserves momentum, and cart 1's position is corrected for
-    the part of the sub-step after the impact (second order).  With ``gap = 0`` the contact
-    never opens (it only changes side) and the scheme is the linear simulator.
+    cart 1; the contact opens when ``side * Fcon < 0`` (with the motion since the zero
+    crossing of ``Fcon`` inside the last sub-step added to cart 1 and the motor).
+    Disengaged: the carts follow the exact unforced step ``Adis`` (cart 1 without the motor
+    mass) and the motor is a free mass ``m_p`` under ``g_v u``; when ``|delta|`` reaches
+    ``gap / 2`` the contact closes with a plastic impact that conserves momentum, and cart
+    1's position is corrected for the part of the sub-step after the impact.  With
+    ``gap = 0`` the contact never opens (it only changes side) and the scheme is the linear
+    simulator.
     """
     n = Ae.shape[1] // 2
     backlash_kernel(n)(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, int(n_sub), float(h), x0, Y)
