@@ -84,12 +84,16 @@ def lsce_check(experiment: Experiment, n_modes: int) -> LSCECheck:
     from ..ema import identify
 
     try:
-        est = identify(experiment, "lsce", n_modes=n_modes).estimate.physical()
+        full = identify(experiment, "lsce", n_modes=n_modes).estimate
     except _EXPECTED as exc:
         return LSCECheck(experiment.name, np.empty(0), np.empty(0),
                          f"{type(exc).__name__}: {exc}")
+    est = full.physical()
+    error = None
+    if est.n_modes == 0:
+        error = "no mode identified" + (f" ({'; '.join(full.notes)})" if full.notes else "")
     return LSCECheck(experiment.name, np.asarray(est.omega_rad_s, float),
-                     np.asarray(est.zeta, float))
+                     np.asarray(est.zeta, float), error)
 
 
 def sample_acf(x: np.ndarray, max_lag: int) -> np.ndarray:

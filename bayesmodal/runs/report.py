@@ -97,6 +97,10 @@ def _img(folder: Path, name: str) -> str:
             f"<figcaption>{_e(caption)}</figcaption></figure>")
 
 
+def _clip(text: str, n: int = 400) -> str:
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
 def _yes(flag: bool) -> str:
     return '<span class="ok">yes</span>' if flag else '<span class="bad">no</span>'
 
@@ -208,7 +212,7 @@ def _section_modal(s: dict, folder: Path) -> str:
                     cls = "ok" if inside else "bad"
                     cells.append(f"<span class='{cls}'>{_num(v)}</span>")
             rows.append(cells)
-    notes = "".join(f"<li>LSCE on {_e(c['experiment'])}: {_e(c['error'])}</li>"
+    notes = "".join(f"<li>LSCE on {_e(c['experiment'])}: {_e(_clip(c['error']))}</li>"
                     for c in lsce if c.get("error"))
     text = ("<p class='muted'>LSCE (least-squares complex exponential, "
             "<code>bayesmodal.ema</code>) uses only the measured input and outputs, not the "
