@@ -78,9 +78,9 @@ def input_residual_correlation(
     alpha : float
         Family-wise significance level (Bonferroni over outputs).
     min_delay_s : float, optional
-        Median prediction lag above which a detection points to a delay or lag (default a
-        quarter sample).  Other input-locked misfits (friction while the motor pushes, an
-        unmodelled mode) correlate with the input too, without a lag.
+        Prediction lag that every output must exceed for a detection to point to a delay
+        or lag (default a quarter sample).  Other input-locked misfits (friction while the
+        motor pushes, an unmodelled mode) correlate with the input too, without a lag.
 
     Returns
     -------
@@ -89,7 +89,7 @@ def input_residual_correlation(
         Detail: ``lags_s`` (2L+1,), ``xcorr`` (n_out, 2L+1), ``band`` (the pointwise
         +-3/sqrt(N) band), ``peak_lag_s`` (n_out,), ``chi2``, ``p_values``,
         ``prediction_lag_s`` (n_out,).  Suggests ``input_delay`` and ``motor_lag`` when
-        detected with the measurement lagging the prediction by more than ``min_delay_s``.
+        detected with every output lagging the prediction by more than ``min_delay_s``.
     """
     dt = res.dt
     L = max(1, int(round(max_lag_s / dt)))
@@ -118,7 +118,7 @@ def input_residual_correlation(
     j = int(np.argmax(chi))
     detected = p_fw < alpha
     min_delay = 0.25 * dt if min_delay_s is None else min_delay_s
-    lagging = bool(np.median(plag) > min_delay)
+    lagging = bool(np.min(plag) > min_delay)  # a delay or lag delays every output
     summary = (
         f"input-residual correlation {'significant' if detected else 'not significant'}: "
         f"worst output {j + 1}, peak at lag {peak[j] * 1e3:.0f} ms, p = {p_fw:.2g}; "
