@@ -523,8 +523,8 @@ def model_choice(
         words.append(
             f"On the held-out {', '.join(pa.experiments)} record the {pref['predictive']} "
             f"model predicts better (log predictive density higher by "
-            f"{abs(pa.lpd - pb.lpd):.1f} nats; median fit "
-            f"{np.mean(pa.fit_percent_median):.1f} % vs {np.mean(pb.fit_percent_median):.1f} %)."
+            f"{abs(pa.lpd - pb.lpd):.1f} nats; mean fit over outputs {a} "
+            f"{np.mean(pa.fit_percent_median):.1f} %, {b} {np.mean(pb.fit_percent_median):.1f} %)."
         )
     winners = set(pref.values())
     if len(winners) == 1:
