@@ -261,7 +261,7 @@ def _dask(tasks, address: str, resume: bool, force: bool, bar) -> dict:
             f = client.submit(run_one, path, od, resume, force, pure=False,
                               key=f"bayesmodal-run-{i}-{Path(path).stem}-{os.getpid()}")
             futs[f] = (i, path, od)
-        for fut in dask_completed(list(futs)):
+        for fut in dask_completed(list(futs), loop=client.loop):
             i, path, od = futs[fut]
             try:
                 out[i] = fut.result()
