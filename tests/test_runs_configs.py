@@ -1,0 +1,151 @@
+"""The shipped run configurations, the extension cross-check and the evidence option."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesmodal.config import load_config
+from bayesmodal.data import Experiment, find_data, save_csv
+from bayesmodal.inference import noise_names, simulate_noise
+from bayesmodal.runs import prepare_run, render_report, run_config
+from bayesmodal.simulate import simulate_linear
+from bayesmodal.system import LinearModel, Rig
+
+RUNS = Path(__file__).resolve().parents[1] / "runs"
+SHIPPED = {
+    # name: (damping, extensions, fitted record stems)
+    "impulses_free": ("free", (), ["data_impulses"]),
+    "impulses_proportional": ("proportional", (), ["data_impulses"]),
+    "steps": ("free", (), ["data_steps"]),
+    "sweeps": ("free", (), ["data_sine_sweep_fast", "data_sine_sweep_slow"]),
+    "impulses_friction": ("free", ("coulomb_friction",), ["data_impulses"]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_shipped_config_is_valid(name):
+    cfg = load_config(RUNS / f"{name}.toml", check_files=False)
+    damping, ext, stems = SHIPPED[name]
+    assert cfg.damping == damping and cfg.extensions == ext
+    assert [Path(f).stem for f in cfg.data_files] == stems
+    model = LinearModel(Rig(cfg.springs_n_m), cfg.damping)
+    n_par = model.n_params + len(noise_names(model.n_carts, cfg.noise))
+    assert cfg.walkers >= 2 * n_par and cfg.walkers % 2 == 0
+    # about a thousand retained draws: posterior.nc stays near 100 MB on 7400 samples
+    draws = cfg.walkers * ((cfg.steps - cfg.burn + cfg.thin - 1) // cfg.thin)
+    assert 500 <= draws <= 2000
+    assert cfg.report and cfg.plots
+
+
+def test_every_shipped_config_is_documented():
+    readme = (RUNS / "README.md").read_text()
+    names = sorted(p.stem for p in RUNS.glob("*.toml"))
+    assert names == sorted(SHIPPED)
+    for n in names:
+        assert f"{n}.toml" in readme
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_shipped_config_matches_the_measured_data(name):
+    cfg = load_config(RUNS / f"{name}.toml", check_files=False)
+    missing = [f for f in cfg.data_files + cfg.heldout_files if not Path(f).is_file()]
+    if missing:
+        pytest.skip(f"measured data not found: {missing}")
+    prep = prepare_run(cfg)
+    assert all(e.n_outputs == 3 for e in prep.experiments + prep.heldout)
+
+
+def _record(path: Path, n: int = 800) -> Path:
+    dt = 0.005
+    t = np.arange(n) * dt
+    v = np.where((t >= 0.1) & (t < 0.15), 3.0, 0.0)
+    theta = [6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.0, 0.0]
+    y = simulate_linear(LinearModel(Rig(), "free"), theta, v, dt)
+    y = y + simulate_noise(np.full((1, 3), 2e-5), np.full((1, 3), 0.8), n, rng=4)[0]
+    save_csv(Experiment(t, v, y, name=path.stem), path)
+    return path
+
+
+def test_extension_config_adds_a_least_squares_fit(tmp_path):
+    _record(tmp_path / "rec.csv", n=400)
+    cfg = tmp_path / "fric.toml"
+    cfg.write_text("""
+[data]
+files = ["rec.csv"]
+[model]
+damping = "free"
+extensions = ["coulomb_friction"]
+[likelihood]
+noise = "white"
+[sampler]
+walkers = 24
+steps = 60
+burn = 20
+thin = 2
+seed = 3
+[outputs]
+plots = false
+ema = false
+""")
+    res = run_config(cfg, tmp_path / "out")
+    ext = res.summary["extensions"]["coulomb_friction"]
+    assert "least squares" in ext["method"]
+    # the data have no friction: the fitted Coulomb forces are negligible next to the
+    # 3 V x 6.2 N/V = 19 N drive, and the fit is no worse than the linear one it extends
+    fc = np.array([ext["params"][f"Fc{i}"] for i in (1, 2, 3)])
+    assert np.all(np.abs(fc) < 0.05)
+    assert np.all(np.asarray(ext["fit_percent"]) >= np.asarray(ext["linear_fit_percent"]) - 0.01)
+    html = render_report(tmp_path / "out")
+    assert "Model extensions" in html and "coulomb_friction" in html
+
+
+@pytest.mark.slow
+def test_evidence_option_is_stored_and_reported(tmp_path):
+    pytest.importorskip("dynesty", reason="dynesty (the 'evidence' extra) not installed")
+    _record(tmp_path / "rec.csv", n=400)
+    cfg = tmp_path / "ev.toml"
+    cfg.write_text("""
+[data]
+files = ["rec.csv"]
+[model]
+damping = "proportional"
+[likelihood]
+noise = "white"
+[sampler]
+walkers = 18
+steps = 60
+burn = 20
+seed = 3
+[outputs]
+plots = false
+ema = false
+[evidence]
+enabled = true
+nlive = 30
+dlogz = 5.0
+""")
+    res = run_config(cfg, tmp_path / "out")
+    ev = res.summary["evidence"]
+    assert ev["nlive"] == 30 and np.isfinite(ev["log_z"]) and ev["log_z_err"] > 0
+    # nested sampling's identity ln Z = E_post[ln L] - H (H: information, KL of posterior
+    # from prior); E_post[ln L] from the MCMC draws of the same run
+    from bayesmodal.inference import load_idata
+
+    ll = load_idata(tmp_path / "out" / "posterior.nc").sample_stats["total_log_likelihood"]
+    expected = float(ll.mean()) - ev["information_nats"]
+    assert abs(ev["log_z"] - expected) < 4 * ev["log_z_err"] + 5, (ev, expected)
+    assert "ln Z" in render_report(tmp_path / "out")
+
+
+@pytest.mark.slow
+def test_shipped_proportional_config_finishes_and_converges(tmp_path):
+    if find_data("ecp210-3dof/data_impulses.mat") is None:
+        pytest.skip("measured data not found")
+    res = run_config(RUNS / "impulses_proportional.toml", tmp_path / "run")
+    s = res.summary
+    assert s["convergence"]["converged"], s["convergence"]["verdict"]
+    assert res.wall_time_s < 600  # "a few minutes" on a 2-core machine
+    assert (tmp_path / "run" / "report.html").stat().st_size > 100_000
