@@ -85,6 +85,7 @@ def _check_items(res):
     assert [it.name for it in res.items] == ["free", "prop", "odd_walkers", "unparsable"]
 
 
+@pytest.mark.slow
 def test_batch_local_and_dask_give_the_same_results(configs, tmp_path, capsys):
     distributed = pytest.importorskip(
         "distributed", reason="dask[distributed] not installed (pip install '.[dask]')")

@@ -166,6 +166,7 @@ class RunFolder:
               "host": socket.gethostname()}
         if state != "failed":
             st.pop("error", None)
+            st.pop("failed", None)
         atomic_write_json(self.path / "status.json", st)
         return st
 
