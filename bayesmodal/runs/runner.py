@@ -17,6 +17,7 @@ import contextlib
 import json
 import logging
 import os
+import threading
 import time
 import warnings
 from dataclasses import dataclass
@@ -225,11 +226,14 @@ def _decide(folder: RunFolder, chash: str, resume: bool, force: bool) -> str:
 
 @contextlib.contextmanager
 def _run_log(folder: RunFolder):
-    """Send ``bayesmodal`` log records (INFO and up) to ``run.log`` for the block."""
+    """Send ``bayesmodal`` log records (INFO and up) of this thread to ``run.log`` for the
+    block (a Dask worker with several threads may run two runs in one process)."""
     logger = logging.getLogger(LOGGER_NAME)
     handler = logging.FileHandler(folder.path / "run.log", mode="a", encoding="utf-8")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     handler.setLevel(logging.INFO)
+    me = threading.get_ident()
+    handler.addFilter(lambda record: record.thread == me)
     old = logger.level
     logger.addHandler(handler)
     if logger.getEffectiveLevel() > logging.INFO:
