@@ -443,7 +443,6 @@ def sample_posterior(
     start: LSQResult | np.ndarray | None = None,
     init_scale: float = 1e-4,
     refine: bool = True,
-    pool=None,
     warn: bool = True,
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
@@ -486,8 +485,6 @@ def sample_posterior(
         Standard deviation of the start ball in sampling coordinates (log units for
         positive parameters; for linear-scale parameters it is scaled by
         ``max(|theta|, 1e-3 * prior width)``).
-    pool : object with ``map``, optional
-        Passed to emcee (unused with vectorised evaluation unless ``vectorize`` is off).
     warn : bool
         Emit a ``ConvergenceWarning`` when the checks fail.
 
@@ -559,7 +556,7 @@ def sample_posterior(
     if moves is None:
         moves = default_moves()
     sampler = emcee.EnsembleSampler(
-        n_walkers, n_par, log_post, vectorize=True, moves=moves, backend=be, pool=pool
+        n_walkers, n_par, log_post, vectorize=True, moves=moves, backend=be
     )
     t0 = time.perf_counter()
     n_eval = 0
