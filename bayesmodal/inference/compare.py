@@ -189,7 +189,7 @@ def nested_evidence(
     >>> ps = PriorSet(("x",), (Uniform(-10.0, 10.0),), ("identity",))
     >>> f = lambda th: -0.5 * th[:, 0] ** 2 - 0.5 * np.log(2 * np.pi)
     >>> ev = nested_evidence(f, ps, nlive=100, rng=1)
-    >>> abs(ev.log_z - np.log(1 / 20)) < 4 * ev.log_z_err + 0.1
+    >>> bool(abs(ev.log_z - np.log(1 / 20)) < 4 * ev.log_z_err)
     True
     """
     import dynesty
