@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._nl_kernels import backlash_run
+from .._nl_kernels import backlash_run, expm_batched, zoh
 from ..system import Rig
-from ._base import EffectLocation, Extension, ParamSpec, zoh_blocks
+from ._base import EffectLocation, Extension, ParamSpec
 from ._linear import linear_parts
 
 
@@ -63,27 +63,21 @@ class Backlash(Extension):
         return ok & (m_p < theta_lin[..., 1])
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
-        n = rig.n_carts
-        nb = theta_lin.shape[0]
         h = dt / self.n_sub
         gap = np.ascontiguousarray(theta_ext[:, 0])
         m_p = np.ascontiguousarray(theta_ext[:, 1])
         engaged = linear_parts(rig, theta_lin)
-        Ae, Be = zoh_blocks(engaged.A, engaged.B[..., None], h)
+        Ae, Be = zoh(engaged.A, engaged.B[..., None], h)
         # disengaged: cart 1 without the motor mass, no drive force
         free = theta_lin.copy()
         free[:, 1] -= m_p
         free[:, 0] = 1.0  # unused: no input in this mode
         cart = linear_parts(rig, free)
-        Adis, _ = zoh_blocks(cart.A, cart.B[..., None], h)
-        Y = np.empty((nb, u.size, n))
-        backlash_run(
-            np.ascontiguousarray(Ae), np.ascontiguousarray(Be[..., 0]),
-            np.ascontiguousarray(Adis), np.ascontiguousarray(engaged.net_force[:, 0, :]),
-            np.ascontiguousarray(theta_lin[:, 1]), m_p,
-            np.ascontiguousarray(theta_lin[:, 0]), gap, u, int(self.n_sub), h, x0, Y,
+        Adis = expm_batched(cart.A * h)
+        return backlash_run(
+            Ae, Be[..., 0], Adis, engaged.net_force[:, 0, :], theta_lin[:, 1], m_p,
+            theta_lin[:, 0], gap, u, int(self.n_sub), h, x0,
         )
-        return Y
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """Always the drive of cart 1; strength is the gap, m."""

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._nl_kernels import coulomb_run
+from .._nl_kernels import coulomb_run, zoh
 from ..system import Rig
-from ._base import EffectLocation, Extension, ParamSpec, zoh_blocks
+from ._base import EffectLocation, Extension, ParamSpec
 from ._linear import linear_parts
 
 
@@ -75,21 +75,12 @@ class CoulombFriction(Extension):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
-        inputs = np.concatenate([parts.B[..., None], parts.force_inputs], axis=-1)
-        Ah, G0 = zoh_blocks(parts.A, inputs, h)
-        Y = np.empty((theta_lin.shape[0], u.size, n))
-        coulomb_run(
-            np.ascontiguousarray(Ah),
-            np.ascontiguousarray(G0[:, :, 0]),
-            np.ascontiguousarray(G0[:, :, 1:]),
-            parts.net_force,
-            np.ascontiguousarray(parts.b),
-            np.ascontiguousarray(parts.inv_mass),
-            np.ascontiguousarray(theta_ext[:, :n]),
-            np.ascontiguousarray(theta_ext[:, n:]),
-            u, int(self.n_sub), h, x0, Y,
+        Ah, Fh = zoh(parts.A, parts.force_inputs, h)
+        Bh = np.einsum("bij,bj->bi", Fh, parts.b)  # the motor is a force on the carts
+        return coulomb_run(
+            Ah, Bh, Fh, parts.net_force, parts.b, parts.inv_mass,
+            theta_ext[:, :n], theta_ext[:, n:], u, int(self.n_sub), h, x0,
         )
-        return Y
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The cart with the largest static friction ``Fs_i``."""

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._nl_kernels import cubic_run
+from .._nl_kernels import cubic_run, zoh
 from ..system import Rig
-from ._base import EffectLocation, Extension, ParamSpec, zoh_blocks
+from ._base import EffectLocation, Extension, ParamSpec
 from ._linear import linear_parts
 
 
@@ -61,21 +61,11 @@ class CubicStiffness(Extension):
         return np.all(np.isfinite(theta_ext), axis=-1)
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
-        n = rig.n_carts
         p = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
-        inputs = np.concatenate([p.B[..., None], p.force_inputs], axis=-1)
-        Ah, G0, G1 = zoh_blocks(p.A, inputs, h, ramp=True)
-        Y = np.empty((theta_lin.shape[0], u.size, n))
-        cubic_run(
-            np.ascontiguousarray(Ah),
-            np.ascontiguousarray(G0[:, :, 0]),
-            np.ascontiguousarray(G0[:, :, 1:]),
-            np.ascontiguousarray(G1[:, :, 1:]),
-            np.ascontiguousarray(theta_ext),
-            u, int(self.n_sub), x0, Y,
-        )
-        return Y
+        Ah, F0h, F1h = zoh(p.A, p.force_inputs, h, ramp=True)
+        Bh = np.einsum("bij,bj->bi", F0h, p.b)  # the motor is a force on the carts
+        return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The spring with the largest relative cubic stiffness ``|k3_i| / k_i``."""

@@ -4,8 +4,10 @@ The amplifier and motor windings make the force follow the voltage with a time c
 
     tau f' = g_v v - f,      f acts on cart 1 instead of g_v v.
 
-The model stays linear: the state ``(x, x', f)`` is simulated exactly by zero-order hold.
-With ``tau_s = 0`` the force follows instantly and the model is the linear one.
+The model stays linear: the state ``(x, x', f)`` is simulated exactly by zero-order hold
+(batched compiled recursion, ``bayesmodal._nl_kernels.linear_input_run``).  With
+``tau_s = 0`` the force follows instantly and the model is the linear one (the lag state
+is then unused).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..simulate import simulate_linear, simulate_state_space
+from .._nl_kernels import linear_input_run, zoh
 from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._linear import linear_parts
@@ -41,25 +43,27 @@ class MotorLag(Extension):
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
         n = rig.n_carts
+        s = 2 * n
         nb = theta_lin.shape[0]
         tau = theta_ext[:, 0]
-        Y = np.empty((nb, u.size, n))
+        p = linear_parts(rig, theta_lin)
+        Ad = np.zeros((nb, s + 1, s + 1))
+        Bd = np.zeros((nb, s + 1))
         instant = tau == 0.0
-        if np.any(instant):
-            model = self.linear_model(rig)
-            Y[instant] = simulate_linear(model, theta_lin[instant], u, dt, x0=x0[instant])
+        if np.any(instant):  # the linear model; the lag state stays at zero
+            A1, B1 = zoh(p.A[instant], p.B[instant, :, None], dt)
+            Ad[instant, :s, :s] = A1
+            Bd[instant, :s] = B1[..., 0]
         lag = ~instant
         if np.any(lag):
-            p = linear_parts(rig, theta_lin[lag])
-            s = 2 * n
-            A = np.zeros((p.A.shape[0], s + 1, s + 1))
-            A[:, :s, :s] = p.A
-            A[:, s:, :s] = 0.0
-            A[:, n, s] = p.inv_mass[:, 0]  # the lagged force drives cart 1
+            A = np.zeros((int(lag.sum()), s + 1, s + 1))
+            A[:, :s, :s] = p.A[lag]
+            A[:, n, s] = p.inv_mass[lag, 0]  # the lagged force drives cart 1
             A[:, s, s] = -1.0 / tau[lag]
-            B = np.zeros((p.A.shape[0], s + 1))
-            B[:, s] = p.b[:, 0] / tau[lag]
-            z0 = np.zeros((p.A.shape[0], s + 1))
-            z0[:, :s] = x0[lag]
-            Y[lag] = simulate_state_space(A, B, u, dt, n, z0)
-        return Y
+            B = np.zeros((A.shape[0], s + 1))
+            B[:, s] = p.b[lag, 0] / tau[lag]
+            A1, B1 = zoh(A, B[..., None], dt)
+            Ad[lag], Bd[lag] = A1, B1[..., 0]
+        z0 = np.zeros((nb, s + 1))
+        z0[:, :s] = x0
+        return linear_input_run(Ad, np.zeros_like(Bd), Bd, u, z0, n)

@@ -2,7 +2,8 @@
 
 The motor force is ``g_v clip(v, -v_sat, v_sat)``; the force limit is ``g_v v_sat``.  A
 memoryless clip of the held input keeps the simulation exact.  ``v_sat = inf`` (or any level
-above ``max |v|``) gives the linear model.
+above ``max |v|``) gives the linear model.  The clip is applied per parameter set inside
+the compiled recursion (``bayesmodal._nl_kernels.linear_input_run``).
 """
 
 from __future__ import annotations
@@ -11,8 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._nl_kernels import run_per_lane
-from ..simulate import discretize_zoh
+from .._nl_kernels import linear_input_run, zoh
 from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._linear import linear_parts
@@ -44,10 +44,9 @@ class InputSaturation(Extension):
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
         n = rig.n_carts
         p = linear_parts(rig, theta_lin)
-        d = discretize_zoh(p.A, p.B, dt)
-        level = theta_ext[:, :1]
-        U = np.clip(u[None, :], -level, level)
-        return run_per_lane(d.Ad, d.Bd, U, x0, n)
+        Ad, Bd = zoh(p.A, p.B[..., None], dt)
+        return linear_input_run(Ad, np.zeros_like(Bd[..., 0]), Bd[..., 0], u, x0, n,
+                                level=theta_ext[:, 0])
 
     def opt_bounds(self, rig):
         return np.array([1e-3]), np.array([np.inf])
