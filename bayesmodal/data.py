@@ -31,6 +31,7 @@ __all__ = [
     "find_data",
     "file_sha256",
     "save_csv",
+    "check_identifiable",
 ]
 
 #: Metres per encoder count of the ECP 210 rig (0.0706 m per 16000 counts).
@@ -335,14 +336,7 @@ def _load_csv(path: Path, name: str) -> Experiment:
         raise DataError(f"{path}: rows have {arr.shape[1]} columns, header has {len(names)}")
     col = {h: arr[:, i] for i, h in enumerate(names)}
     y = np.column_stack([col[f"x{i + 1}"] for i in range(len(xs))])
-    exp = Experiment(col["t"], col["v"], y, name=name, source=str(path))  # validates first
-    if np.max(np.abs(y)) > _MAX_PLAUSIBLE_M:
-        warnings.warn(
-            f"{path}: displacements up to {np.max(np.abs(y)):.3g} m are implausible for the "
-            "rig; are the outputs in encoder counts instead of metres?",
-            stacklevel=3,
-        )
-    return exp
+    return Experiment(col["t"], col["v"], y, name=name, source=str(path))
 
 
 _FORMATS = ("mat", "txt", "csv")
@@ -406,8 +400,44 @@ def load_experiment(
         exp = _load_txt(path, m_per_count, name)
     else:
         exp = _load_csv(path, name)
+    peak = float(np.max(np.abs(exp.y_m)))
+    if peak > _MAX_PLAUSIBLE_M:
+        hint = ("are the outputs in encoder counts instead of metres?" if kind == "csv" else
+                f"is m_per_count = {m_per_count:.6g} m per count right?")
+        warnings.warn(
+            f"{path}: displacements up to {peak:.3g} m are implausible for the rig (the "
+            f"carts move a few cm at most); {hint}",
+            stacklevel=2,
+        )
     return Experiment(exp.t_s, exp.v_volt, exp.y_m, name=exp.name, source=exp.source,
                       sha256=file_sha256(path))
+
+
+def check_identifiable(experiment: Experiment) -> None:
+    """Refuse a record that holds nothing to identify.
+
+    Parameters
+    ----------
+    experiment : Experiment
+
+    Raises
+    ------
+    DataError
+        When the input voltage is all zeros (nothing excites the rig) or no output ever
+        moves (every output is constant), naming the file.
+
+    Examples
+    --------
+    >>> t = np.arange(5) * 0.01
+    >>> check_identifiable(Experiment(t, np.ones(5), t[:, None], name="ok"))
+    """
+    where = experiment.source or experiment.name
+    if not np.any(experiment.v_volt != 0):
+        raise DataError(f"{where}: the input is all zeros; nothing is identifiable "
+                        "(no excitation)")
+    if np.all(np.ptp(experiment.y_m, axis=0) == 0):
+        raise DataError(f"{where}: every output is constant (no cart ever moves); nothing "
+                        "is identifiable")
 
 
 def save_csv(experiment: Experiment, path: str | os.PathLike) -> None:

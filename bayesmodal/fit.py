@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ._errors import DataError, ModelError
-from .data import Experiment
+from .data import Experiment, check_identifiable
 from .metrics import fit_percent
 from .simulate import simulate_linear
 from .system import LinearModel
@@ -98,8 +98,7 @@ def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) ->
             raise DataError(
                 f"{e.name}: {e.n_outputs} outputs but the model has {model.n_carts} carts"
             )
-        if not np.any(e.v_volt != 0):
-            raise DataError(f"{e.name}: the input is all zeros; nothing is identifiable")
+        check_identifiable(e)
 
 
 def residuals(model: LinearModel, theta: np.ndarray, experiments: Sequence[Experiment]):

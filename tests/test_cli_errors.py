@@ -38,7 +38,7 @@ def test_lsq_bad_files_one_line_error(tmp_path, capsys, content, pattern):
 
 def test_wrong_number_of_outputs_is_named(tmp_path, capsys):
     p = tmp_path / "two.csv"
-    rows = "\n".join(f"{0.01 * i},{1.0 if i < 3 else 0.0},0,0" for i in range(20))
+    rows = "\n".join(f"{0.01 * i},{1.0 if i < 3 else 0.0},{1e-3 * i},0" for i in range(20))
     p.write_text("t,v,x1,x2\n" + rows + "\n")
     code, _, err = _run(["lsq", str(p)], capsys)
     assert code == 2

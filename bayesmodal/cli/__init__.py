@@ -10,6 +10,7 @@ import argparse
 import importlib
 import sys
 import traceback
+import warnings
 
 from .. import __version__
 from .._errors import ConfigError, DataError, ModelError
@@ -50,7 +51,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():  # restores showwarning on exit
+            warnings.showwarning = _warning_line(args.command)
+            return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("bayesmodal: interrupted", file=sys.stderr)
         return 130
@@ -60,6 +63,23 @@ def main(argv: list[str] | None = None) -> int:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"bayesmodal {args.command}: error: {msg}", file=sys.stderr)
         return 2
+    except Exception as exc:  # a bug: still one line, the traceback with --debug
+        if args.debug:
+            traceback.print_exc()
+        msg = str(exc).splitlines()[0] if str(exc) else ""
+        print(f"bayesmodal {args.command}: internal error: {type(exc).__name__}: {msg} "
+              "(run with --debug for the traceback)", file=sys.stderr)
+        return 1
+
+
+def _warning_line(command: str):
+    """A ``warnings.showwarning`` that prints one line per warning on stderr."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = str(message).splitlines()[0] if str(message) else category.__name__
+        print(f"bayesmodal {command}: warning: {text}", file=file or sys.stderr)
+
+    return show
 
 
 if __name__ == "__main__":  # pragma: no cover

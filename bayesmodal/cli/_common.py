@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import ECP_M_PER_COUNT, Experiment, load_experiment
+from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
 
 
 def add_data_args(p, *, many: bool = False) -> None:
@@ -25,7 +25,10 @@ def add_data_args(p, *, many: bool = False) -> None:
 
 def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
-    return [load_experiment(Path(p), m_per_count=args.m_per_count) for p in paths]
+    exps = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in paths]
+    for e in exps:  # before any output folder is made
+        check_identifiable(e)
+    return exps
 
 
 def to_jsonable(obj):

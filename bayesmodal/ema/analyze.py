@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import ConfigError, DataError
+from ..data import check_identifiable
 from .circle import circle_fit_modes
 from .frf import (
     FRF,
@@ -221,6 +222,7 @@ def identify(
     if n_modes < 1 or (order is not None and order < 1):
         raise ConfigError(f"n_modes and order must be >= 1, got {n_modes}, {order}")
     if frf is None:
+        check_identifiable(experiment)
         frf = frf_from_experiment(experiment)
     if band is None:
         band = default_band(frf, n_modes)

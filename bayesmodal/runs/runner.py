@@ -27,7 +27,7 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..config import RunConfig, load_config
-from ..data import Experiment, load_experiment
+from ..data import Experiment, check_identifiable, load_experiment
 from ..system import LinearModel, Rig
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
@@ -128,11 +128,13 @@ def _prior(ov):
     return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
 
 
-def _load(files, cfg: RunConfig, key: str) -> tuple[Experiment, ...]:
+def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Experiment, ...]:
     out = []
     for f in files:
         try:
             out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count))
+            if fitted:
+                check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
             raise ConfigError(f"{cfg.source}: [{key}] {exc}") from exc
     return tuple(out)
@@ -153,7 +155,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     cfg = config
     src = cfg.source
     exps = _load(cfg.data_files, cfg, "data.files")
-    held = _load(cfg.heldout_files, cfg, "data.heldout")
+    held = _load(cfg.heldout_files, cfg, "data.heldout", fitted=False)
     try:
         model = LinearModel(Rig(cfg.springs_n_m), cfg.damping)
     except ValueError as exc:
