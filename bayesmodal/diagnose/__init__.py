@@ -1,0 +1,34 @@
+"""The ``diagnose`` workflow: null-calibrated residual diagnostics, candidate extensions
+fitted and scored, the named cause with its location, parameters and gain.
+
+See ``docs/diagnose.md``.
+"""
+
+from __future__ import annotations
+
+from ._result import CAUSES, CandidateScore, Diagnosis, Interval, TestOutcome
+from .null import (
+    NoiseModel,
+    NullCalibration,
+    calibrate_null,
+    fit_noise,
+    infer_quantum,
+    quantise,
+)
+from .workflow import DEFAULT_CANDIDATES, diagnose
+
+__all__ = [
+    "CAUSES",
+    "CandidateScore",
+    "DEFAULT_CANDIDATES",
+    "Diagnosis",
+    "Interval",
+    "NoiseModel",
+    "NullCalibration",
+    "TestOutcome",
+    "calibrate_null",
+    "diagnose",
+    "fit_noise",
+    "infer_quantum",
+    "quantise",
+]
