@@ -132,8 +132,9 @@ def test_sigkill_then_resume_gives_the_uninterrupted_chain(config, tmp_path):
     assert resumed.returncode == 0, resumed.stderr
     assert _check_files_complete(killed) == []
     s = json.loads((killed / "summary.json").read_text())
-    assert s["run"]["action"] == "resume"
-    assert s["run"]["steps_in_checkpoint_at_start"] == at_kill
+    timing = json.loads((killed / "timing.json").read_text())
+    assert timing["action"] == "resume"
+    assert timing["steps_in_checkpoint_at_start"] == at_kill
 
     # the same configuration, never interrupted (in this process)
     whole = run_config(config, tmp_path / "whole")
@@ -148,3 +149,6 @@ def test_sigkill_then_resume_gives_the_uninterrupted_chain(config, tmp_path):
     for nm in pa.data_vars:
         assert np.array_equal(pa[nm].values, pb[nm].values), nm
     assert s["parameters"] == whole.summary["parameters"]
+    # and summary.json as a whole: timings live in timing.json
+    assert (killed / "summary.json").read_bytes() == (tmp_path / "whole" / "summary.json"
+                                                      ).read_bytes()

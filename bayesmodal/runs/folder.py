@@ -40,8 +40,8 @@ __all__ = [
 STATES = ("running", "finished", "failed")
 
 #: Files a run writes (besides its plots, ``*.png``); ``--force`` removes only these.
-RUN_FILES = ("chain.h5", "posterior.nc", "summary.json", "status.json", "report.html",
-             "run.log", "lsq_vs_posterior.md", "config.toml", "config.json")
+RUN_FILES = ("chain.h5", "posterior.nc", "summary.json", "timing.json", "status.json",
+             "report.html", "run.log", "lsq_vs_posterior.md", "config.toml", "config.json")
 
 
 class RunLockedError(ConfigError):

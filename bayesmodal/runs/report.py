@@ -113,8 +113,8 @@ def _unit(name: str, rows: dict) -> str:
     return ""
 
 
-def _section_run(s: dict, status: dict, config_text: str) -> str:
-    run = s.get("run", {})
+def _section_run(s: dict, status: dict, config_text: str, timing: dict) -> str:
+    run = {**s.get("run", {}), **timing}  # timings live in timing.json
     cfg = run.get("config", {})
     items = [
         ("state", _e(status.get("state", "?"))),
@@ -319,7 +319,7 @@ def render_report(run_dir: str | os.PathLike, *, state: str | None = None) -> st
     ----------
     run_dir : str or path
         Folder with ``summary.json`` (and optionally the plots, ``status.json``,
-        ``config.toml``).
+        ``timing.json``, ``config.toml``).
     state : str, optional
         Run state to show (default: from ``status.json``).
 
@@ -341,6 +341,8 @@ def render_report(run_dir: str | os.PathLike, *, state: str | None = None) -> st
     status = json.loads(stp.read_text(encoding="utf-8")) if stp.is_file() else {}
     if state is not None:
         status = {**status, "state": state}
+    tp = folder / "timing.json"
+    timing = json.loads(tp.read_text(encoding="utf-8")) if tp.is_file() else {}
     cp = folder / "config.toml"
     config_text = cp.read_text(encoding="utf-8") if cp.is_file() else json.dumps(
         s.get("run", {}).get("config", {}), indent=2)
@@ -354,7 +356,7 @@ def render_report(run_dir: str | os.PathLike, *, state: str | None = None) -> st
         f"<p class='muted'>{_e(s.get('damping'))} damping, {_e(s.get('noise'))} noise; "
         f"state {_e(status.get('state', '?'))}</p>",
         f"<nav>{nav}</nav>",
-        _section_run(s, status, config_text),
+        _section_run(s, status, config_text, timing),
         _section_convergence(s, folder),
         _section_parameters(s, folder),
         _section_modal(s, folder),

@@ -446,13 +446,17 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             "seed": cfg.seed,
             "walkers": cfg.walkers, "steps": cfg.steps, "burn": cfg.burn, "thin": cfg.thin,
             "moves": cfg.moves,
-            "action": action,
-            "steps_in_checkpoint_at_start": steps_before,
-            "started": started,
-            "finished": now_iso(),
-            "wall_time_s": time.perf_counter() - t_start,
         }
         summary["warnings"] = [f"{w.category.__name__}: {w.message}" for w in caught]
+        # what depends on the clock or on how the run was split goes to timing.json, so
+        # that a rerun of the same configuration and data reproduces summary.json exactly
+        timing = {"action": action, "steps_in_checkpoint_at_start": steps_before,
+                  "started": started, "finished": now_iso(),
+                  "wall_time_s": time.perf_counter() - t_start,
+                  "performance": summary.pop("performance", None)}
+        if isinstance(summary.get("evidence"), dict):
+            timing["evidence_elapsed_s"] = summary["evidence"].pop("elapsed_s", None)
+        folder.write_json("timing.json", timing)
         folder.write_json("summary.json", summary)
         with stages.stage("report"):
             if cfg.report:
