@@ -5,6 +5,7 @@
   the identical chain), ``posterior.nc``, ``summary.json`` with provenance, plots,
   ``run.log``, ``status.json`` and a self-contained ``report.html``;
 - :func:`run_batch` -- many configurations on local processes or a Dask cluster;
+- :func:`rerun_run` -- re-run a recorded run and check ``summary.json`` is reproduced;
 - :func:`compare_runs` -- model choice across finished run folders (LOO, WAIC, evidence,
   held-out fit) with :func:`~.plots.plot_run_intervals`.
 
@@ -17,6 +18,7 @@ from .checkpoint import AtomicCheckpoint, checkpoint_iteration
 from .compare import RunComparison, RunRow, compare_runs, write_comparison
 from .folder import RunExistsError, RunFolder, RunLockedError
 from .report import render_report, write_report
+from .rerun import RerunResult, recorded_config, rerun_run
 from .runner import (
     PreparedRun,
     RunOutcome,
@@ -48,6 +50,9 @@ __all__ = [
     "parse_moves",
     "prepare_run",
     "render_report",
+    "RerunResult",
+    "recorded_config",
+    "rerun_run",
     "run_config",
     "write_report",
 ]
