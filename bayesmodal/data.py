@@ -246,13 +246,48 @@ def _load_mat(path: Path, m_per_count: float, name: str) -> Experiment:
     try:
         raw = scipy.io.loadmat(path, squeeze_me=False)
     except Exception as exc:  # scipy raises several types for corrupt files
-        raise DataError(f"{path}: not a readable MATLAB v5 file ({exc})") from exc
+        raise DataError(f"{path}: not a readable MATLAB v5 file (truncated or corrupt: "
+                        f"{exc})") from exc
     cols = {k: v for k, v in raw.items() if not k.startswith("__")}
-    for k, v in cols.items():
-        if not (isinstance(v, np.ndarray) and v.dtype.kind in "fiu"):
-            cols[k] = None
-    numeric = {k: v for k, v in cols.items() if v is not None}
-    return _ecp_columns(path, numeric, m_per_count, name)
+    _check_variables(path, {k: _kind(v) for k, v in cols.items()})
+    return _ecp_columns(path, cols, m_per_count, name)
+
+
+def _kind(v) -> str:
+    """``"numeric"`` for a real numeric array, else a short description of the variable."""
+    if isinstance(v, np.ndarray) and v.dtype.kind in "fiu":
+        return "numeric"
+    if isinstance(v, np.ndarray) and v.dtype.names:
+        return "struct"
+    if isinstance(v, np.ndarray) and v.dtype.kind == "O":
+        return "cell"
+    if isinstance(v, np.ndarray) and v.dtype.kind in "US":
+        return "text"
+    if isinstance(v, np.ndarray) and v.dtype.kind == "c":
+        return "complex"
+    return type(v).__name__
+
+
+def _check_variables(path: Path, kinds: dict[str, str]) -> None:
+    """Refuse a MATLAB file whose variables are not exactly numeric t, x1..xn, v."""
+
+    def expected(k: str) -> bool:
+        return k in ("t", "v") or (k[:1] == "x" and k[1:].isdigit())
+
+    found = ", ".join(f"{k} ({kind})" for k, kind in kinds.items()) or "no variables"
+    wrong = [k for k, kind in kinds.items() if expected(k) and kind != "numeric"]
+    if wrong:
+        raise DataError(f"{path}: variable(s) {wrong} must be real numeric vectors; found "
+                        f"{found}")
+    has_x = any(k[:1] == "x" for k in kinds if expected(k))
+    missing = [k for k in ("t", "v") if k not in kinds] + ([] if has_x else ["x1"])
+    if missing:
+        raise DataError(f"{path}: missing column(s) {missing}; an ECP .mat file holds "
+                        f"t, x1..xn, v (found {found})")
+    unexpected = [k for k in kinds if not expected(k)]
+    if unexpected:
+        raise DataError(f"{path}: unexpected variable(s) {unexpected}; an ECP .mat file "
+                        "holds only t, x1..xn, v (save the record without the others)")
 
 
 def _load_mat73(path: Path, m_per_count: float, name: str) -> Experiment:
@@ -260,10 +295,24 @@ def _load_mat73(path: Path, m_per_count: float, name: str) -> Experiment:
 
     try:
         with h5py.File(path, "r") as f:
-            cols = {k: np.array(f[k]) for k in f.keys() if isinstance(f[k], h5py.Dataset)}
+            kinds, cols = {}, {}
+            for k in f.keys():
+                if k.startswith("#"):  # MATLAB's #refs# and #subsystem# bookkeeping
+                    continue
+                obj = f[k]
+                if isinstance(obj, h5py.Dataset):
+                    cls = obj.attrs.get("MATLAB_class", b"double")
+                    cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+                    numeric = obj.dtype.kind in "fiu" and cls not in ("char", "logical")
+                    kinds[k] = "numeric" if numeric else cls
+                    if numeric:
+                        cols[k] = np.array(obj)
+                else:
+                    kinds[k] = "struct"
     except OSError as exc:
-        raise DataError(f"{path}: not a readable MATLAB v7.3 (HDF5) file ({exc})") from exc
-    cols = {k: v for k, v in cols.items() if v.dtype.kind in "fiu"}
+        raise DataError(f"{path}: not a readable MATLAB v7.3 (HDF5) file (truncated or "
+                        f"corrupt: {exc})") from exc
+    _check_variables(path, kinds)
     return _ecp_columns(path, cols, m_per_count, name)
 
 
