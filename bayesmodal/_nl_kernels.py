@@ -220,50 +220,45 @@ def coulomb_kernel(n: int, width: int):
               f"{t}F{i} = gz{i} + gb{i} * uk",
               f"{t}Fp{i} = {X('gzp', i)} + gb{i} * uk",
               f"{t}{X('gzp', i)} = gz{i}"]
+    # break-away of stuck carts, written as selects (no nested branches) so that the
+    # compiler vectorises it across lanes
     for i in C:
-        L += [f"{t}if st{i}:",
-              f"{t}    if abs(F{i}) < fs{i}:",
-              f"{t}        f{i} = -F{i}",
-              f"{t}    else:",
-              f"{t}        st{i} = False",
-              f"{t}        d{i} = 1.0 if F{i} > 0.0 else (-1.0 if F{i} < 0.0 else 0.0)",
-              f"{t}        f{i} = -fc{i} * d{i}",
-              f"{t}        aF = abs(F{i})",
-              f"{t}        aFp = abs(Fp{i})",
-              f"{t}        if same and aFp < fs{i} and aF > aFp:",
-              f"{t}            tau = h * (aF - fs{i}) / (aF - aFp)",
-              f"{t}            dv = d{i} * (0.5 * (aF + fs{i}) - fc{i}) * {P('mi', i)} * tau",
-              f"{t}            x{n + i} += dv",
-              f"{t}            x{i} += 0.5 * dv * tau",
-              f"{t}else:",
-              f"{t}    f{i} = -fc{i} * d{i}"]
+        L += [f"{t}aF = abs(F{i})",
+              f"{t}hold = st{i} and aF < fs{i}",
+              f"{t}brk = st{i} and not hold",
+              f"{t}d{i} = (1.0 if F{i} > 0.0 else (-1.0 if F{i} < 0.0 else 0.0)) if brk else d{i}",
+              f"{t}f{i} = -F{i} if hold else -fc{i} * d{i}",
+              f"{t}aFp = abs(Fp{i})",
+              f"{t}late = brk and same and aFp < fs{i} and aF > aFp",
+              f"{t}tau = h * (aF - fs{i}) / (aF - aFp) if late else 0.0",
+              f"{t}dv = d{i} * (0.5 * (aF + fs{i}) - fc{i}) * {P('mi', i)} * tau",
+              f"{t}x{n + i} += dv",
+              f"{t}x{i} += 0.5 * dv * tau",
+              f"{t}st{i} = hold"]
     for r in R:
         terms = " + ".join([f"{P('A', r * s + j)} * x{j}" for j in R]
                            + [f"{P('fh', r * n + j)} * f{j}" for j in C])
         L.append(f"{t}n{r} = {P('bh', r)} * uk + {terms}")
+    # velocity reversals inside the step: stick or slide back
     for i in C:
         fe = " + ".join(f"{P('G', i * s + j)} * n{j}" for j in R)
-        L += [f"{t}if st{i}:",
-              f"{t}    n{i} = xs{i}",
-              f"{t}    n{n + i} = 0.0",
-              f"{t}elif d{i} * n{n + i} < 0.0:",
-              f"{t}    v0 = x{n + i}",
-              f"{t}    v1 = n{n + i}",
-              f"{t}    a = v0 / (v0 - v1) if v0 != v1 else 0.0",
-              f"{t}    a = min(max(a, 0.0), 1.0)",
-              f"{t}    tau = (1.0 - a) * h",
-              f"{t}    Fe = gb{i} * uk + {fe}",
-              f"{t}    Fx = F{i} + a * (Fe - F{i})",
-              f"{t}    if abs(Fx) < fs{i}:",
-              f"{t}        st{i} = True",
-              f"{t}        n{i} -= 0.5 * v1 * tau",
-              f"{t}        n{n + i} = 0.0",
-              f"{t}        xs{i} = n{i}",
-              f"{t}    else:",
-              f"{t}        dv = 2.0 * fc{i} * d{i} * {P('mi', i)} * tau",
-              f"{t}        n{n + i} += dv",
-              f"{t}        n{i} += 0.5 * dv * tau",
-              f"{t}        d{i} = -d{i}"]
+        L += [f"{t}v0 = x{n + i}",
+              f"{t}v1 = n{n + i}",
+              f"{t}rev = not st{i} and d{i} * v1 < 0.0",
+              f"{t}a = v0 / (v0 - v1) if v0 != v1 else 0.0",
+              f"{t}a = min(max(a, 0.0), 1.0)",
+              f"{t}tau = (1.0 - a) * h",
+              f"{t}Fe = gb{i} * uk + {fe}",
+              f"{t}Fx = F{i} + a * (Fe - F{i})",
+              f"{t}stick = rev and abs(Fx) < fs{i}",
+              f"{t}flip = rev and not stick",
+              f"{t}dv = 2.0 * fc{i} * d{i} * {P('mi', i)} * tau if flip else 0.0",
+              f"{t}p = n{i} - 0.5 * v1 * tau if stick else n{i} + 0.5 * dv * tau",
+              f"{t}n{i} = xs{i} if st{i} else p",
+              f"{t}n{n + i} = 0.0 if st{i} or stick else v1 + dv",
+              f"{t}xs{i} = p if stick else xs{i}",
+              f"{t}d{i} = -d{i} if flip else d{i}",
+              f"{t}st{i} = st{i} or stick"]
     L += [f"{t}{X('x', r)} = n{r}" for r in R]
     for i in C:
         L += [f"{t}{X('st', i)} = 1.0 if st{i} else 0.0", f"{t}{X('d', i)} = d{i}",
