@@ -96,7 +96,8 @@ def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) ->
     for e in experiments:
         if e.n_outputs != model.n_carts:
             raise DataError(
-                f"{e.name}: {e.n_outputs} outputs but the model has {model.n_carts} carts"
+                f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
+                f"{model.n_carts} carts"
             )
         check_identifiable(e)
 

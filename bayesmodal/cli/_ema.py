@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._errors import DataError
 from ..ema import METHODS, identify
 from ._common import add_data_args, load_args, print_json
 
@@ -35,9 +36,13 @@ def run(args) -> int:
     if args.plots and args.method == "lsce":
         top = args.order or 2 * args.n_modes
         orders = list(range(1, top + 3))
-    res = identify(exp, args.method, n_modes=args.n_modes, order=args.order,
-                   band=tuple(args.band) if args.band else None,
-                   stabilization_orders=orders)
+    try:
+        res = identify(exp, args.method, n_modes=args.n_modes, order=args.order,
+                       band=tuple(args.band) if args.band else None,
+                       stabilization_orders=orders)
+    except DataError as exc:  # name the file in every data problem
+        where = exp.source or exp.name
+        raise DataError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") from exc
     files = []
     if args.plots:
         from ..plots.ema import save_ema_figures

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .._errors import DataError
 from ._common import add_data_args, load_args, print_json
 
 
@@ -48,12 +49,17 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     from ..inference import sample_posterior, to_inference_data, write_run
     from ..system import LinearModel, Rig
 
+    model = LinearModel(Rig(), damping)
+    for e in exps:  # checked before the output folder is made
+        if e.n_outputs != model.n_carts:
+            raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
+                            f"{model.n_carts} carts")
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "chain.h5"
     if getattr(args, "fresh", False) and ckpt.exists():
         ckpt.unlink()
     run = sample_posterior(
-        exps, LinearModel(Rig(), damping), noise=args.noise, n_walkers=args.walkers,
+        exps, model, noise=args.noise, n_walkers=args.walkers,
         n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
         progress=not args.quiet,
     )

@@ -164,7 +164,8 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         if e.n_outputs != model.n_carts:
             raise ConfigError(
                 f"{src}: [rig.springs_n_m] {len(cfg.springs_n_m)} springs make "
-                f"{model.n_carts} carts, but {e.name} has {e.n_outputs} measured outputs")
+                f"{model.n_carts} carts, but {e.source or e.name} has {e.n_outputs} measured "
+                "outputs")
     base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts)
     overrides = {}
     for name, ov in cfg.priors.items():
