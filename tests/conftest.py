@@ -7,8 +7,18 @@ import os
 import matplotlib
 import numpy as np
 import pytest
+from hypothesis import settings
 
 matplotlib.use("Agg")
+
+# Property-test profiles (docs/testing.md): "ci" is the default, fixed-seed and modest;
+# "nightly" explores far more examples.  Select with HYPOTHESIS_PROFILE=nightly or
+# pytest --hypothesis-profile nightly.
+settings.register_profile("ci", derandomize=True, max_examples=30, deadline=None,
+                          database=None, print_blob=True)
+settings.register_profile("nightly", max_examples=1000, deadline=None, database=None,
+                          print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 from bayesmodal.data import data_root, find_data, load_experiment  # noqa: E402
 from bayesmodal.system import LinearModel, Rig  # noqa: E402
