@@ -4,6 +4,13 @@
 against ``scipy.signal.lsim(..., interp=False)`` on the same systems.  Two timings are
 reported: through a ``LinearSimulator`` whose output buffer is reused between calls (what a
 likelihood does), and through ``simulate_linear`` allocating a fresh output array each call.
+
+``extensions``: every model extension's ``Extension.simulate`` (validation and
+parameter-dependent discretisation included, fresh output) against the linear simulator
+with a reused buffer, on the same input and parameter cloud.  Timings alternate between
+the linear simulator and the extensions over several rounds, and the reported ratio is
+the median of the per-round ratios, so that a busy machine slows both sides alike.  The
+requirement is a ratio of at most ``EXTENSION_MAX_RATIO``.
 """
 
 from __future__ import annotations
@@ -17,10 +24,23 @@ import scipy.signal
 from .simulate import LinearSimulator, simulate_linear
 from .system import LinearModel, Rig
 
-__all__ = ["bench_linear", "time_per_call"]
+__all__ = ["EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear", "time_per_call"]
 
 #: Report Table 3 (free damping), the centre of the benchmark parameter cloud.
 _TABLE3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
+
+#: Largest accepted cost of an extension per evaluation, in linear-simulator evaluations.
+EXTENSION_MAX_RATIO = 10.0
+
+#: Extension parameters of the benchmark (realistic sizes on the rig, effect active).
+_EFFECTS = {
+    "coulomb_friction": (0.1, 0.15, 0.08, 0.15, 0.2, 0.12),
+    "motor_lag": (0.01,),
+    "input_delay": (0.0123,),
+    "backlash": (3e-4, 0.2),
+    "cubic_stiffness": (1e5, -5e4, 1e5),
+    "input_saturation": (2.5,),
+}
 
 
 def time_per_call(fn: Callable[[], object], *, min_time_s: float = 0.5, repeat: int = 5) -> float:
@@ -102,3 +122,88 @@ def bench_linear(
         "speedup_fresh_output": t_lsim * 1e6 / us_fresh,
         "max_rel_diff_vs_lsim": rel,
     }
+
+
+def _bench_problem(n_samples: int, batch: int, rng):
+    """The benchmark's model, parameter cloud (batch, 9) and random input (N,) V."""
+    rng = np.random.default_rng(rng)
+    model = LinearModel(Rig(), "free")
+    theta = _TABLE3 * (1 + 0.1 * rng.random((batch, model.n_params)))
+    return model, theta, rng.normal(size=n_samples)
+
+
+def bench_extensions(
+    n_samples: int = 8000,
+    batch: int = 64,
+    *,
+    dt: float = 0.005,
+    rng=0,
+    quick: bool = False,
+    rounds: int | None = None,
+    names: tuple[str, ...] | None = None,
+) -> dict:
+    """Time every model extension against the linear simulator in the same run.
+
+    Parameters
+    ----------
+    n_samples : int
+        Record length N.
+    batch : int
+        Parameter sets per call.
+    dt : float
+        Sample interval, s.
+    rng : int or numpy.random.Generator
+        Seed for the random input and the parameter cloud (the same as ``bench_linear``).
+    quick : bool
+        Shorter timing (for tests).
+    rounds : int, optional
+        Alternating rounds (default 3, 1 with ``quick``).
+    names : tuple of str, optional
+        Extensions to time (default: all of ``EXTENSIONS``).
+
+    Returns
+    -------
+    dict
+        Per extension name: ``us_per_eval`` (median over rounds), ``ratio_to_linear``
+        (median of the per-round ratios), ``ratio_per_round``, ``meets_target``
+        (``ratio_to_linear <= EXTENSION_MAX_RATIO``), ``linear_us_per_eval`` (median
+        baseline), ``n_sub`` (sub-steps per sample, None for exact extensions).
+    """
+    from .extensions import EXTENSIONS
+
+    model, theta, u = _bench_problem(n_samples, batch, rng)
+    rig = model.rig
+    sim = LinearSimulator(u, dt, model.n_carts)
+    min_time = 0.2 if quick else 1.0
+    rounds = (1 if quick else 3) if rounds is None else int(rounds)
+    names = tuple(EXTENSIONS) if names is None else tuple(names)
+
+    def linear():
+        M, C, K, b = model.matrices(model.check(theta))
+        return sim.run_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
+
+    thetas = {
+        name: np.concatenate([theta, np.tile(_EFFECTS[name], (batch, 1))], axis=1)
+        for name in names
+    }
+    t_lin, t_ext = [], {name: [] for name in names}
+    for _ in range(rounds):
+        t_lin.append(time_per_call(linear, min_time_s=min_time, repeat=3))
+        for name in names:
+            ext, th = EXTENSIONS[name], thetas[name]
+            t_ext[name].append(time_per_call(lambda e=ext, t=th: e.simulate(rig, t, u, dt),
+                                             min_time_s=min_time, repeat=3))
+    lin = np.array(t_lin)
+    out = {}
+    for name in names:
+        ratios = np.array(t_ext[name]) / lin
+        ratio = float(np.median(ratios))
+        out[name] = {
+            "us_per_eval": float(np.median(t_ext[name])) / batch * 1e6,
+            "ratio_to_linear": ratio,
+            "ratio_per_round": [float(r) for r in ratios],
+            "meets_target": bool(ratio <= EXTENSION_MAX_RATIO),
+            "linear_us_per_eval": float(np.median(lin)) / batch * 1e6,
+            "n_sub": getattr(EXTENSIONS[name], "n_sub", None),
+        }
+    return out

@@ -2,27 +2,25 @@
 
 from __future__ import annotations
 
-from ..bench import bench_linear
+from ..bench import EXTENSION_MAX_RATIO, bench_extensions, bench_linear
 from ._common import print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("bench", help="speed benchmarks (simulator vs scipy lsim, ...)")
+    p = sub.add_parser("bench", help="speed benchmarks (simulator vs scipy lsim, extensions)")
     p.add_argument("--samples", type=int, default=8000, help="record length N")
     p.add_argument("--batch", type=int, default=64, help="parameter sets per call")
     p.add_argument("--quick", action="store_true", help="shorter timings")
+    p.add_argument("--no-extensions", action="store_true",
+                   help="skip the model-extension simulators")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     out = {"linear": bench_linear(args.samples, args.batch, quick=args.quick)}
-    try:  # benchmarks contributed by other modules (extensions, likelihood)
-        from ..extensions import bench_extensions  # type: ignore[attr-defined]
-    except ImportError:
-        bench_extensions = None
-    if bench_extensions is not None:
-        out.update(bench_extensions(args.samples, args.batch, quick=args.quick))
+    if not args.no_extensions:
+        out["extensions"] = bench_extensions(args.samples, args.batch, quick=args.quick)
     if args.json:
         print_json(out)
     else:
@@ -32,4 +30,11 @@ def run(args) -> int:
               f"{lin['us_per_eval_fresh_output']:.1f} us/eval (fresh output)")
         print(f"  scipy lsim {lin['lsim_us_per_eval']:.0f} us/eval")
         print(f"  speedup {lin['speedup']:.0f}x (fresh output {lin['speedup_fresh_output']:.0f}x)")
+        if "extensions" in out:
+            print(f"model extensions (cost per evaluation vs the linear simulator, median of "
+                  f"rounds; target <= {EXTENSION_MAX_RATIO:g}x):")
+            for name, r in out["extensions"].items():
+                flag = "ok" if r["meets_target"] else "TOO SLOW"
+                print(f"  {name:18s} {r['us_per_eval']:8.1f} us/eval  "
+                      f"{r['ratio_to_linear']:5.1f}x  {flag}")
     return 0
