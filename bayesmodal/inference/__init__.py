@@ -13,12 +13,14 @@ Typical use::
 
 from .compare import (
     BayesFactor,
+    ElpdChange,
     Evidence,
     InformationCriteria,
     ModelChoice,
     PredictiveScore,
     bayes_factor,
     choose_model,
+    elpd_change,
     information_criteria,
     kass_raftery,
     model_choice,
@@ -27,6 +29,7 @@ from .compare import (
 )
 from .idata import (
     experiments_from_idata,
+    extension_from_idata,
     likelihood_from_idata,
     load_idata,
     model_from_idata,
@@ -70,6 +73,7 @@ __all__ = [
     "ComparisonRow",
     "ConvergenceWarning",
     "Diagnostics",
+    "ElpdChange",
     "Evidence",
     "InformationCriteria",
     "Interval",
@@ -92,7 +96,9 @@ __all__ = [
     "credible_interval",
     "default_moves",
     "default_priors",
+    "elpd_change",
     "experiments_from_idata",
+    "extension_from_idata",
     "hdi",
     "information_criteria",
     "kass_raftery",

@@ -24,7 +24,10 @@ Groups written by :func:`to_inference_data`:
     ``v_volt``, dims ``(obs,)``, the motor voltage.
 
 Attributes (every group): package version, configuration hash and JSON, the least-squares
-estimate, noise model, damping model, sampling time and data hashes.
+estimate, noise model, damping model, model extension (``extension``, empty for the linear
+model; ``mechanical_names`` then lists the linear and the extension parameters), sampling
+time and data hashes.  The modal quantities of a run with an extension are those of its
+linear part (:func:`model_from_idata` is always the linear model).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ __all__ = [
     "load_idata",
     "posterior_matrix",
     "model_from_idata",
+    "extension_from_idata",
     "priors_from_idata",
     "experiments_from_idata",
     "likelihood_from_idata",
@@ -90,8 +94,9 @@ def _attrs(run) -> dict:
         "config_json": json.dumps(run.config, sort_keys=True, default=str),
         "damping": lik.model.damping,
         "noise": lik.noise,
+        "extension": lik.extension_name or "",
         "parameter_names": json.dumps(list(run.names)),
-        "mechanical_names": json.dumps(list(lik.model.names)),
+        "mechanical_names": json.dumps(list(lik.mech_names)),
         "springs_n_m": json.dumps(list(lik.model.rig.springs_n_m)),
         "burn": int(run.burn),
         "thin": int(run.thin),
@@ -223,8 +228,22 @@ def posterior_matrix(idata, names=None) -> np.ndarray:
     return np.stack([post[nm].values for nm in names], axis=-1)
 
 
+def extension_from_idata(idata):
+    """The model extension of a run (an ``Extension``), or None for the linear model."""
+    name = idata.posterior.attrs.get("extension", "")
+    if not name:
+        return None
+    from ..extensions import get_extension
+
+    return get_extension(str(name))
+
+
 def model_from_idata(idata):
-    """The ``LinearModel`` a run was made with (from the posterior attributes)."""
+    """The ``LinearModel`` a run was made with (from the posterior attributes).
+
+    For a run with a model extension this is its linear (free-damping) part, whose
+    parameters come first in the run's parameter vector.
+    """
     from ..system import LinearModel, Rig
 
     a = idata.posterior.attrs
@@ -258,11 +277,13 @@ def experiments_from_idata(idata) -> list:
 
 
 def likelihood_from_idata(idata, experiments=None):
-    """A ``Likelihood`` with the run's model and noise, on its own or other experiments."""
+    """A ``Likelihood`` with the run's model, extension and noise, on its own or other
+    experiments."""
     from .likelihood import Likelihood
 
     exps = experiments_from_idata(idata) if experiments is None else experiments
-    return Likelihood(model_from_idata(idata), tuple(exps), idata.posterior.attrs["noise"])
+    return Likelihood(model_from_idata(idata), tuple(exps), idata.posterior.attrs["noise"],
+                      extension_from_idata(idata))
 
 
 def save_idata(idata, path: str | os.PathLike) -> Path:

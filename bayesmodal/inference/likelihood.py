@@ -27,6 +27,13 @@ Impossible parameter sets (non-positive masses or g_v, negative damping, ``sigma
 ``|phi| >= 1``, non-finite values, or a simulation that is not finite) get ``-inf``; they
 are never simulated and never raise, so an MCMC walker that strays there is simply
 rejected.
+
+Model extensions: with ``extension`` (a name in ``bayesmodal.extensions.EXTENSIONS`` or an
+``Extension``) the model output is ``Extension.simulate`` of the free-damping model plus
+the extension's parameters (e.g. Coulomb friction), for all parameter sets of a batch in
+one call; the parameter vector is ``extension.names(rig)`` followed by the noise
+parameters, and parameter sets the extension rejects (``Extension.valid``, e.g.
+``Fs_i < Fc_i``) get ``-inf`` like any other impossible set.
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import ConfigError, DataError
+from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
 from ..simulate import simulate_linear
 from ..system import LinearModel
@@ -48,6 +55,7 @@ __all__ = [
     "white_terms",
     "ar1_terms",
     "simulate_noise",
+    "resolve_extension",
 ]
 
 NOISE_MODELS = ("ar1", "white")
@@ -150,11 +158,17 @@ class Likelihood:
     experiments : sequence of Experiment
         All with ``model.n_carts`` outputs; they share the mechanical and noise parameters.
     noise : {"ar1", "white"}
+    extension : str or Extension, optional
+        A model extension (name in ``bayesmodal.extensions.EXTENSIONS`` or an instance);
+        requires ``model`` with free damping.  None (default) is the linear model.
 
     Attributes
     ----------
     names : tuple of str
-        ``model.names`` followed by ``sigma_1..n`` (and ``phi_1..n`` for AR(1)).
+        ``mech_names`` followed by ``sigma_1..n`` (and ``phi_1..n`` for AR(1)).
+    mech_names : tuple of str
+        The model parameters: ``model.names``, or ``extension.names(model.rig)`` (the
+        linear free-damping names, then the extension's).
 
     Examples
     --------
@@ -175,6 +189,7 @@ class Likelihood:
     model: LinearModel
     experiments: tuple[Experiment, ...]
     noise: str = "ar1"
+    extension: object = None
 
     def __post_init__(self) -> None:
         if isinstance(self.experiments, Experiment):
@@ -191,6 +206,7 @@ class Likelihood:
         if self.noise not in NOISE_MODELS:
             raise ConfigError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
         object.__setattr__(self, "experiments", exps)
+        object.__setattr__(self, "extension", resolve_extension(self.extension, self.model))
 
     # ---------------------------------------------------------------- layout
     @property
@@ -198,8 +214,25 @@ class Likelihood:
         return self.model.n_carts
 
     @property
+    def mech_names(self) -> tuple[str, ...]:
+        """Model parameter names (linear, then the extension's), without the noise."""
+        if self.extension is None:
+            return self.model.names
+        return self.extension.names(self.model.rig)
+
+    @property
+    def n_mech(self) -> int:
+        """Number of model parameters (linear plus extension)."""
+        return len(self.mech_names)
+
+    @property
+    def extension_name(self) -> str | None:
+        """Name of the extension, or None for the linear model."""
+        return None if self.extension is None else self.extension.name
+
+    @property
     def names(self) -> tuple[str, ...]:
-        return self.model.names + noise_names(self.n_outputs, self.noise)
+        return self.mech_names + noise_names(self.n_outputs, self.noise)
 
     @property
     def n_params(self) -> int:
@@ -213,7 +246,7 @@ class Likelihood:
     def split(self, theta: np.ndarray):
         """Split full vectors, shape (nb, P), into mechanical, sigma and phi (or None)."""
         theta = np.asarray(theta, dtype=float)
-        p = self.model.n_params
+        p = self.n_mech
         n = self.n_outputs
         mech = theta[:, :p]
         sigma = theta[:, p : p + n]
@@ -229,7 +262,12 @@ class Likelihood:
                 f"got shape {theta.shape}"
             )
         mech, sigma, phi = self.split(theta)
-        ok = self.model.valid(mech) & np.all(np.isfinite(theta), axis=-1)
+        ok = np.all(np.isfinite(theta), axis=-1)
+        if self.extension is None:
+            ok &= self.model.valid(mech)
+        else:
+            with np.errstate(invalid="ignore"):
+                ok &= self.extension.valid(self.model.rig, mech)
         ok &= np.all(sigma > 0, axis=-1)
         if phi is not None:
             ok &= np.all(np.abs(phi) < 1, axis=-1)
@@ -239,9 +277,15 @@ class Likelihood:
     def predict(self, theta_mech: np.ndarray) -> list[np.ndarray]:
         """Noise-free model outputs per experiment, each shape (nb, N_e, n_out), m.
 
-        ``theta_mech`` must be admissible (shape (nb, model.n_params)).
+        ``theta_mech`` must be admissible (shape (nb, n_mech)).  With an extension every
+        parameter set of the batch goes through one ``Extension.simulate`` call per
+        experiment.
         """
         theta_mech = np.atleast_2d(theta_mech)
+        if self.extension is not None:
+            rig = self.model.rig
+            return [self.extension.simulate(rig, theta_mech, e.v_volt, e.dt)
+                    for e in self.experiments]
         return [
             simulate_linear(self.model, theta_mech, e.v_volt, e.dt) for e in self.experiments
         ]
@@ -321,7 +365,7 @@ class Likelihood:
 
         Parameters
         ----------
-        theta_mech : ndarray, shape (model.n_params,)
+        theta_mech : ndarray, shape (n_mech,)
 
         Returns
         -------
@@ -339,6 +383,31 @@ class Likelihood:
         phi = np.clip(phi, -0.9999, 0.9999)
         sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
         return np.r_[sigma, phi]
+
+
+def resolve_extension(extension, model: LinearModel):
+    """The ``Extension`` instance for a name, an instance or None, checked against a model.
+
+    Raises
+    ------
+    ModelError
+        For an unknown name, an object that is not an ``Extension``, or a model whose
+        damping is not free (every extension is built on ``LinearModel(rig, "free")``).
+    """
+    if extension is None:
+        return None
+    from ..extensions import Extension, get_extension
+
+    ext = get_extension(extension) if isinstance(extension, str) else extension
+    if not isinstance(ext, Extension):
+        raise ModelError(
+            f"extension must be a name in bayesmodal.extensions.EXTENSIONS or an Extension, "
+            f"got {type(extension).__name__}")
+    if model.damping != "free":
+        raise ModelError(
+            f"the {ext.name} extension is built on the free-damping model; got "
+            f"{model.damping!r} damping (use LinearModel(rig, 'free'))")
+    return ext
 
 
 def as_experiments(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:

@@ -34,6 +34,28 @@ sigma_k        LogUniform(1e-7, 0.1) m               log
 phi_k          Uniform(-1, 1)                        tanh
 =============  ====================================  ==========
 
+Model extensions (``default_priors(..., extension=...)``) add their own parameters after the
+linear ones, each with ``Uniform(lo, hi)`` on its ``ParamSpec.bounds``, e.g.
+
+=============  ====================================  ==========
+Fc1..Fcn       Uniform(0, 2) N                       identity
+Fs1..Fsn       Uniform(0, 3) N (and Fs_i >= Fc_i)    identity
+tau_s          Uniform(0, 0.05) s                    identity
+delay_s        Uniform(0, 0.03) s                    identity
+gap_m          Uniform(0, 1e-3) m                    identity
+m_p            Uniform(0.05, 0.5) kg                 log
+k3_1..k3_n     Uniform(-2e5, 2e5) N/m^3              identity
+v_sat          Uniform(0.5, 10) V                    log
+=============  ====================================  ==========
+
+The transform follows the same rule as for the dampers: ``identity`` when the prior
+reaches down to zero (or below), because the effect may be absent and its posterior then
+sits on the zero bound; ``log`` for a strictly positive range.  Joint constraints of an
+extension (``Fs_i >= Fc_i``, ``m_p < m1``) are not part of these independent priors: the
+likelihood is ``-inf`` where they fail, so the prior in effect is the box restricted to
+the admissible set (for the nested-sampling evidence this is the box prior with zero
+likelihood outside the admissible set).
+
 ``sigma_k`` is the white-noise standard deviation of output ``k`` or, for AR(1) noise, the
 standard deviation of the innovations.  ``ca`` up to 20 1/s covers a mass-proportional
 damping ratio ``ca / (2 omega)`` of 1 at 10 rad/s; ``cb`` up to 0.01 s covers a stiffness-
@@ -324,6 +346,7 @@ def default_priors(
     noise: str = "ar1",
     n_outputs: int | None = None,
     overrides: Mapping[str, object] | None = None,
+    extension=None,
 ) -> PriorSet:
     """Documented default priors for a rig model and a noise model.
 
@@ -335,11 +358,23 @@ def default_priors(
         Number of measured outputs (default: the number of carts).
     overrides : mapping of str to prior, optional
         Per-parameter replacements, e.g. ``{"g_v": Normal(6.2, 0.5, lo=0)}``.
+    extension : str or Extension, optional
+        A model extension (free damping only); its parameters get ``Uniform`` priors on
+        their ``ParamSpec.bounds`` (see the module docstring for the transforms).
 
     Returns
     -------
     PriorSet
-        Parameters ordered as ``model.names`` followed by ``noise_names(n_outputs, noise)``.
+        Parameters ordered as ``model.names`` (or ``extension.names(model.rig)``) followed
+        by ``noise_names(n_outputs, noise)``.
+
+    Examples
+    --------
+    >>> from bayesmodal.system import LinearModel, Rig
+    >>> ps = default_priors(LinearModel(Rig(), "free"), noise="white",
+    ...                     extension="coulomb_friction")
+    >>> ps.names[9:12], ps.priors[9]
+    (('Fc1', 'Fc2', 'Fc3'), Uniform(lo=0.0, hi=2.0))
     """
     n = model.n_carts
     n_out = n if n_outputs is None else int(n_outputs)
@@ -362,6 +397,13 @@ def default_priors(
             add(nm, Uniform(0.0, 20.0), "identity")
     if tuple(names) != tuple(mech):  # pragma: no cover - guards against a model change
         raise ConfigError(f"default priors do not match the model parameters {mech}")
+    if extension is not None:
+        from .likelihood import resolve_extension
+
+        ext = resolve_extension(extension, model)
+        for spec in ext.specs(model.rig):
+            lo, hi = (float(b) for b in spec.bounds)
+            add(spec.name, Uniform(lo, hi), "log" if lo > 0 else "identity")
     for nm in noise_names(n_out, noise):
         if nm.startswith("sigma"):
             add(nm, LogUniform(1e-7, 0.1), "log")

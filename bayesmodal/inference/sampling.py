@@ -11,6 +11,11 @@ emcee's own ``RandomState`` (used by the moves) is seeded from the same generato
 handed over in the initial ``emcee.State``, so one seed gives one chain, bit for bit.
 emcee's HDF backend stores the generator state after every step; a run resumed from the
 backend therefore continues exactly as the uninterrupted run would have.
+
+Model extensions (``extension="coulomb_friction"`` etc.) sample the free-damping
+parameters, the extension's parameters and the noise parameters jointly; the walkers start
+around ``bayesmodal.extensions.fit_extension_lsq`` and every half-ensemble is one batched
+``Extension.simulate`` call per experiment.
 """
 
 from __future__ import annotations
@@ -198,8 +203,9 @@ class PosteriorRun:
     ----------
     likelihood : Likelihood
     priors : PriorSet
-    lsq : LSQResult or None
-        The least-squares fit the walkers started from.
+    lsq : LSQResult, ExtensionFit or None
+        The least-squares fit the walkers started from (an ``ExtensionFit`` for a run
+        with a model extension; its ``theta`` has the extension's parameters too).
     start : ndarray, shape (P,)
         Centre of the start ball, physical units.
     chain : ndarray, shape (n_steps, n_walkers, P)
@@ -221,7 +227,7 @@ class PosteriorRun:
 
     likelihood: Likelihood
     priors: PriorSet
-    lsq: LSQResult | None
+    lsq: object
     start: np.ndarray
     chain: np.ndarray
     log_prob: np.ndarray
@@ -237,6 +243,11 @@ class PosteriorRun:
     @property
     def names(self) -> tuple[str, ...]:
         return self.priors.names
+
+    @property
+    def extension_name(self) -> str | None:
+        """Name of the model extension sampled, or None for the linear model."""
+        return self.likelihood.extension_name
 
     @property
     def draws(self) -> np.ndarray:
@@ -358,6 +369,24 @@ def posterior_mode(log_post: LogPosterior, theta0: np.ndarray, *, max_iter: int 
     return priors.to_physical(res.x)
 
 
+def _inside_priors(theta_mech: np.ndarray, priors: PriorSet) -> np.ndarray:
+    """Model parameters moved into their prior support where they are outside it.
+
+    An extension's least-squares estimate may sit outside its prior (e.g. "no saturation",
+    ``v_sat = inf``); the start ball needs a point of positive prior density.  Values are
+    moved to 1e-3 of the prior width inside the violated bound.
+    """
+    out = np.array(theta_mech, dtype=float)
+    for i in range(out.size):
+        lo, hi = priors.priors[i].support
+        margin = 1e-3 * (hi - lo) if np.isfinite(hi - lo) else 0.0
+        if out[i] > hi:
+            out[i] = hi - margin
+        elif out[i] < lo:
+            out[i] = lo + margin
+    return out
+
+
 def _start_ball(priors: PriorSet, centre: np.ndarray, scale: np.ndarray, n_walkers: int,
                 rng: np.random.Generator, log_post: LogPosterior) -> np.ndarray:
     """Walkers around ``centre`` (physical) with finite posterior, in z coordinates.
@@ -444,6 +473,7 @@ def sample_posterior(
     init_scale: float = 1e-4,
     refine: bool = True,
     warn: bool = True,
+    extension=None,
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -454,7 +484,7 @@ def sample_posterior(
     noise : {"ar1", "white"}
         Residual model (see ``likelihood``).
     priors : PriorSet, optional
-        Default ``default_priors(model, noise=noise)``.
+        Default ``default_priors(model, noise=noise, extension=extension)``.
     n_walkers : int
         Ensemble size; at least ``2 P`` and even.
     n_steps : int
@@ -475,8 +505,11 @@ def sample_posterior(
         restored from the file) and only the missing steps are run.
     progress : bool
         Show emcee's tqdm progress bar.
-    start : LSQResult or ndarray, shape (model.n_params,), optional
-        Least-squares estimate to start from (computed with ``fit_lsq`` if omitted).
+    start : LSQResult, ExtensionFit or ndarray, optional
+        Least-squares estimate to start from (computed with ``fit_lsq``, or with
+        ``fit_extension_lsq`` for an extension, if omitted).  An array has the model
+        parameters only (``Likelihood.mech_names``).  With an extension an ``LSQResult``
+        is taken as the linear start of ``fit_extension_lsq``.
     refine : bool
         Move the centre of the start ball from the least-squares estimate (with noise
         parameters from its residuals) to the posterior mode first (``posterior_mode``).
@@ -487,6 +520,10 @@ def sample_posterior(
         ``max(|theta|, 1e-3 * prior width)``).
     warn : bool
         Emit a ``ConvergenceWarning`` when the checks fail.
+    extension : str or Extension, optional
+        Sample a model extension (a name in ``bayesmodal.extensions.EXTENSIONS`` or an
+        instance) on top of ``model``, which must have free damping.  Parameter names are
+        ``extension.names(model.rig)`` followed by the noise names.
 
     Returns
     -------
@@ -507,8 +544,10 @@ def sample_posterior(
     (60, 32, 9)
     """
     exps = as_experiments(experiments)
-    lik = Likelihood(model, exps, noise)
-    priors = default_priors(model, noise=noise) if priors is None else priors
+    lik = Likelihood(model, exps, noise, extension)
+    ext = lik.extension
+    if priors is None:
+        priors = default_priors(model, noise=noise, extension=ext)
     log_post = LogPosterior(lik, priors)
     n_par = priors.n_params
     n_walkers = int(n_walkers)
@@ -528,16 +567,26 @@ def sample_posterior(
         raise ConfigError(f"thin must be >= 1, got {thin}")
 
     # start point: LSQ mechanical estimate plus moment estimates of the noise
-    if start is None:
-        start = fit_lsq(list(exps), model)
-    lsq = start if isinstance(start, LSQResult) else None
-    theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
-    theta_mech = model.check(theta_mech)
+    if ext is None:
+        if start is None:
+            start = fit_lsq(list(exps), model)
+        lsq = start if isinstance(start, LSQResult) else None
+        theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
+        theta_mech = model.check(theta_mech)
+    else:
+        from ..extensions import ExtensionFit, fit_extension_lsq
+
+        if start is None or isinstance(start, LSQResult):
+            start = fit_extension_lsq(list(exps), ext, model.rig, linear=start)
+        lsq = start if isinstance(start, ExtensionFit) else None
+        theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
+        theta_mech = _inside_priors(ext.check(model.rig, theta_mech), priors)
     centre = np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
 
     gen = np.random.default_rng(rng)
     config = {
         "damping": model.damping,
+        **({} if ext is None else {"extension": ext.name}),
         "springs_n_m": list(model.rig.springs_n_m),
         "noise": noise,
         "priors": [repr(p) for p in priors.priors],

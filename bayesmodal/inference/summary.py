@@ -41,6 +41,12 @@ def posterior_modes(idata, *, methods=("eig", "iteration", "rayleigh")) -> Modal
     return propagate_modes(model, draws, reference=ref, methods=methods)
 
 
+def _mech_names(idata, model) -> list[str]:
+    """Model parameter names of a run (linear, then a model extension's, if any)."""
+    text = idata.posterior.attrs.get("mechanical_names")
+    return list(model.names) if text is None else json.loads(text)
+
+
 def lsq_theta(idata) -> np.ndarray | None:
     """Least-squares estimate stored with the run, shape (n_params,), or None."""
     text = idata.posterior.attrs.get("lsq_theta_json")
@@ -107,7 +113,7 @@ def lsq_vs_posterior(idata, *, prob: float = 0.9, modal: ModalSamples | None = N
     model = model_from_idata(idata)
     params = parameter_intervals(idata, prob)
     rows = []
-    for nm, val in zip(model.names, theta, strict=True):
+    for nm, val in zip(_mech_names(idata, model), theta, strict=True):
         iv = params[nm]
         rows.append(ComparisonRow(nm, _unit(nm), float(val), float(iv.median), float(iv.lo),
                                   float(iv.hi), bool(iv.contains(val))))
@@ -169,6 +175,7 @@ def summary_dict(idata, *, prob: float = 0.9, modal: ModalSamples | None = None)
     rows = lsq_vs_posterior(idata, prob=prob, modal=modal)
     out = {
         "damping": a["damping"],
+        **({"extension": a["extension"]} if a.get("extension") else {}),
         "noise": a["noise"],
         "prob": prob,
         "parameters": {nm: _triple(iv) for nm, iv in parameter_intervals(idata, prob).items()},
@@ -286,7 +293,8 @@ def _write_plots(idata, modal, out, prob) -> None:
     model = model_from_idata(idata)
     theta = lsq_theta(idata)
     ref = None if theta is None else propagate_modes(model, theta[None], methods=("eig",))
-    refd = None if theta is None else dict(zip(model.names, theta.tolist(), strict=True))
+    refd = None if theta is None else dict(zip(_mech_names(idata, model), theta.tolist(),
+                                               strict=True))
     _save(plot_trace(idata).flat[0].figure, out / "trace.png")
     _save(plot_corner(idata, reference=refd).flat[0].figure, out / "corner.png")
     if "posterior_predictive" in idata.groups():
