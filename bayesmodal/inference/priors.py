@@ -140,11 +140,13 @@ class LogUniform:
         x = np.asarray(x, dtype=float)
         inside = (x >= self.lo) & (x <= self.hi)
         with np.errstate(divide="ignore", invalid="ignore"):
-            val = -np.log(x) - np.log(np.log(self.hi / self.lo))
+            # log(hi) - log(lo), not log(hi / lo): the ratio overflows for wide priors
+            val = -np.log(x) - np.log(np.log(self.hi) - np.log(self.lo))
         return np.where(inside, val, -np.inf)
 
     def ppf(self, u: np.ndarray) -> np.ndarray:
-        return self.lo * (self.hi / self.lo) ** np.asarray(u, dtype=float)
+        log_lo, log_hi = np.log(self.lo), np.log(self.hi)
+        return np.exp(log_lo + (log_hi - log_lo) * np.asarray(u, dtype=float))
 
 
 @dataclass(frozen=True)
@@ -299,7 +301,7 @@ class PriorSet:
         """Log density of the sampling coordinates, ``log p(f(z)) + log |f'(z)|``."""
         z = np.asarray(z, dtype=float)
         lp = self.log_prior(self.to_physical(z))
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # wild walkers: -inf below
             out = lp + self.log_jacobian(z)
         return np.where(np.isfinite(lp), out, -np.inf)
 
