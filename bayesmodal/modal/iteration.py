@@ -186,7 +186,10 @@ def matrix_iteration(M, K, *, tol: float = 1e-13, max_iter: int = 10000,
     ok &= np.all(bound <= accuracy, axis=-1)
     if not np.all(ok):
         if on_fail == "raise":
-            raise ConvergenceError(_failure_message(ok, counts, bound, max_iter, accuracy))
+            w2 = np.einsum("...im,...im->...m", U, K @ U) / np.einsum("...im,...im->...m",
+                                                                       U, M @ U)
+            raise ConvergenceError(_failure_message(ok, counts, bound, max_iter, accuracy,
+                                                    w2))
         U = np.where(ok[..., None, None], U, np.nan)
         # keep NaN systems from tripping the normalisation and sorting
         U = np.where(np.isnan(U), 1.0, U)
@@ -216,15 +219,27 @@ def _error_bound(M, K, U):
     return np.sqrt(np.maximum(r_Minv_r, 0.0) / uMu) / gap
 
 
-def _failure_message(ok, counts, bound, max_iter, accuracy):
+def _failure_message(ok, counts, bound, max_iter, accuracy, w2=None):
     bad = np.argwhere(~np.atleast_1d(ok))[0]
     idx = tuple(int(i) for i in bad)
     c = counts[idx] if ok.ndim else counts
     b = bound[idx] if ok.ndim else bound
     where = f" (batch index {idx})" if ok.ndim else ""
+    cause = ("nearly repeated frequencies make power iteration arbitrarily slow, use "
+             "undamped_modes instead")
+    if w2 is not None and np.all(np.asarray(c) < max_iter):
+        # every mode met the stopping rule, yet the bound fails: not slow convergence but
+        # rounding, as when omega^2 spans many decades (very stiff next to very soft
+        # springs): deflating lambda = 1/omega^2 of the lowest mode leaves rounding
+        # errors of order eps * lambda_max in the D seen by the highest modes
+        w = np.sort(np.asarray(w2[idx] if ok.ndim else w2, float))
+        gaps = np.diff(w) / w[1:] if w.size > 1 else np.array([1.0])
+        if np.all(np.isfinite(w)) and w[0] > 0 and gaps.min() > 0.01:
+            cause = (f"omega^2 spans a factor {w[-1] / w[0]:.2g} (very stiff or very soft "
+                     "springs, or very unequal masses): deflation loses accuracy for the "
+                     "highest modes, use undamped_modes instead")
     return (
         f"matrix iteration did not converge{where}: iterations per mode {c.tolist()} "
         f"(max {max_iter}), error bounds {np.array2string(b, precision=2)} "
-        f"(accepted {accuracy:g}); nearly repeated frequencies make power iteration "
-        "arbitrarily slow, use undamped_modes instead"
+        f"(accepted {accuracy:g}); {cause}"
     )
