@@ -54,15 +54,20 @@ class Hidden:
 
 
 def rig_input(n_samples: int = 3600) -> np.ndarray:
-    """Pulses of two amplitudes and both signs, then steps of several levels, V."""
+    """Pulses of two amplitudes and both signs, then steps of several levels, V.
+
+    Pulse spacing 11 % and step length 9.2 % of the record (2 s and 1.7 s at 3600
+    samples of 5 ms).
+    """
     u = np.zeros(n_samples)
+    gap, hold = int(0.11 * n_samples), int(0.092 * n_samples)
     k = 1
     for a in (3.0, -1.5, 1.5, -3.0):
         u[k : k + 9] = a
-        k += 400
+        k += gap
     for a in (0.5, 0.0, -0.3, 0.0, 0.8, 0.0):
-        u[k : k + 330] = a
-        k += 330
+        u[k : k + hold] = a
+        k += hold
     return u[:n_samples]
 
 

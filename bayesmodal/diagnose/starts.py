@@ -102,5 +102,7 @@ def best_start(ext: Extension, rig: Rig, theta_lin: np.ndarray,
     # infinite "no effect" values are valid for the simulator but not as a start
     cands = cands[ext.valid(rig, cands)]
     r = extension_residuals(ext, rig, cands, experiments)
-    cost = np.sum(r**2, axis=1)
+    with np.errstate(all="ignore"):
+        cost = np.sum(r**2, axis=1)
+    cost = np.where(np.isfinite(cost), cost, np.inf)  # softening springs can diverge
     return cands[int(np.argmin(cost))]
