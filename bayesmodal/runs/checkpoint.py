@@ -24,7 +24,7 @@ from pathlib import Path
 import emcee
 import numpy as np
 
-from .folder import _fsync_replace
+from .folder import _fsync_replace, write_failed
 
 __all__ = ["AtomicCheckpoint", "checkpoint_iteration"]
 
@@ -108,6 +108,16 @@ class AtomicCheckpoint(emcee.backends.Backend):
         import h5py
 
         tmp = self.path.with_name(self.path.name + ".tmp")
+        try:
+            self._write(h5py, tmp)
+        except OSError as exc:  # full disk, no permission: the old checkpoint is kept
+            raise write_failed(exc, self.path, tmp) from exc
+        _fsync_replace(tmp, self.path)
+        self._last_write = time.monotonic()
+        self.n_writes += 1
+        return self.path
+
+    def _write(self, h5py, tmp: Path) -> None:
         it = self.iteration
         with h5py.File(tmp, "w") as f:
             g = f.create_group(self.name)
@@ -129,10 +139,6 @@ class AtomicCheckpoint(emcee.backends.Backend):
             for k, v in vars(self).items():
                 if k.startswith(_TAG):
                     g.attrs[k[1:]] = v
-        _fsync_replace(tmp, self.path)
-        self._last_write = time.monotonic()
-        self.n_writes += 1
-        return self.path
 
 
 def checkpoint_iteration(path: str | os.PathLike, name: str = "mcmc") -> int:

@@ -57,21 +57,44 @@ def now_iso() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
+def write_failed(exc: OSError, path: Path, tmp: Path | None = None) -> OSError:
+    """The error to raise when writing ``path`` failed (full disk, no permission): names
+    the file, says the previous version is kept, and removes the partial temporary."""
+    if tmp is not None:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    msg = f"cannot write {path}: {exc.strerror or exc} (the previous version, if any, is kept)"
+    return OSError(exc.errno, msg) if exc.errno is not None else OSError(msg)
+
+
 def _fsync_replace(tmp: Path, path: Path) -> None:
-    fd = os.open(tmp, os.O_RDONLY)
     try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    os.replace(tmp, path)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise write_failed(exc, path, tmp) from exc
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder."""
+    """Write ``data`` to ``path`` through a temporary file in the same folder.
+
+    Raises
+    ------
+    OSError
+        Naming ``path`` when the disk is full or the folder is not writable; ``path``
+        itself is then untouched.
+    """
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+    except OSError as exc:
+        raise write_failed(exc, path, tmp) from exc
     _fsync_replace(tmp, path)
     return path
 
@@ -112,8 +135,12 @@ def atomic_savefig(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
 
     path = Path(path)
     tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+    except OSError as exc:
+        raise write_failed(exc, path, tmp) from exc
+    finally:
+        plt.close(fig)
     _fsync_replace(tmp, path)
     return path
 
@@ -240,7 +267,11 @@ class RunFolder:
         RunLockedError
             When a live process holds the lock.
         """
-        self.path.mkdir(parents=True, exist_ok=True)
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OSError(exc.errno, f"cannot create the run folder {self.path}: "
+                          f"{exc.strerror or exc}") from exc
         content = json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
                               "since": now_iso()}).encode()
         for _ in range(2):
