@@ -9,7 +9,7 @@ import pytest
 
 from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, find_data, save_csv
-from bayesmodal.inference import noise_names, simulate_noise
+from bayesmodal.inference import default_priors, simulate_noise
 from bayesmodal.runs import prepare_run, render_report, run_config
 from bayesmodal.simulate import simulate_linear
 from bayesmodal.system import LinearModel, Rig
@@ -32,7 +32,8 @@ def test_shipped_config_is_valid(name):
     assert cfg.damping == damping and cfg.extensions == ext
     assert [Path(f).stem for f in cfg.data_files] == stems
     model = LinearModel(Rig(cfg.springs_n_m), cfg.damping)
-    n_par = model.n_params + len(noise_names(model.n_carts, cfg.noise))
+    n_par = default_priors(model, noise=cfg.noise,
+                           extension=cfg.extensions[0] if cfg.extensions else None).n_params
     assert cfg.walkers >= 2 * n_par and cfg.walkers % 2 == 0
     # about a thousand retained draws: posterior.nc stays near 100 MB on 7400 samples
     draws = cfg.walkers * ((cfg.steps - cfg.burn + cfg.thin - 1) // cfg.thin)
@@ -69,19 +70,26 @@ def _record(path: Path, n: int = 800) -> Path:
     return path
 
 
-def test_extension_config_adds_a_least_squares_fit(tmp_path):
+def test_extension_config_samples_the_extended_posterior(tmp_path):
+    """A run with ``extensions`` samples the extended model (its parameters are in the
+    posterior, summary and report), scores the held-out record with it and checks the
+    residuals of the extended model."""
     _record(tmp_path / "rec.csv", n=400)
+    _record(tmp_path / "held.csv", n=300)
     cfg = tmp_path / "fric.toml"
     cfg.write_text("""
 [data]
 files = ["rec.csv"]
+heldout = ["held.csv"]
 [model]
 damping = "free"
 extensions = ["coulomb_friction"]
 [likelihood]
 noise = "white"
+[priors]
+Fs2 = [0.0, 2.0]
 [sampler]
-walkers = 24
+walkers = 36
 steps = 60
 burn = 20
 thin = 2
@@ -91,15 +99,26 @@ plots = false
 ema = false
 """)
     res = run_config(cfg, tmp_path / "out")
-    ext = res.summary["extensions"]["coulomb_friction"]
-    assert "least squares" in ext["method"]
-    # the data have no friction: the fitted Coulomb forces are negligible next to the
-    # 3 V x 6.2 N/V = 19 N drive, and the fit is no worse than the linear one it extends
+    s = res.summary
+    assert s["extension"] == "coulomb_friction"
+    assert {"Fc1", "Fs3", "sigma_3", "g_v"} <= set(s["parameters"])
+    ext = s["extensions"]["coulomb_friction"]
+    assert "posterior" in ext["method"]
+    assert set(ext["params"]) == {f"F{k}{i}" for k in "cs" for i in (1, 2, 3)}
+    for nm, (lo, hi) in ext["intervals"].items():
+        assert lo <= ext["params"][nm] <= hi
+    # the overridden prior bounds the draws
+    assert s["parameters"]["Fs2"]["hi"] <= 2.0
+    # the data have no friction: the kinetic levels stay negligible next to the
+    # 3 V x 6.2 N/V = 19 N drive, and the fit is no worse than the linear LSQ fit
     fc = np.array([ext["params"][f"Fc{i}"] for i in (1, 2, 3)])
     assert np.all(np.abs(fc) < 0.05)
-    assert np.all(np.asarray(ext["fit_percent"]) >= np.asarray(ext["linear_fit_percent"]) - 0.01)
+    assert np.all(np.asarray(ext["fit_percent"]) >= np.asarray(ext["linear_fit_percent"]) - 0.5)
+    assert s["heldout"]["experiments"] == ["held"]
+    assert np.all(np.asarray(s["heldout"]["fit_percent_median"]) > 90)
+    assert len(s["crosscheck"]["lsq"]["theta"]) == 15
     html = render_report(tmp_path / "out")
-    assert "Model extensions" in html and "coulomb_friction" in html
+    assert "Model extensions" in html and "Fc1" in html and "posterior" in html
 
 
 @pytest.mark.slow

@@ -80,6 +80,13 @@ class ComparisonRow:
 _UNITS = {"g_v": "N/V", "ca": "1/s", "cb": "s"}
 
 
+def _extension_units() -> dict[str, str]:
+    from ..extensions import EXTENSIONS
+    from ..system import Rig
+
+    return {p.name: p.unit for ext in EXTENSIONS.values() for p in ext.specs(Rig())}
+
+
 def _unit(name: str) -> str:
     if name in _UNITS:
         return _UNITS[name]
@@ -87,7 +94,7 @@ def _unit(name: str) -> str:
         return "kg"
     if name.startswith("c"):
         return "N s/m"
-    return ""
+    return _extension_units().get(name, "")
 
 
 def lsq_vs_posterior(idata, *, prob: float = 0.9, modal: ModalSamples | None = None

@@ -162,13 +162,38 @@ class ResidualCheck:
                 "white_band": self.band, "diagnostics": list(self.diagnostics)}
 
 
-def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray) -> tuple:
+def _extended_residuals(experiment: Experiment, model: LinearModel, theta: np.ndarray,
+                        extension, y_hat: np.ndarray):
+    """``LinearResiduals`` holding the prediction of an extended model.
+
+    The diagnostics read the prediction, its velocity and the residual; the extension's
+    simulator returns positions only, so the predicted velocity is the smoothed derivative
+    of the (noise-free) predicted positions.  ``theta`` keeps the linear part (the
+    diagnostics that use ``M, C, K`` see the linear rig).
+    """
+    from ..diagnostics import LinearResiduals, linear_residuals
+    from ..diagnostics.residuals import smooth_derivative
+
+    lin = theta[: model.n_params]
+    base = linear_residuals(experiment, model, lin)
+    return LinearResiduals(
+        experiment=experiment, model=model, theta=lin, y_pred=y_hat,
+        v_pred=smooth_derivative(y_hat, experiment.dt, base.smooth_window, deriv=1),
+        residual=experiment.y_m - y_hat, v_meas=base.v_meas,
+        smooth_window=base.smooth_window, quantum_m=base.quantum_m)
+
+
+def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray,
+                 extension=None, y_hat=None) -> tuple:
     try:
         from ..diagnostics import RESIDUAL_DIAGNOSTICS, linear_residuals
     except ImportError:
         return ()
     try:
-        res = linear_residuals(experiment, model, theta)
+        if extension is None:
+            res = linear_residuals(experiment, model, theta)
+        else:
+            res = _extended_residuals(experiment, model, theta, extension, y_hat)
     except _EXPECTED as exc:
         return ({"name": "residuals", "error": f"{type(exc).__name__}: {exc}"},)
     out = []
@@ -186,19 +211,24 @@ def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray) 
 
 
 def residual_check(experiment: Experiment, model: LinearModel, theta: np.ndarray, *,
-                   max_lag_s: float = 2.0, diagnostics: bool = True) -> ResidualCheck:
+                   max_lag_s: float = 2.0, diagnostics: bool = True,
+                   extension=None) -> ResidualCheck:
     """Residuals, their ACF and the residual diagnostics at ``theta``.
 
     Parameters
     ----------
     experiment : Experiment
     model : LinearModel
-    theta : ndarray, shape (model.n_params,)
-        Mechanical parameters (e.g. the posterior median).
+    theta : ndarray, shape (model.n_params,) or (n_params of the extension,)
+        Mechanical parameters (e.g. the posterior median); with ``extension`` the linear
+        free-damping parameters followed by the extension's.
     max_lag_s : float
         Longest ACF lag, s.
     diagnostics : bool
         Run ``bayesmodal.diagnostics`` when it is installed.
+    extension : Extension, optional
+        Predict with this model extension (``Extension.simulate``) instead of the linear
+        model.
 
     Returns
     -------
@@ -206,8 +236,12 @@ def residual_check(experiment: Experiment, model: LinearModel, theta: np.ndarray
     """
     from ..metrics import fit_percent
 
-    theta = model.check(np.asarray(theta, float))
-    y_hat = simulate_linear(model, theta, experiment.v_volt, experiment.dt)
+    if extension is None:
+        theta = model.check(np.asarray(theta, float))
+        y_hat = simulate_linear(model, theta, experiment.v_volt, experiment.dt)
+    else:
+        theta = extension.check(model.rig, np.asarray(theta, float))
+        y_hat = extension.simulate(model.rig, theta, experiment.v_volt, experiment.dt)
     r = experiment.y_m - y_hat
     n_lag = max(1, int(round(max_lag_s / experiment.dt)))
     acf = sample_acf(r, n_lag)
@@ -220,5 +254,6 @@ def residual_check(experiment: Experiment, model: LinearModel, theta: np.ndarray
         band=float(1.96 / np.sqrt(r.shape[0])),
         rms_m=np.sqrt(np.mean(r**2, axis=0)),
         fit_percent=np.atleast_1d(np.asarray(fit_percent(experiment.y_m, y_hat), float)),
-        diagnostics=_diagnostics(experiment, model, theta) if diagnostics else (),
+        diagnostics=(_diagnostics(experiment, model, theta, extension, y_hat) if diagnostics
+                     else ()),
     )

@@ -291,9 +291,13 @@ def _section_extras(s: dict) -> str:
     if ext:
         rows = []
         for name, e in ext.items():
-            params = ", ".join(f"{k} = {v:.4g}" for k, v in e["params"].items())
+            iv = e.get("intervals") or {}
+            params = ", ".join(
+                f"{k} = {v:.4g}" + (f" [{iv[k][0]:.4g}, {iv[k][1]:.4g}]" if k in iv else "")
+                for k, v in e["params"].items())
+            lin = e.get("linear_fit_percent")
             rows.append([_e(name), _e(", ".join(f"{v:.2f}" for v in _flat(e["fit_percent"]))),
-                         _e(", ".join(f"{v:.2f}" for v in _flat(e["linear_fit_percent"]))),
+                         _e(", ".join(f"{v:.2f}" for v in _flat(lin)) if lin else "-"),
                          _e(params), _e(e["method"])])
         out += ("<h2 id='extensions'>Model extensions</h2>"
                 + _table(["extension", "fit %", "linear fit %", "parameters", "method"], rows,

@@ -55,6 +55,8 @@ class PreparedRun:
     model : LinearModel
     priors : bayesmodal.inference.PriorSet
     moves : list of (emcee move, weight)
+    extension : str or None
+        The model extension sampled with the linear model (``[model] extensions``).
     """
 
     config: RunConfig
@@ -63,6 +65,7 @@ class PreparedRun:
     model: LinearModel
     priors: object
     moves: list
+    extension: str | None = None
 
 
 @dataclass(frozen=True)
@@ -148,7 +151,9 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     ConfigError
         Naming the file and the key: unreadable data (``[data.files]``), outputs that do
         not match the rig (``[rig.springs_n_m]``), priors the sampler cannot use
-        (``[priors.NAME]``), too few or an odd number of walkers (``[sampler.walkers]``).
+        (``[priors.NAME]``), too few or an odd number of walkers (``[sampler.walkers]``),
+        more than one model extension (``[model.extensions]``) or an extension without
+        free damping (``[model.damping]``).
     """
     from ..inference import default_priors
 
@@ -166,14 +171,26 @@ def prepare_run(config: RunConfig) -> PreparedRun:
                 f"{src}: [rig.springs_n_m] {len(cfg.springs_n_m)} springs make "
                 f"{model.n_carts} carts, but {e.source or e.name} has {e.n_outputs} measured "
                 "outputs")
-    base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts)
+    extension = None
+    if len(cfg.extensions) > 1:
+        raise ConfigError(
+            f"{src}: [model.extensions] one extension per run (the sampler samples one "
+            f"extended model), got {list(cfg.extensions)}; make one configuration per "
+            "extension")
+    if cfg.extensions:
+        extension = cfg.extensions[0]
+        if cfg.damping != "free":
+            raise ConfigError(
+                f"{src}: [model.damping] the {extension} extension is built on free "
+                f"damping, got {cfg.damping!r}")
+    base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts,
+                          extension=extension)
     overrides = {}
     for name, ov in cfg.priors.items():
         if name not in base.names:
             raise ConfigError(
-                f"{src}: [priors.{name}] the sampler samples {list(base.names)}; priors of "
-                "extension parameters are not used yet (extensions are fitted by least "
-                "squares only), remove this entry")
+                f"{src}: [priors.{name}] the sampler samples {list(base.names)}; "
+                "remove this entry")
         overrides[name] = _prior(ov)
     try:
         priors = base.replace(overrides)
@@ -188,7 +205,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         moves = parse_moves(cfg.moves)
     except ConfigError as exc:
         raise ConfigError(f"{src}: {exc}") from exc
-    return PreparedRun(cfg, exps, held, model, priors, moves)
+    return PreparedRun(cfg, exps, held, model, priors, moves, extension)
 
 
 def default_out_dir(config: RunConfig, out_root: str | os.PathLike = "runs") -> Path:
@@ -295,11 +312,13 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
 
     cfg = prep.config
     model = prep.model
+    ext = run.likelihood.extension
     out: dict = {}
-    theta_med = _posterior_median(summary, model.names)
+    names = run.likelihood.mech_names
+    theta_med = _posterior_median(summary, names)
     lsq = run.lsq
     out["lsq"] = None if lsq is None else {
-        "theta": dict(zip(model.names, lsq.theta.tolist(), strict=True)),
+        "theta": dict(zip(names, lsq.theta.tolist(), strict=True)),
         "fit_percent": lsq.fit_percent.tolist(), "success": bool(lsq.success)}
     work = [("residuals", e) for e in prep.experiments]
     if cfg.ema:
@@ -308,7 +327,7 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
     for kind, e in tqdm(work, desc="cross-checks", unit="check", disable=not progress,
                         leave=False):
         if kind == "residuals":
-            res_checks.append(residual_check(e, model, theta_med))
+            res_checks.append(residual_check(e, model, theta_med, extension=ext))
         else:
             chk = lsce_check(e, model.n_carts)
             if chk.error:
@@ -358,30 +377,39 @@ def _evidence(prep: PreparedRun, run) -> dict | None:
             "dlogz": cfg.evidence_dlogz}
 
 
-def _extensions(prep: PreparedRun, run) -> dict:
-    out = {}
-    if not prep.config.extensions:
-        return out
-    from ..extensions import EXTENSIONS, fit_extension_lsq
+def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
+    """The sampled extension: posterior medians and intervals of its parameters, fit
+    percentages at the posterior median against the linear least-squares fit."""
+    if prep.extension is None:
+        return {}
+    from ..metrics import fit_percent
 
-    lin = run.lsq if run.lsq is not None and run.lsq.model.damping == "free" else None
-    for name in prep.config.extensions:
-        fit = fit_extension_lsq(list(prep.experiments), EXTENSIONS[name],
-                                rig=prep.model.rig, linear=lin)
-        out[name] = {
-            "method": "least squares (the posterior above is of the linear model: the "
-                      "sampler does not sample extension parameters yet)",
-            "params": fit.params,
-            "fit_percent": fit.fit_percent.tolist(),
-            "linear_fit_percent": fit.linear.fit_percent.tolist(),
-            "improvement_percent": np.asarray(fit.improvement_percent).tolist(),
-            "success": bool(fit.success),
-            "message": str(fit.message),
-        }
-        log.info("extension %s: fit %s %% (linear %s %%)", name,
-                 np.round(fit.fit_percent, 2).tolist(), np.round(fit.linear.fit_percent,
-                                                                 2).tolist())
-    return out
+    lik = run.likelihood
+    ext = lik.extension
+    rig = prep.model.rig
+    names = lik.mech_names
+    theta_med = ext.check(rig, _posterior_median(summary, names))
+    fits = np.array([fit_percent(e.y_m, ext.simulate(rig, theta_med, e.v_volt, e.dt))
+                     for e in prep.experiments])
+    lsq = run.lsq
+    lin_fit = None if lsq is None else np.asarray(lsq.linear.fit_percent)
+    own = ext.extension_names(rig)
+    out = {
+        "method": "posterior (emcee) of the extended model; fit % at the posterior median",
+        "params": {nm: summary["parameters"][nm]["median"] for nm in own},
+        "intervals": {nm: [summary["parameters"][nm]["lo"], summary["parameters"][nm]["hi"]]
+                      for nm in own},
+        "location": ext.location_of(rig, theta_med).label,
+        "fit_percent": fits.tolist(),
+        "linear_fit_percent": None if lin_fit is None else lin_fit.tolist(),
+        "improvement_percent": None if lin_fit is None else (fits - lin_fit).tolist(),
+        "lsq_params": None if lsq is None else {
+            nm: float(v) for nm, v in zip(names, lsq.theta, strict=True) if nm in own},
+    }
+    log.info("extension %s: fit %s %% at the posterior median (linear LSQ %s %%)",
+             ext.name, np.round(fits, 2).tolist(),
+             None if lin_fit is None else np.round(lin_fit, 2).tolist())
+    return {ext.name: out}
 
 
 def _config_text(cfg: RunConfig) -> str:
@@ -410,7 +438,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                 list(prep.experiments), prep.model, noise=cfg.noise, priors=prep.priors,
                 n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
                 moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
-                warn=False)
+                warn=False, extension=prep.extension)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
@@ -425,7 +453,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             ev = _evidence(prep, run)
             if ev is not None:
                 summary["evidence"] = ev
-            ext = _extensions(prep, run)
+            ext = _extensions(prep, run, summary)
             if ext:
                 summary["extensions"] = ext
         diag = summary["diagnostics"]
