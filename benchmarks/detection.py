@@ -22,7 +22,11 @@ import time
 from multiprocessing import Pool
 from pathlib import Path
 
-_TESTS = Path(__file__).resolve().parent.parent / "tests"
+# Run as a script, this folder is sys.path[0], and benchmarks/coverage.py would shadow the
+# ``coverage`` package that numba probes at import: drop the folder, add tests/.
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+_TESTS = _HERE.parent / "tests"
 sys.path.insert(0, str(_TESTS))
 
 import numpy as np  # noqa: E402
