@@ -35,7 +35,7 @@ SEED_OFFSET = 10_000  # benchmark seeds never coincide with the tests' seeds
 
 
 def _job(args):
-    effect, seed, n_null = args
+    effect, seed, n_null, n_samples = args
     import warnings
 
     from hidden_effects import make
@@ -44,7 +44,7 @@ def _job(args):
 
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
-    h = make(effect, seed)
+    h = make(effect, seed, n_samples)
     try:
         d = diagnose(h.experiment, posterior=False, n_null=n_null, rng=seed)
         cause, loc, err = d.cause, d.location, None
@@ -68,12 +68,20 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     ap.add_argument("--calibration-nulls", type=int, default=19,
                     help="null data sets of diagnose's own calibration (default 19)")
+    ap.add_argument("--samples", type=int, default=2400,
+                    help="record length, samples of 5 ms (default 2400, as in the tests)")
     ap.add_argument("--effects", nargs="*", default=list(EFFECTS))
     ap.add_argument("--out", default="detection.json", help="JSON output file")
     args = ap.parse_args(argv)
-    jobs = [(None, SEED_OFFSET + s, args.calibration_nulls) for s in range(args.nulls)]
-    jobs += [(e, SEED_OFFSET + s, args.calibration_nulls)
-             for e in args.effects for s in range(args.seeds)]
+    # interleaved (seed by seed) so that a partial run is balanced; the JSON is rewritten
+    # after every result
+    jobs = []
+    for s in range(max(args.seeds, args.nulls)):
+        if s < args.nulls:
+            jobs.append((None, SEED_OFFSET + s, args.calibration_nulls, args.samples))
+        if s < args.seeds:
+            jobs += [(e, SEED_OFFSET + s, args.calibration_nulls, args.samples)
+                     for e in args.effects]
     t0 = time.perf_counter()
     rows = []
     with Pool(max(1, args.workers)) as pool:
@@ -82,6 +90,21 @@ def main(argv=None) -> int:
             print(f"[{i}/{len(jobs)}] {r['effect']:17s} seed {r['seed']}: {r['cause']} "
                   f"{r['location']} (truth {r['true_location']}) "
                   f"{'ok' if r['correct'] else 'WRONG'} {r['seconds']:.0f} s", flush=True)
+            _write(args, rows, t0, final=False)
+    table = _write(args, rows, t0, final=True)
+    print()
+    print(f"{'effect':18s} {'n':>4s} {'rate':>7s} {'se':>6s}  wrong answers")
+    for eff, t in table.items():
+        label = "false positives" if eff == "none" else eff
+        rate = 1 - t["rate"] if eff == "none" else t["rate"]
+        se = t["se"]
+        print(f"{label:18s} {t['n']:4d} {100 * rate:6.1f}% {100 * se:5.1f}%  "
+              f"{', '.join(t['confusions'])}")
+    print(f"\nwrote {args.out} ({time.perf_counter() - t0:.0f} s)")
+    return 0
+
+
+def _write(args, rows, t0, *, final):
     table = {}
     for eff in ["none"] + list(args.effects):
         sel = [r for r in rows if r["effect"] == eff]
@@ -94,19 +117,11 @@ def main(argv=None) -> int:
                       "se": float(np.sqrt(max(rate * (1 - rate), 1e-12) / n)),
                       "cause_correct": sum(r["cause_correct"] for r in sel),
                       "confusions": sorted({r["cause"] for r in sel if not r["correct"]})}
-    print()
-    print(f"{'effect':18s} {'n':>4s} {'rate':>7s} {'se':>6s}  wrong answers")
-    for eff, t in table.items():
-        label = "false positives" if eff == "none" else eff
-        rate = 1 - t["rate"] if eff == "none" else t["rate"]
-        print(f"{label:18s} {t['n']:4d} {100 * rate:6.1f}% {100 * t['se']:5.1f}%  "
-              f"{', '.join(t['confusions'])}")
     out = {"table": table, "rows": rows, "seeds": args.seeds, "nulls": args.nulls,
-           "calibration_nulls": args.calibration_nulls,
-           "wall_seconds": time.perf_counter() - t0}
+           "calibration_nulls": args.calibration_nulls, "samples": args.samples,
+           "complete": final, "wall_seconds": time.perf_counter() - t0}
     Path(args.out).write_text(json.dumps(out, indent=2))
-    print(f"\nwrote {args.out} ({out['wall_seconds']:.0f} s)")
-    return 0
+    return table
 
 
 if __name__ == "__main__":

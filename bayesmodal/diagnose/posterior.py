@@ -1,15 +1,25 @@
-"""Posterior step of ``diagnose``: emcee samples of the accepted extended model.
+"""Posterior step of ``diagnose``: emcee samples of the linear and the accepted model.
 
-Uses ``bayesmodal.inference.sample_posterior(..., extension=...)`` when the installed
-sampler supports extensions; returns None otherwise (the workflow then reports Laplace
-intervals and says so).
+Both models are sampled with ``bayesmodal.inference.sample_posterior`` (AR(1) noise, the
+default priors; the extended model with ``extension=``) on the training experiments,
+started from the workflow's least-squares fits.  The extension's parameters get the
+median and the 90 % equal-tailed credible interval; the models are compared by the
+change in PSIS-LOO ELPD with its standard error (``bayesmodal.inference.elpd_change``).
+None of this feeds back into the decision.
 """
 
 from __future__ import annotations
 
 import inspect
 
+import numpy as np
+
+from ._result import Interval
+
 __all__ = ["posterior_summary", "sampler_supports_extensions"]
+
+#: Default sampler settings of the workflow (overridable by ``posterior_options``).
+DEFAULTS = {"n_steps": 1500, "noise": "ar1"}
 
 
 def sampler_supports_extensions() -> bool:
@@ -20,7 +30,68 @@ def sampler_supports_extensions() -> bool:
 
 
 def posterior_summary(*, exps, ext, rig, fit, linear, rng, options):
-    """Credible intervals (90 %) and ELPD change, or None without sampler support."""
+    """Credible intervals (90 %) and ELPD change, or None without sampler support.
+
+    Parameters
+    ----------
+    exps : list of Experiment
+        Training experiments.
+    ext : Extension
+    rig : Rig
+    fit : ExtensionFit
+        Least-squares fit of the extended model (the start of its chain).
+    linear : LSQResult
+        Least-squares fit of the linear model (the start of its chain).
+    rng : numpy.random.Generator
+    options : dict
+        ``sample_posterior`` keywords (``n_steps``, ``n_walkers``, ``noise``...).
+
+    Returns
+    -------
+    dict or None
+        ``parameters`` {name: Interval}, ``delta_elpd``, ``delta_elpd_se``,
+        ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``notes``.
+    """
     if not sampler_supports_extensions():
         return None
-    raise NotImplementedError  # filled in when the sampler API is known
+    from ..inference import elpd_change, sample_posterior
+    from ..inference.priors import noise_names
+
+    opts = {**DEFAULTS, **options}
+    model = linear.model
+    n_out = rig.n_carts
+    n_noise = len(noise_names(n_out, opts["noise"]))
+    runs = {}
+    notes = []
+    for label, extension, start, n_par in (
+        ("linear", None, linear, model.n_params + n_noise),
+        (ext.name, ext, fit, ext.n_params(rig) + n_noise),
+    ):
+        kw = dict(opts)
+        kw.setdefault("n_walkers", 2 * n_par + (2 * n_par) % 2)
+        kw["n_walkers"] = max(int(kw["n_walkers"]), 2 * n_par)
+        kw["n_walkers"] += kw["n_walkers"] % 2
+        run = sample_posterior(exps, model, extension=extension, start=start,
+                               rng=np.random.default_rng(rng.integers(2**63)), warn=False,
+                               **kw)
+        runs[label] = run
+        if not run.diagnostics.converged:
+            notes.append(f"posterior of the {label} model not converged: "
+                         + "; ".join(run.diagnostics.problems))
+    run = runs[ext.name]
+    draws = run.flat_draws
+    names = run.names
+    params = {}
+    for n in ext.extension_names(rig):
+        x = draws[:, names.index(n)]
+        lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95])
+        params[n] = Interval(float(med), float(lo), float(hi))
+    change = elpd_change(runs["linear"], run, labels=("linear", ext.name))
+    return {
+        "parameters": params,
+        "delta_elpd": change.delta,
+        "delta_elpd_se": change.se,
+        "criterion": "PSIS-LOO ELPD (ArviZ), AR(1) likelihood, extended minus linear",
+        "elpd": change.as_dict(),
+        "notes": notes,
+    }

@@ -374,6 +374,7 @@ def diagnose(
             for key in ("delta_elpd", "delta_elpd_se", "criterion"):
                 if post.get(key) is not None:
                     gain[key] = post[key]
+            gain["elpd_change"] = post.get("elpd")
             notes.extend(post.get("notes", ()))
         else:
             notes.append("the sampler has no extension support here: intervals are from a "
