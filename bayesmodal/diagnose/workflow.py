@@ -125,7 +125,7 @@ def diagnose(
     quantum_m: float | None = None,
     max_fits: int | None = None,
     posterior_options: dict | None = None,
-    max_nfev: int = 60,
+    max_nfev: int = 40,
 ) -> Diagnosis:
     """Diagnose the linear model's misfit, name the cause and measure the gain.
 
@@ -159,8 +159,9 @@ def diagnose(
         Passed to the sampler (``n_steps``, ``n_walkers``...).
     max_nfev : int
         Residual evaluations allowed to each candidate's least-squares fit (started from
-        the best of a batched grid, the fits converge in 10-40; a parameter without
-        gradient, e.g. a saturation level above the input, would otherwise wander).
+        the best of a batched grid, the fits converge in 10-40).  A saturation whose best
+        start level is above every input is inactive there and has no gradient: it is
+        scored at that start without a fit.
 
     Returns
     -------
@@ -276,8 +277,10 @@ def diagnose(
         try:
             with np.errstate(all="ignore"):
                 theta0 = best_start(ext, rig, linear.theta, train_exps)
+                inactive = c == "input_saturation" and theta0[-1] >= max(
+                    float(np.max(np.abs(e.v_volt))) for e in train_exps)
                 ef = fit_extension_lsq(train_exps, ext, rig, theta0=theta0, linear=linear,
-                                       max_nfev=max_nfev)
+                                       max_nfev=1 if inactive else max_nfev)
         except (ModelError, DataError, ValueError, FloatingPointError,
                 np.linalg.LinAlgError) as exc:
             scored.append(CandidateScore(c, signature[c], False, np.nan, np.nan, k, np.nan,
