@@ -12,7 +12,8 @@ width ``gap_m`` in the rack of cart 1.  Let ``delta = x_m - x_1``:
 
 The rig starts at rest with the pinion in the middle of the gap.  ``gap_m = 0`` gives the
 linear model.  Numerics: the two linear modes are stepped exactly (ZOH over sub-steps
-``dt / n_sub``), switches are taken at sub-step boundaries.
+``dt / n_sub``); switches are detected at sub-step boundaries and corrected to second
+order for the time since the event (see ``bayesmodal._nl_kernels.backlash_run``).
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ class Backlash(Extension):
     Parameters
     ----------
     n_sub : int
-        Sub-steps per sample interval.
+        Sub-steps per sample interval.  The default 2 keeps the error against an
+        event-driven reference below 0.75 encoder counts on pulse inputs (about 0.5).
 
     Examples
     --------
@@ -42,7 +44,7 @@ class Backlash(Extension):
     ('gap_m', 'm_p')
     """
 
-    n_sub: int = 8
+    n_sub: int = 2
 
     name = "backlash"
     description = "gap gap_m in the rack-pinion drive of cart 1 (motor mass m_p, plastic contact)"
