@@ -11,6 +11,16 @@ must be larger than the jumps: the extension parameters are started from the bes
 a batched grid (``Extension.start_grid``, evaluated with the linear fit) and
 differentiated with relative steps of ``fd_step`` (default 1e-3, against about 1e-7 for a
 smooth cost).
+
+Several local optima.  Friction and viscous damping both take energy out of the free
+decay, and on an impulse record they trade against each other: started from the linear
+fit (whose dampers carry all the dissipation) the optimiser stops in whichever basin is
+nearest, and on the ECP impulse record these basins differ by 25 % in cost and by 15
+points in their prediction of the steps record (docs/discrepancy.md).  The grid can
+therefore be crossed with starts whose dampers are scaled down (``damper_scales``, e.g.
+``(1.0, 0.3, 0.1)``), the whole cross product is evaluated in one batch, and the local fit
+run from the ``n_starts`` best candidates; the lowest final cost wins.  The defaults (one
+start, the linear dampers) keep the fit as cheap as a single local search.
 """
 
 from __future__ import annotations
@@ -123,6 +133,8 @@ def fit_extension_lsq(
     linear: LSQResult | None = None,
     fd_step: float = 1e-3,
     max_nfev: int = 200,
+    n_starts: int = 1,
+    damper_scales: Sequence[float] = (1.0,),
 ) -> ExtensionFit:
     """Least-squares fit of an extended model.
 
@@ -143,7 +155,14 @@ def fit_extension_lsq(
         Forward-difference step in scaled optimiser coordinates (dimensionless; the
         extension parameters are scaled by their typical size ``ParamSpec.scale``).
     max_nfev : int
-        Maximum number of residual evaluations.
+        Maximum number of residual evaluations (per start).
+    n_starts : int
+        Local fits run from the best ``n_starts`` grid candidates (ignored with
+        ``theta0``); the lowest final cost is returned.
+    damper_scales : sequence of float
+        Factors applied to the linear fit's dampers in the start candidates (each grid
+        point is tried with each factor); ``(1.0,)`` keeps the linear dampers, ``(1.0,
+        0.3, 0.1)`` lets friction take over part of the viscous damping from the start.
 
     Returns
     -------
@@ -178,13 +197,20 @@ def fit_extension_lsq(
 
     if theta0 is None:
         grid = ext.start_grid(rig)
-        cands = np.concatenate([np.broadcast_to(linear.theta, (len(grid), p_lin)), grid], axis=1)
-        ok = ext.valid(rig, cands)
-        cands = cands[ok]
+        lin_starts = []
+        for f in damper_scales:
+            th = np.array(linear.theta, dtype=float)
+            th[1 + rig.n_carts :] *= float(f)
+            lin_starts.append(th)
+        lin_starts = np.array(lin_starts)
+        cands = np.concatenate([np.repeat(lin_starts, len(grid), axis=0),
+                                np.tile(grid, (len(lin_starts), 1))], axis=1)
+        cands = cands[ext.valid(rig, cands)]
         r = extension_residuals(ext, rig, cands, experiments)
-        theta_start = cands[int(np.argmin(np.sum(r**2, axis=1)))]
+        order = np.argsort(np.sum(r**2, axis=1))
+        starts = [cands[i] for i in order[: max(1, int(n_starts))]]
     else:
-        theta_start = ext.check(rig, np.asarray(theta0, dtype=float))
+        starts = [ext.check(rig, np.asarray(theta0, dtype=float))]
 
     # optimiser coordinates: log for positive linear parameters, scaled linear otherwise
     log_mask = np.zeros(p_lin, bool)
@@ -206,12 +232,6 @@ def fit_extension_lsq(
         lin[..., log_mask] = np.exp(lin[..., log_mask])
         return np.concatenate([lin, ext.from_opt(rig, w[..., p_lin:] * ext_scale)], axis=-1)
 
-    w0 = to_w(theta_start)
-    # keep the start strictly inside finite bounds and replace infinite values (e.g.
-    # "no saturation") by the largest finite grid value
-    w0 = np.where(np.isfinite(w0), w0, np.where(np.isfinite(upper), upper, 1e3))
-    w0 = np.clip(w0, lower, upper)
-
     def fun(w):
         return extension_residuals(ext, rig, to_theta(w[None]), experiments)[0]
 
@@ -228,11 +248,25 @@ def fit_extension_lsq(
         r = extension_residuals(ext, rig, to_theta(ws), experiments)
         return ((r[1:] - r[0]) / h[:, None]).T
 
-    sol = least_squares(fun, w0, jac=jac, bounds=(lower, upper), method="trf",
-                        x_scale=1.0, max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10)
-    theta = ext.check(rig, to_theta(sol.x))
-    if np.sum(fun(sol.x) ** 2) > np.sum(fun(w0) ** 2):  # never worse than the start
-        theta = theta_start
+    best = None
+    n_eval = 0
+    for start in starts:
+        w0 = to_w(start)
+        # keep the start strictly inside finite bounds and replace infinite values (e.g.
+        # "no saturation") by the largest finite grid value
+        w0 = np.where(np.isfinite(w0), w0, np.where(np.isfinite(upper), upper, 1e3))
+        w0 = np.clip(w0, lower, upper)
+        sol = least_squares(fun, w0, jac=jac, bounds=(lower, upper), method="trf",
+                            x_scale=1.0, max_nfev=max_nfev, xtol=1e-10, ftol=1e-10,
+                            gtol=1e-10)
+        n_eval += int(sol.nfev)
+        cost_end, cost_start = np.sum(fun(sol.x) ** 2), np.sum(fun(w0) ** 2)
+        theta = ext.check(rig, to_theta(sol.x))
+        if not cost_end <= cost_start:  # never worse than the start
+            theta, cost_end = start, cost_start
+        if best is None or cost_end < best[0]:
+            best = (cost_end, theta, start, sol)
+    _, theta, theta_start, sol = best
 
     fits, sq = [], []
     for e in experiments:
@@ -251,5 +285,5 @@ def fit_extension_lsq(
         theta_start=theta_start,
         success=bool(sol.success),
         message=str(sol.message),
-        n_evaluations=int(sol.nfev),
+        n_evaluations=n_eval,
     )
