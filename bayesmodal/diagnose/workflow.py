@@ -385,9 +385,17 @@ def diagnose(
     if parameters is None:
         sd = laplace_sd(ext, rig, ef.theta, train_exps)
         zq = stats.norm.ppf(0.95)
-        parameters = {n: Interval(float(ef.theta[i]), float(ef.theta[i] - zq * sd[i]),
-                                  float(ef.theta[i] + zq * sd[i]))
-                      for i, n in enumerate(names) if i >= model.n_params}
+        # parameters whose prior range is non-negative keep the interval there (a Laplace
+        # interval at a non-smooth optimum, e.g. Fs at Fc, can be very wide)
+        specs = ext.specs(rig)
+        parameters = {}
+        for i, n in enumerate(names):
+            if i < model.n_params:
+                continue
+            lo = float(ef.theta[i] - zq * sd[i])
+            if specs[i - model.n_params].bounds[0] >= 0:
+                lo = max(lo, 0.0)
+            parameters[n] = Interval(float(ef.theta[i]), lo, float(ef.theta[i] + zq * sd[i]))
     return Diagnosis(
         discrepancy=True, cause=c, location=accepted.location, location_label=label,
         explained=True, tests_after=tuple(t_after), ranking=ranking, parameters=parameters,
