@@ -148,10 +148,10 @@ def _plan(configs, out_root: Path) -> tuple[list, dict]:
         path = str(Path(c).resolve())
         try:
             cfg = load_config(path)
+            out = default_out_dir(cfg, out_root).resolve()
         except ConfigError as exc:
             early[i] = _failed(str(c), Path(c).stem, None, exc, t0)
             continue
-        out = default_out_dir(cfg, out_root).resolve()
         if out in seen:
             early[i] = _failed(str(c), cfg.name, out, ConfigError(
                 f"writes to the same folder {out} as {configs[seen[out]]}; set a distinct "

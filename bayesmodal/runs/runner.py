@@ -209,8 +209,30 @@ def prepare_run(config: RunConfig) -> PreparedRun:
 
 
 def default_out_dir(config: RunConfig, out_root: str | os.PathLike = "runs") -> Path:
-    """``out_root / (outputs.dir or the config name)``."""
-    return Path(out_root) / (config.out_dir or config.name)
+    """``out_root / (outputs.dir or the config name)``, a folder strictly inside the root.
+
+    Raises
+    ------
+    ConfigError
+        When it would not be: ``..``, an absolute path, a configuration named ``...toml``
+        (stem ``..``), or a symbolic link inside the root that points out of it.
+    """
+    from pathlib import PurePosixPath
+
+    root = Path(out_root)
+    rel = config.out_dir or config.name
+    key = "[outputs.dir]" if config.out_dir else "(the configuration's name)"
+    parts = PurePosixPath(rel.replace("\\", "/"))
+    if Path(rel).is_absolute() or parts.is_absolute() or ".." in parts.parts or \
+            not rel.strip():
+        raise ConfigError(f"{config.source}: {key} {rel!r} must be a relative folder inside "
+                          f"the output root {root}")
+    out = root / rel
+    real_root, real_out = root.resolve(), out.resolve()
+    if real_out == real_root or real_root not in real_out.parents:
+        raise ConfigError(f"{config.source}: {key} {rel!r} leads to {real_out}, not into "
+                          f"the output root {real_root} (a symbolic link?)")
+    return out
 
 
 def _decide(folder: RunFolder, chash: str, resume: bool, force: bool) -> str:
