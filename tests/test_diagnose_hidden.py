@@ -103,6 +103,9 @@ def test_cli_json_on_a_csv(tmp_path, diagnosed, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["cause"] == "none" and out["discrepancy"] is False and out["location"] is None
     assert len(list((tmp_path / "plots").glob("*.png"))) >= 9
+    assert main(["diagnose", str(path), "--null", "19", "--no-posterior"]) == 0
+    text = capsys.readouterr().out
+    assert "cause: none" in text and "whiteness" in text
     assert main(["diagnose", str(path), "--null", "5", "--no-posterior"]) == 2
     assert "null" in capsys.readouterr().err
 
