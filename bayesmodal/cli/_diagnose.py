@@ -18,6 +18,8 @@ def register(sub) -> None:
                    help="skip the emcee step (least-squares estimates, Laplace intervals)")
     p.add_argument("--null", type=int, default=40, metavar="N",
                    help="null data sets of the calibration (default %(default)s)")
+    p.add_argument("--steps", type=int, default=1500, metavar="N",
+                   help="emcee steps per walker of the posterior step (default %(default)s)")
     p.add_argument("--train", type=int, default=0, metavar="K",
                    help="index of the training experiment among DATA (default %(default)s)")
     p.set_defaults(func=run)
@@ -54,7 +56,7 @@ def run(args) -> int:
 
     exps = load_args(args)
     d = diagnose(exps, train=args.train, n_null=args.null, posterior=not args.no_posterior,
-                 rng=args.seed)
+                 rng=args.seed, posterior_options={"n_steps": args.steps})
     if args.plots:
         from ..diagnose.plots import write_plots
 
