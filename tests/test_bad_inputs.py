@@ -300,8 +300,8 @@ INPUTS = [
 ]
 
 
-#: ``bayesmodal diagnose`` rows: on once the command is committed (it is built in parallel).
-INCLUDE_DIAGNOSE = False
+#: ``bayesmodal diagnose`` rows (the command was built in parallel; set False to leave it out).
+INCLUDE_DIAGNOSE = True
 
 
 def _have_diagnose() -> bool:
