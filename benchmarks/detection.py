@@ -48,14 +48,17 @@ def _job(args):
     try:
         d = diagnose(h.experiment, posterior=False, n_null=n_null, rng=seed)
         cause, loc, err = d.cause, d.location, None
+        params = {k: v.median for k, v in d.parameters.items()}
         stat, thr = d.statistic, d.threshold
     except Exception as exc:  # record, do not stop the benchmark
         cause, loc, err, stat, thr = "error", None, f"{type(exc).__name__}: {exc}", None, None
+        params = {}
     truth = h.effect
     ok = cause == truth and (truth == "none" or loc == h.location)
     return {"effect": truth, "seed": seed, "cause": cause, "location": loc,
             "true_location": h.location, "size": h.theta_extension.tolist(),
-            "correct": bool(ok), "cause_correct": cause == truth, "statistic": stat,
+            "params": params, "correct": bool(ok), "cause_correct": cause == truth,
+            "statistic": stat,
             "threshold": thr, "error": err, "seconds": time.perf_counter() - t0}
 
 

@@ -101,8 +101,17 @@ def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | 
     s = np.abs(np.asarray(loc.strength, float))
     if ext.name == "cubic_stiffness":
         s = s / np.asarray(rig.springs_n_m, float)
+    elif ext.name == "coulomb_friction":
+        # the kinetic level acts whenever a cart slides and is well identified; a static
+        # level on a cart without kinetic friction only matters while it sticks and can
+        # take almost any value
+        fc = np.asarray(ext.split(rig, np.asarray(theta, float))[1][: rig.n_carts])
+        if fc.max() > 0:
+            s = fc
     idx = [int(i) + 1 for i in np.flatnonzero(s >= LOCATION_FRACTION * s.max())] \
         if s.max() > 0 else [loc.index + 1]
+    if len(idx) == 1 and idx[0] != loc.index + 1:
+        return idx, f"{loc.kind} {idx[0]}"
     kind = "carts" if loc.kind == "cart" else "springs"
     label = loc.label if len(idx) == 1 else f"{kind} {', '.join(map(str, idx))}"
     return idx, label
