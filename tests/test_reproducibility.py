@@ -67,6 +67,10 @@ def test_every_result_records_versions_hash_data_digest_and_seed(recorded):
     assert run["bayesmodal_version"] == __version__
     for dep in ("numpy", "scipy", "emcee", "arviz", "numba", "h5py"):
         assert run["dependencies"][dep] == metadata.version(dep)
+    # the sampler's own provenance block (also written by `bayesmodal sample`)
+    prov = s["provenance"]
+    assert prov["seed"] == 21 and prov["dependencies"]["emcee"] == metadata.version("emcee")
+    assert prov["data_sha256"] == [file_sha256(root / "rec.csv")]
     # nothing in summary.json depends on the clock
     flat = json.dumps(s)
     for key in ("wall_time_s", "sampling_time_s", "started", "finished", "elapsed_s",

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._versions import dependency_versions
 from .idata import model_from_idata, posterior_matrix
 from .propagate import Interval, ModalSamples, credible_interval, modal_intervals, propagate_modes
 
@@ -212,6 +213,8 @@ def summary_dict(idata, *, prob: float = 0.9, modal: ModalSamples | None = None)
         "lsq_outside_interval": [r.quantity for r in rows if not r.inside],
         "provenance": {
             "bayesmodal_version": a["bayesmodal_version"],
+            "dependencies": dependency_versions(),
+            "seed": json.loads(a.get("config_json", "{}")).get("seed"),
             "config_hash": a["config_hash"],
             "data": json.loads(a["data_names"]),
             "data_sha256": json.loads(a["data_sha256"]),
