@@ -615,3 +615,20 @@ def test_size_limit_can_be_raised(tmp_path, monkeypatch):
         load_experiment(p)
     monkeypatch.setenv("BAYESMODAL_MAX_BYTES", str(size))
     assert load_experiment(p).n_samples == N
+
+
+def test_an_unexpected_error_is_one_line_too(tmp_path, monkeypatch):
+    # a bug (not a data problem) still reaches the user as one line, exit code 1, and
+    # --debug shows the traceback
+    import bayesmodal.cli._lsq as lsq
+
+    def boom(args):
+        raise RuntimeError("something the package did not foresee\nsecond line")
+
+    monkeypatch.setattr(lsq, "run", boom)
+    code, out, err = _cli(["lsq", "x.csv"])
+    assert code == 1 and out == "" and len(err) == 1, err
+    assert err[0] == ("bayesmodal lsq: internal error: RuntimeError: something the package "
+                      "did not foresee (run with --debug for the traceback)")
+    code, _, err = _cli(["--debug", "lsq", "x.csv"])
+    assert code == 1 and any("Traceback" in line for line in err)
