@@ -617,6 +617,8 @@ class ElpdChange:
         The result in plain words.
     max_pareto_k : float
         Largest Pareto shape over both runs (PSIS is unreliable above 0.7).
+    n_bad_k : int
+        Pointwise terms with Pareto shape above 0.7 in either run.
     n_obs : int
         Pointwise terms (samples times outputs).
     """
@@ -634,6 +636,7 @@ class ElpdChange:
     preferred: str
     reading: str
     max_pareto_k: float
+    n_bad_k: int
     n_obs: int
 
     def as_dict(self) -> dict:
@@ -714,7 +717,9 @@ def elpd_change(
     z = delta / se if se > 0 else math.copysign(math.inf, delta) if delta else 0.0
     decisive = bool(abs(delta) >= min_delta and abs(z) >= min_z)
     preferred = (lb if delta > 0 else la) if decisive else "neither"
-    k = max(float(np.max(loo_a.pareto_k)), float(np.max(loo_b.pareto_k)))
+    ka, kb = np.asarray(loo_a.pareto_k).ravel(), np.asarray(loo_b.pareto_k).ravel()
+    k = max(float(np.max(ka)), float(np.max(kb)))
+    n_bad = int(np.sum((ka > 0.7) | (kb > 0.7)))
     if decisive:
         words = (f"The {preferred} model predicts the data decisively better: ELPD "
                  f"{'higher' if delta > 0 else 'lower'} by {abs(delta):.1f} nats for "
@@ -724,12 +729,12 @@ def elpd_change(
                  f"{delta:+.1f} +- {se:.1f} nats ({z:+.1f} standard errors; decisive needs "
                  f"at least {min_delta:g} nats and {min_z:g} standard errors).")
     if k > 0.7:
-        words += (f" Some Pareto k exceed 0.7 (max {k:.2f}): PSIS-LOO is unreliable for "
-                  "those samples.")
+        words += (f" {n_bad} of {d.size} Pareto k exceed 0.7 (max {k:.2f}): PSIS-LOO is "
+                  "unreliable for those samples.")
     return ElpdChange(
         base=la, other=lb,
         elpd_base=float(loo_a.elpd_loo), elpd_other=float(loo_b.elpd_loo),
         se_base=float(loo_a.se), se_other=float(loo_b.se),
         delta=delta, se=se, z=float(z), decisive=decisive, preferred=preferred,
-        reading=words, max_pareto_k=k, n_obs=int(d.size),
+        reading=words, max_pareto_k=k, n_bad_k=n_bad, n_obs=int(d.size),
     )
