@@ -558,6 +558,8 @@ def render_table(outcomes: dict[str, Outcome]) -> str:
         "A warning is one line on stderr and the result is still given.  Loader rows show the",
         "exception of `bayesmodal.data.load_experiment`; `run` and `batch` rows use a",
         "configuration `cfg.toml` whose `[data] files` names the input.",
+        "A well-formed MATLAB v7.3 (HDF5) file with t, x1..xn, v is not a bad input: it is read",
+        "like a v5 file (`test_every_entry_point_and_input_is_covered`).",
         "",
         f"Entry points: {', '.join(f'`{e}`' for e in entries)}.",
         "",
