@@ -162,3 +162,18 @@ def test_bad_input_is_refused():
     two = Experiment(h.experiment.t_s, h.experiment.v_volt, h.experiment.y_m[:, :2])
     with pytest.raises(DataError, match="outputs"):
         diagnose(two, posterior=False, n_null=19)
+
+
+def test_profiled_ar1_terms_match_the_likelihood_module():
+    # the workflow's scoring equals the inference module's exact AR(1) density at the
+    # moment estimates of (sigma, phi)
+    from bayesmodal.diagnose.scoring import ar1_pointwise
+    from bayesmodal.inference.likelihood import ar1_terms
+
+    rng = np.random.default_rng(8)
+    r = np.cumsum(rng.standard_normal((500, 3)), axis=0) * 1e-6 + rng.standard_normal(
+        (500, 3)) * 1e-6
+    phi = np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0)
+    sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
+    ref = ar1_terms(r[None], sigma[None], phi[None])[0]
+    assert np.allclose(ar1_pointwise([r]), ref.ravel(), rtol=1e-12, atol=1e-9)
