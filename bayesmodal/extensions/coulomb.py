@@ -13,8 +13,8 @@ otherwise reverses.  This is the stick the rig shows after every pulse: the cart
 abruptly a few tens of encoder counts away from their equilibrium.
 
 Numerics: exact ZOH of the linear rig over sub-steps ``h = dt / n_sub`` with the friction
-forces as held inputs, events inside a sub-step corrected to second order (see
-``bayesmodal._nl_kernels.coulomb_run``).
+forces as held inputs, events inside a sub-step located on cubic Hermite interpolants and
+corrected (see ``bayesmodal._nl_kernels.coulomb_run``).
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ class CoulombFriction(Extension):
     Parameters
     ----------
     n_sub : int
-        Sub-steps per sample interval (event resolution ``dt / n_sub``).
+        Sub-steps per sample interval.  The default 1 keeps the error against an
+        event-driven reference at about 0.2-0.3 encoder counts on the rig.
 
     Examples
     --------
@@ -45,7 +46,7 @@ class CoulombFriction(Extension):
     ('Fc1', 'Fc2', 'Fc3', 'Fs1', 'Fs2', 'Fs3')
     """
 
-    n_sub: int = 2
+    n_sub: int = 1
 
     name = "coulomb_friction"
     description = "per-cart Coulomb friction with stick-slip (static level Fs >= Fc)"
