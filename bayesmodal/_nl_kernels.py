@@ -44,6 +44,9 @@ MAX_WIDTH = 64
 #: Newton steps for the velocity zero crossing of the friction kernel.
 HERMITE_NEWTON = 2
 
+#: Newton steps for the impact time of the backlash kernel.
+IMPACT_NEWTON = 2
+
 _JIT = {"nogil": True, "boundscheck": False, "error_model": "numpy"}
 
 
@@ -553,7 +556,7 @@ def backlash_kernel(n: int, width: int):
           f"{t}tq = h * e0 / (delta0 - delta) if delta != delta0 else h",
           f"{t}tq = 0.0 if tq < 0.0 else (h if tq > h else tq)",
           f"{t}cq = (delta - delta0 - vrel0 * h) * ih2"]
-    for _ in range(2):
+    for _ in range(IMPACT_NEWTON):
         L += [f"{t}dg = vrel0 + 2.0 * cq * tq",
               f"{t}tq = tq - (e0 + (vrel0 + cq * tq) * tq) / dg if dg != 0.0 else tq",
               f"{t}tq = 0.0 if tq < 0.0 else (h if tq > h else tq)"]
