@@ -182,27 +182,45 @@ def _head(signature: str, n_out: int, width: int, state: _Rows) -> list[str]:
 # ---------------------------------------------------------------------------------------
 # linear recursion with a shifted, clipped input per lane (delay, saturation, motor lag)
 @functools.lru_cache(maxsize=32)
-def linear_input_kernel(n_states: int, n_out: int, width: int):
-    """Compiled ``kernel(P, X, up, shift, Y)`` for the recursion (see ``linear_input_run``)."""
+def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, clipped: bool):
+    """Compiled ``kernel(P, X, up, shift, Y)`` for the recursion (see ``linear_input_run``).
+
+    Without ``shifted`` every lane reads the same input sample (and ``B1`` is not used);
+    without ``clipped`` the input is not clipped.
+    """
     s, w = n_states, width
     P = _Rows("P", w, [("A", s * s), ("B1", s), ("B2", s), ("lo", 1), ("hi", 1)])
     X = _Rows("X", w, [("x", s)])
+
+    def clip(v):
+        if not clipped:
+            return v
+        return (f"({P('lo')} if {v} < {P('lo')} else ({P('hi')} if {v} > {P('hi')}"
+                f" else {v}))")
+
     L = [
         "def kernel(P, X, up, shift, Y):",
         "    N = Y.shape[0] // " + str(n_out * w),
+        "    off = up.shape[0] - N",
         "    for k in range(N):",
         f"        yo = k * {n_out * w}",
+        "        uk = up[k + off]",
         f"        for b in range({w}):",
-        "            j = k + shift[b]",
-        f"            ua = min(max(up[j], {P('lo')}), {P('hi')})",
-        f"            ub = min(max(up[j + 1], {P('lo')}), {P('hi')})",
     ]
+    if shifted:
+        L += ["            j = k + shift[b]",
+              f"            ua = {clip('up[j]')}",
+              f"            ub = {clip('up[j + 1]')}"]
+    else:
+        L += [f"            ub = {clip('uk')}"]
     L += [f"            x{i} = {X('x', i)}" for i in range(s)]
     L += [f"            Y[yo + {i * w} + b] = x{i}" for i in range(n_out)]
     for i in range(s):
         terms = " + ".join(f"{P('A', i * s + j)} * x{j}" for j in range(s))
-        L.append(f"            {X('x', i)} = {P('B1', i)} * ua + {P('B2', i)} * ub + {terms}")
-    return _compile(L, f"<bayesmodal linear-input s={s} o={n_out} w={w}>")
+        first = f"{P('B1', i)} * ua + " if shifted else ""
+        L.append(f"            {X('x', i)} = {first}{P('B2', i)} * ub + {terms}")
+    return _compile(L, f"<bayesmodal linear-input s={s} o={n_out} w={w} "
+                       f"shift={shifted} clip={clipped}>")
 
 
 def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
@@ -228,13 +246,15 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     """
     nb, s, _ = Ad.shape
     N = u.size
+    shifted = shift is not None or bool(np.any(B1 != 0.0))
     m = np.zeros(nb, np.int64) if shift is None else np.minimum(shift, N).astype(np.int64)
+    clipped = level is not None
     lvl = np.full(nb, np.inf) if level is None else np.asarray(level, dtype=float)
     pad = int(m.max()) + 1
     up = np.concatenate([np.zeros(pad), u])  # up[k + pad - m - 1] = v[k - m - 1]
     width = padded_width(nb)
     n_chunks = -(-nb // width)
-    kernel = linear_input_kernel(s, n_out, width)
+    kernel = linear_input_kernel(s, n_out, width, shifted, clipped)
     Y = np.empty((n_chunks, N, n_out, width))
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
