@@ -294,9 +294,19 @@ def save_idata(idata, path: str | os.PathLike) -> Path:
     pathlib.Path
         The path written.
     """
+    import errno
+    import shutil
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
+    # HDF5 does not fail cleanly when the disk fills up during a write (errors from
+    # destructors, even a segmentation fault): check the free space first
+    need = int(1.1 * sum(idata[g].nbytes for g in idata.groups())) + 1024 * 1024
+    free = shutil.disk_usage(path.parent).free
+    if free < need:
+        raise OSError(errno.ENOSPC, f"cannot write {path}: {os.strerror(errno.ENOSPC)} (needs "
+                      f"about {need} bytes, {free} are free)")
     idata.to_netcdf(str(tmp))
     os.replace(tmp, path)
     return path

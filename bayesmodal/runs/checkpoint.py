@@ -17,7 +17,9 @@ the attribute name it uses in HDF files.
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -108,6 +110,14 @@ class AtomicCheckpoint(emcee.backends.Backend):
         import h5py
 
         tmp = self.path.with_name(self.path.name + ".tmp")
+        # HDF5 does not fail cleanly when the disk fills up during a write (errors from
+        # destructors, even a segmentation fault): check the free space first
+        need = self._estimated_bytes()
+        free = shutil.disk_usage(self.path.parent).free
+        if free < need:
+            raise write_failed(OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)}: the "
+                                       f"checkpoint needs about {need} bytes, {free} are free"),
+                               self.path)
         try:
             self._write(h5py, tmp)
         except OSError as exc:  # full disk, no permission: the old checkpoint is kept
@@ -116,6 +126,14 @@ class AtomicCheckpoint(emcee.backends.Backend):
         self._last_write = time.monotonic()
         self.n_writes += 1
         return self.path
+
+    def _estimated_bytes(self) -> int:
+        """Size of the checkpoint file with a margin for HDF5 metadata and chunking, bytes."""
+        it = self.iteration
+        data = self.chain[:it].nbytes + self.log_prob[:it].nbytes + self.accepted.nbytes
+        if self.has_blobs():
+            data += self.blobs[:it].nbytes
+        return int(1.25 * data) + 256 * 1024
 
     def _write(self, h5py, tmp: Path) -> None:
         it = self.iteration
