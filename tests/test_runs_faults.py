@@ -13,6 +13,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -325,3 +326,35 @@ def test_two_runs_started_together_on_one_folder(reference, tmp_path):
     assert f"process {winner_pid}" in lines[0]
     # the refused run changed nothing: the winner's result is the uninterrupted one
     _same_as_reference(out, ref)
+
+
+# ---------------------------------------------------------------- a real full disk
+def _mount_tmpfs(where, size: str) -> bool:
+    if os.geteuid() != 0 or not shutil.which("mount"):
+        return False
+    where.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)],
+                       capture_output=True, timeout=30)
+    return r.returncode == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("size", ["200k", "1m", "3m"])
+def test_real_full_disk_on_a_tiny_tmpfs(reference, tmp_path, size):
+    # HDF5 (checkpoint, posterior.nc) does not fail cleanly on a full disk: the run must
+    # check the space first and stop with one line, not crash (it used to segfault)
+    cfg, ref, _ = reference
+    disk = tmp_path / "tiny"
+    if not _mount_tmpfs(disk, size):
+        pytest.skip("cannot mount a tmpfs here (needs root and mount privileges)")
+    try:
+        out = disk / "run"
+        proc = subprocess.run(_cmd(cfg, out), capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 2, (proc.returncode, proc.stderr[-3000:])
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and "No space left on device" in lines[0], proc.stderr[-3000:]
+        assert str(out) in lines[0]
+        assert _check_files_complete(out) == []
+        assert json.loads((out / "status.json").read_text())["state"] == "failed"
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True, timeout=30)
