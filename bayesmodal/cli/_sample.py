@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import shutil
 import sys
 from pathlib import Path
 
@@ -54,15 +56,25 @@ def sample_to_dir(exps, args, damping: str, out: Path):
         if e.n_outputs != model.n_carts:
             raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
                             f"{model.n_carts} carts")
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "chain.h5"
     if getattr(args, "fresh", False) and ckpt.exists():
         ckpt.unlink()
-    run = sample_posterior(
-        exps, model, noise=args.noise, n_walkers=args.walkers,
-        n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
-        progress=not args.quiet,
-    )
+    try:
+        run = sample_posterior(
+            exps, model, noise=args.noise, n_walkers=args.walkers,
+            n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
+            progress=not args.quiet,
+        )
+    except Exception:
+        # a start that failed before any step leaves no folder behind (nothing to resume)
+        from ..runs import checkpoint_iteration
+
+        with contextlib.suppress(Exception):
+            if created and checkpoint_iteration(ckpt) == 0:
+                shutil.rmtree(out)
+        raise
     idata = to_inference_data(run, rng=args.seed)
     summary = write_run(idata, out, plots=not getattr(args, "no_plots", False))
     return summary, idata
