@@ -91,10 +91,10 @@ def test_result_schema_and_json(diagnosed):
         d.cause = "none"
 
 
-def test_cli_json_on_a_csv(tmp_path, diagnosed, capsys):
+def test_cli_json_on_a_csv(tmp_path, capsys):
     from bayesmodal.cli import main
 
-    h, _ = diagnosed("none")
+    h = make(None, 9, n_samples=1000)
     path = tmp_path / "clean.csv"
     save_csv(h.experiment, path)
     code = main(["diagnose", str(path), "--json", "--no-posterior", "--null", "19",
@@ -112,7 +112,7 @@ def test_cli_json_on_a_csv(tmp_path, diagnosed, capsys):
 
 # ------------------------------------------------------------------ calibration pieces
 def test_monte_carlo_threshold_is_the_order_statistic():
-    h = make(None, 5, n_samples=1600)
+    h = make(None, 5, n_samples=800)
     model = LinearModel(Rig(), "free")
     fit = fit_lsq(h.experiment, model)
     r = h.experiment.y_m - h.experiment.y_m.mean(0)  # any residual works for the noise

@@ -41,7 +41,19 @@ def plot_before_after(diagnosis, experiment, *, ax=None):
 
 
 def write_plots(diagnosis, experiments, folder: Path) -> list[Path]:
-    """Write the diagnostics' plots and the before/after fits as PNG files in ``folder``."""
+    """Write the diagnostics' plots and the before/after fits as PNG files in ``folder``.
+
+    A diagnostic with nothing to draw (e.g. no free-decay stretch) gives an empty panel;
+    matplotlib's warning about its empty legend is silenced.
+    """
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="No artists with labels")
+        return _write_plots(diagnosis, experiments, folder)
+
+
+def _write_plots(diagnosis, experiments, folder: Path) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
