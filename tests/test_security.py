@@ -85,18 +85,25 @@ def test_nothing_is_unpickled_or_evaluated():
 
 
 def test_exec_sites_take_no_outside_text():
-    # the two code generators build their source from integers only
+    # exec runs in `_compile(lines, label)`; every function that builds those lines takes
+    # only integers and flags (sizes, options), so no configuration or data text reaches it
     for name in sorted(EXEC_ALLOWED):
-        src = (REPO / "bayesmodal" / name).read_text()
-        tree = ast.parse(src)
-        execs = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and _name(n.func) == "exec"]
-        assert execs, name
-        for fn in ast.walk(tree):
-            if isinstance(fn, ast.FunctionDef) and any(e in ast.walk(fn) for e in execs):
-                args = [a.arg for a in fn.args.args]
-                assert all(a in ("n", "n_out", "width", "s", "nm", "label", "lines", "name",
-                                 "n_carts", "m", "k", "order", "key", "kind", "src", "spec")
-                           for a in args), (name, fn.name, args)
+        tree = ast.parse((REPO / "bayesmodal" / name).read_text())
+        execs = [f for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
+                 and any(isinstance(n, ast.Call) and _name(n.func) == "exec"
+                         for n in ast.walk(f))]
+        assert [f.name for f in execs] == ["_compile"], name
+        builders = [f for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
+                    and any(isinstance(n, ast.Call) and _name(n.func) == "_compile"
+                            for n in ast.walk(f))]
+        assert builders, name
+        for fn in builders:
+            kinds = [ast.unparse(a.annotation) if a.annotation else None for a in fn.args.args]
+            assert kinds and all(k in ("int", "bool") for k in kinds), (name, fn.name, kinds)
+    # and no other module reaches those compilers with its own text
+    others = [f for f in (REPO / "bayesmodal").rglob("*.py")
+              if not (f.parent.name == "bayesmodal" and f.name in EXEC_ALLOWED)]
+    assert not [f for f in others if re.search(r"\b_compile\(", f.read_text())]
 
 
 # ---------------------------------------------------------------- configurations
