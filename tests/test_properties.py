@@ -162,3 +162,39 @@ def test_loaders_answer_any_bytes_with_an_experiment_or_a_data_error(tmp_path_fa
             return
     # accepted: then it is a valid record
     assert e.n_samples >= 3 and np.all(np.isfinite(e.y_m)) and np.all(np.diff(e.t_s) > 0)
+
+
+def _valid_mat(compressed: bool) -> bytes:
+    import io
+
+    import scipy.io
+
+    t = np.arange(200)[:, None] * 0.005
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, {"t": t, "x1": t * 100, "x2": t * 50, "x3": t, "v": t * 0 + 1},
+                     do_compression=compressed)
+    return buf.getvalue()
+
+
+_MATS = {False: _valid_mat(False), True: _valid_mat(True)}
+
+
+@given(st.booleans(), st.lists(st.tuples(st.floats(0, 1, exclude_max=True),
+                                         st.integers(0, 255)), min_size=1, max_size=6))
+def test_corrupted_mat_files_give_an_experiment_or_a_data_error(tmp_path_factory, compressed,
+                                                                flips):
+    # a real MATLAB file with a few bytes overwritten reaches deeper into scipy's reader
+    # than random bytes do
+    raw = bytearray(_MATS[compressed])
+    for where, value in flips:
+        raw[int(where * len(raw))] = value
+    p = tmp_path_factory.mktemp("flip") / "f.mat"
+    p.write_bytes(bytes(raw))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        try:
+            e = load_experiment(p)
+        except DataError as exc:
+            assert str(p) in str(exc) or p.stem in str(exc)
+            return
+    assert e.n_samples >= 3 and np.all(np.isfinite(e.y_m)) and np.all(np.diff(e.t_s) > 0)
