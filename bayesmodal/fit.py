@@ -213,13 +213,16 @@ def fit_lsq(
     # Covariance in theta space: J_theta = J_w / (scale * dtheta/dz)
     Jw = sol.jac
     dtheta_dw = scale * np.where(mask, theta, 1.0)
-    J = Jw / dtheta_dw
+    with np.errstate(divide="ignore", invalid="ignore"):  # a log parameter ended at 0
+        J = Jw / dtheta_dw
     dof = max(Jw.shape[0] - model.n_params, 1)
     s2 = 2 * sol.cost / dof
-    try:
-        cov = s2 * np.linalg.inv(J.T @ J)
-    except np.linalg.LinAlgError:
-        cov = np.full((model.n_params, model.n_params), np.nan)
+    cov = np.full((model.n_params, model.n_params), np.nan)
+    if np.all(np.isfinite(J)):
+        try:
+            cov = s2 * np.linalg.inv(J.T @ J)
+        except np.linalg.LinAlgError:
+            pass
     return LSQResult(
         model=model,
         theta=theta,
