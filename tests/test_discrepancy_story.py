@@ -1,0 +1,119 @@
+"""The key claims of docs/discrepancy.md, re-checked on the measured data.
+
+Skipped without the measured records.  The least-squares claims are recomputed with the
+same functions as ``docs/make_discrepancy_figures.py``; the Bayesian-criterion claim uses
+short posterior runs (the margin is thousands of nats, far beyond what the length of the
+chain changes); the numbers written to ``docs/figures/discrepancy.json`` must agree with
+the recomputation.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesmodal.data import find_data
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "docs" / "make_discrepancy_figures.py"
+NUMBERS = ROOT / "docs" / "figures" / "discrepancy.json"
+
+pytestmark = pytest.mark.slow
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("make_discrepancy_figures", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def story():
+    for name in ("data_impulses", "data_steps", "data_sine_sweep_fast",
+                 "data_sine_sweep_slow"):
+        if find_data(f"ecp210-3dof/{name}.mat") is None:
+            pytest.skip(f"measured record {name}.mat not found")
+    mod = _script()
+    recs = mod.load_records()
+    lin = mod.linear_part(recs)
+    diag = mod.diagnostics_part(recs, lin["theta"])
+    fr = mod.friction_part(recs, lin["_lsq"])
+    return mod, recs, lin, diag, fr
+
+
+def test_linear_misfit(story):
+    """The linear model fits the impulses at about 81 % and predicts the others worse."""
+    _, _, lin, _, _ = story
+    f = lin["fits"]
+    assert np.all(np.abs(np.array(f["data_impulses"]) - 81.5) < 1.5)
+    assert np.mean(f["data_steps"]) < np.mean(f["data_impulses"]) - 5
+    assert np.mean(f["data_sine_sweep_fast"]) < 50
+    assert np.mean(f["data_sine_sweep_slow"]) < 55
+
+
+def test_diagnostics_point_at_friction(story):
+    """The residual diagnostics that detect an effect on the impulses suggest friction."""
+    _, _, _, diag, _ = story
+    detected = {n: d for n, d in diag.items() if not n.startswith("_") and d["detected"]}
+    friction_tests = {"friction_signature", "decay_envelope", "stick"}
+    hits = [n for n in detected if "coulomb_friction" in detected[n]["suggests"]]
+    assert len(set(hits) & friction_tests) >= 2, {n: d["summary"] for n, d in diag.items()
+                                                  if not n.startswith("_")}
+
+
+def test_friction_gain_in_sample_and_held_out(story):
+    """Friction fitted on the impulses raises their fit by more than 5 points on every
+    cart and the held-out steps and both sweeps on average."""
+    _, _, lin, _, fr = story
+    a, b = np.array(lin["fits"]["data_impulses"]), np.array(fr["fits"]["data_impulses"])
+    assert np.all(b > a + 5)
+    for name in ("data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow"):
+        assert np.mean(fr["fits"][name]) > np.mean(lin["fits"][name]) + 5, name
+    # friction takes over part of the viscous damping: every absolute damper drops
+    assert np.all(np.array(fr["theta"][4:7]) < np.array(lin["theta"][4:7]))
+
+
+def test_numbers_in_the_docs_match(story):
+    """docs/figures/discrepancy.json holds what the code computes now.
+
+    The least-squares friction fit sits in a flat, rough valley (docs/discrepancy.md,
+    section 3): a change of the simulator at the level of rounding can move it by a few
+    tenths of a point, hence the 1-point tolerance.
+    """
+    if not NUMBERS.is_file():
+        pytest.fail("docs/figures/discrepancy.json missing: run docs/make_discrepancy_figures.py")
+    num = json.loads(NUMBERS.read_text())
+    _, _, lin, _, fr = story
+    for key, part in (("linear", lin), ("friction", fr)):
+        for name, vals in part["fits"].items():
+            np.testing.assert_allclose(num[key]["fits"][name], vals, atol=1.0,
+                                       err_msg=f"{key} {name}")
+    post = num.get("posterior")
+    assert post is not None, "the posterior part is missing (run without --quick)"
+    assert post["elpd"]["decisive"] and post["elpd"]["preferred"] == "friction"
+    # the issue's target: held-out steps at least 10 points better (posterior predictive
+    # medians of the runs fitted on the impulses), every cart
+    held = post["heldout"]
+    gain = (np.array(held["friction"]["data_steps"]["fit_median"])
+            - np.array(held["linear"]["data_steps"]["fit_median"]))
+    assert np.all(gain >= 10), gain
+
+
+def test_bayesian_criterion_prefers_friction(story):
+    """PSIS-LOO ELPD of friction against linear, from posterior runs on the impulses."""
+    from bayesmodal.inference import elpd_change, sample_posterior
+
+    mod, recs, lin, _, fr = story
+    imp = recs["data_impulses"]
+    kw = dict(noise="ar1", n_steps=300, burn=200, rng=5, warn=False)
+    run_lin = sample_posterior(imp, mod.MODEL, n_walkers=32, start=lin["_lsq"], **kw)
+    run_fr = sample_posterior(imp, mod.MODEL, extension="coulomb_friction", n_walkers=44,
+                              start=fr["_fit"], **kw)
+    ch = elpd_change(run_lin, run_fr, labels=("linear", "friction"))
+    assert ch.decisive and ch.preferred == "friction", ch.reading
+    assert ch.delta > 10 * ch.se
