@@ -66,33 +66,37 @@ def test_diagnostics_point_at_friction(story):
                                                   if not n.startswith("_")}
 
 
-def test_friction_gain_in_sample_and_held_out(story):
-    """Friction fitted on the impulses raises their fit by more than 5 points on every
-    cart and the held-out steps and both sweeps on average."""
-    _, _, lin, _, fr = story
+def test_friction_least_squares(story):
+    """Least squares of friction on the impulses: more than 5 points on every impulse
+    cart and more than 10 on both held-out sweeps; friction takes over viscous damping,
+    and the drive gain falls below the 5.9-6.1 N/V of the step plateaus (section 3)."""
+    mod, recs, lin, _, fr = story
     a, b = np.array(lin["fits"]["data_impulses"]), np.array(fr["fits"]["data_impulses"])
     assert np.all(b > a + 5)
-    for name in ("data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow"):
-        assert np.mean(fr["fits"][name]) > np.mean(lin["fits"][name]) + 5, name
-    # friction takes over part of the viscous damping: every absolute damper drops
+    for name in ("data_sine_sweep_fast", "data_sine_sweep_slow"):
+        assert np.mean(fr["fits"][name]) > np.mean(lin["fits"][name]) + 10, name
     assert np.all(np.array(fr["theta"][4:7]) < np.array(lin["theta"][4:7]))
+    static = mod.static_gain_part(recs)
+    assert 5.9 < static["g_v_min"] and static["g_v_max"] < 6.15
+    assert fr["theta"][0] < static["g_v_min"] - 0.3
 
 
 def test_numbers_in_the_docs_match(story):
     """docs/figures/discrepancy.json holds what the code computes now.
 
     The least-squares friction fit sits in a flat, rough valley (docs/discrepancy.md,
-    section 3): a change of the simulator at the level of rounding can move it by a few
-    tenths of a point, hence the 1-point tolerance.
+    section 3): a change of the simulator at the level of rounding moves its held-out
+    predictions by points, so only its in-sample fit is compared (within 1 point); the
+    linear fit and the posterior numbers are compared as written.
     """
     if not NUMBERS.is_file():
         pytest.fail("docs/figures/discrepancy.json missing: run docs/make_discrepancy_figures.py")
     num = json.loads(NUMBERS.read_text())
     _, _, lin, _, fr = story
-    for key, part in (("linear", lin), ("friction", fr)):
-        for name, vals in part["fits"].items():
-            np.testing.assert_allclose(num[key]["fits"][name], vals, atol=1.0,
-                                       err_msg=f"{key} {name}")
+    for name, vals in lin["fits"].items():
+        np.testing.assert_allclose(num["linear"]["fits"][name], vals, atol=0.1, err_msg=name)
+    np.testing.assert_allclose(num["friction"]["fits"]["data_impulses"],
+                               fr["fits"]["data_impulses"], atol=1.0)
     post = num.get("posterior")
     assert post is not None, "the posterior part is missing (run without --quick)"
     assert post["elpd"]["decisive"] and post["elpd"]["preferred"] == "friction"
