@@ -29,6 +29,8 @@ problem in a file is collected and reported at once, each naming the file and th
     thin = 5
     seed = 1
     moves = "stretch"           # stretch, de, de-snooker, walk, kde or "de:0.8,de-snooker:0.2"
+    restart = 500               # optional: re-centre the walkers on the best one at this
+                                # step (< burn), for walkers stuck in a negligible mode
 
     [outputs]
     dir = "impulses-free"       # relative to the output root; no "..", not absolute
@@ -72,7 +74,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "priors": {},  # free keys, checked against parameter names later
     "likelihood": {"noise": str},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
-                "moves": str},
+                "moves": str, "restart": int},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
                 "ema": bool, "checkpoint_every_s": (int, float)},
     "evidence": {"enabled": bool, "nlive": int, "dlogz": (int, float)},
@@ -107,6 +109,7 @@ class RunConfig:
     thin: int = 5
     seed: int = 1
     moves: str = "stretch"
+    restart: int | None = None
     out_dir: str = ""
     plots: bool = True
     report: bool = True
@@ -129,6 +132,8 @@ class RunConfig:
         for k in ("source", "name", "out_dir", "plots", "report", "ema",
                   "checkpoint_every_s"):
             d.pop(k)
+        if d["restart"] is None:  # keeps the hashes of configs written before the key
+            d.pop("restart")
         # where the data live does not change the result; their content is hashed separately
         d["data_files"] = [Path(f).name for f in self.data_files]
         d["heldout_files"] = [Path(f).name for f in self.heldout_files]
@@ -278,6 +283,13 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             kw[key] = v
     if values.get(("sampler", "burn"), 0) >= values.get(("sampler", "steps"), 5000):
         err("sampler.burn", "must be smaller than sampler.steps")
+    restart = values.get(("sampler", "restart"))
+    if restart is not None:
+        burn = values.get(("sampler", "burn"), RunConfig.burn)
+        if not 1 <= restart < burn:
+            err("sampler.restart", f"must be in [1, sampler.burn) = [1, {burn}) so that "
+                f"every retained draw comes after it, got {restart}")
+        kw["restart"] = restart
     moves = values.get(("sampler", "moves"))
     if moves is not None:
         for part in moves.split(","):

@@ -20,6 +20,8 @@ around ``bayesmodal.extensions.fit_extension_lsq`` and every half-ensemble is on
 
 from __future__ import annotations
 
+import copy
+
 import hashlib
 import json
 import math
@@ -474,6 +476,7 @@ def sample_posterior(
     refine: bool = True,
     warn: bool = True,
     extension=None,
+    restart: int | None = None,
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -524,6 +527,17 @@ def sample_posterior(
         Sample a model extension (a name in ``bayesmodal.extensions.EXTENSIONS`` or an
         instance) on top of ``model``, which must have free damping.  Parameter names are
         ``extension.names(model.rig)`` followed by the noise names.
+    restart : int, optional
+        Re-centre the ensemble once, after ``restart`` steps of burn-in: every walker is
+        placed in a new start ball around the walker with the highest log posterior at
+        that step (refined to the posterior mode when ``refine``), and sampling goes on
+        from there.  This is the remedy of the emcee documentation for walkers stuck in
+        a separated mode of negligible mass (the static friction levels of
+        ``coulomb_friction`` on the measured impulses have one about 55 nats below the
+        best).  Must be smaller than ``burn``, so that the retained draws all come after
+        the restart and have had ``burn - restart`` steps to spread out again.  The
+        restart is deterministic for an integer ``rng`` and survives a resume from
+        ``backend``.
 
     Returns
     -------
@@ -565,6 +579,14 @@ def sample_posterior(
     thin = default_thin(n_walkers, n_steps - burn) if thin is None else int(thin)
     if thin < 1:
         raise ConfigError(f"thin must be >= 1, got {thin}")
+    if restart is not None:
+        if isinstance(restart, bool) or not isinstance(restart, (int, np.integer)):
+            raise ConfigError(f"restart must be an integer number of steps, got {restart!r}")
+        restart = int(restart)
+        if not 1 <= restart < burn:
+            raise ConfigError(
+                f"restart must be in [1, burn) = [1, {burn}) so that every retained draw "
+                f"comes after it, got {restart}")
 
     # start point: LSQ mechanical estimate plus moment estimates of the noise
     if ext is None:
@@ -584,6 +606,12 @@ def sample_posterior(
     centre = np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
 
     gen = np.random.default_rng(rng)
+    # the restart ball's seed comes from a copy of the generator, so that the stream of
+    # the start ball (and the first stage) is the one of a run without restart, and a
+    # resumed run, which draws no start ball, re-creates it
+    restart_seed = None if restart is None else np.random.SeedSequence(
+        [int(np.random.Generator(copy.deepcopy(gen.bit_generator)).integers(2**63)),
+         0x52455354])
     config = {
         "damping": model.damping,
         **({} if ext is None else {"extension": ext.name}),
@@ -597,6 +625,7 @@ def sample_posterior(
         # an integer seed is part of the identity of a run; a Generator cannot be recorded
         "seed": int(rng) if isinstance(rng, (int, np.integer)) else None,
         "refine": bool(refine),
+        **({} if restart is None else {"restart": restart}),
     }
     # the hash identifies the target and ensemble; a resumed run may extend n_steps
     chash = config_hash(config)
@@ -609,24 +638,40 @@ def sample_posterior(
     )
     t0 = time.perf_counter()
     n_eval = 0
+    # scale of the ball: log units for log/tanh parameters, relative for linear ones
+    width = np.array([p.support[1] - p.support[0] for p in priors.priors])
+    lin = np.array([t == "identity" for t in priors.transforms])
+
+    def ball(theta, generator):
+        c = posterior_mode(log_post, theta) if refine else theta
+        scale = np.where(lin, init_scale * np.maximum(np.abs(c), 1e-3 * width), init_scale)
+        return _start_ball(priors, c, scale, n_walkers, generator, log_post)
+
+    # the run is split at ``restart`` (if any); ``stop`` is the end of the current stage
+    stop = n_steps if restart is None or done > restart else restart
     if done == 0:
-        # scale of the ball: log units for log/tanh parameters, relative for linear ones
-        width = np.array([p.support[1] - p.support[0] for p in priors.priors])
-        lin = np.array([t == "identity" for t in priors.transforms])
-        ball_centre = posterior_mode(log_post, centre) if refine else centre
-        scale = np.where(lin, init_scale * np.maximum(np.abs(ball_centre), 1e-3 * width),
-                         init_scale)
-        z_init = _start_ball(priors, ball_centre, scale, n_walkers, gen, log_post)
+        z_init = ball(centre, gen)
         mt = np.random.RandomState(np.random.MT19937(np.random.SeedSequence(
             int(gen.integers(2**63)))))
         state = emcee.State(z_init, random_state=mt.get_state())
         be.reset(n_walkers, n_par)
         _set_backend_attr(be, "bayesmodal_config_hash", chash)
-        sampler.run_mcmc(state, n_steps, progress=progress)
-        n_eval = n_walkers * (n_steps + 1)
+        sampler.run_mcmc(state, stop, progress=progress)
+        n_eval += n_walkers * (stop + 1)
+        done = stop
+    elif done < stop:
+        sampler.run_mcmc(None, stop - done, progress=progress)
+        n_eval += n_walkers * (stop - done)
+        done = stop
+    if restart is not None and done == restart < n_steps:
+        best = be.get_chain()[restart - 1, np.argmax(be.get_log_prob()[restart - 1])]
+        z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
+        state = emcee.State(z_init, random_state=be.random_state)
+        sampler.run_mcmc(state, n_steps - restart, progress=progress)
+        n_eval += n_walkers * (n_steps - restart + 1)
     elif done < n_steps:
         sampler.run_mcmc(None, n_steps - done, progress=progress)
-        n_eval = n_walkers * (n_steps - done)
+        n_eval += n_walkers * (n_steps - done)
     elapsed = time.perf_counter() - t0
 
     z_chain = be.get_chain()[:n_steps]
