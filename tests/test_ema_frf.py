@@ -147,6 +147,10 @@ def test_segments():
     assert is_pulse_train(u) and not is_pulse_train(np.ones(10))
     with pytest.raises(DataError, match="no pulse"):
         pulse_segments(np.zeros(10))
+    # a pulse at the very end of the record has no free decay: dropped (kept on request)
+    u[298] = 1.0
+    assert pulse_segments(u)[-1].tolist() == [250, 251, 298]
+    assert pulse_segments(u, drop_truncated=False)[-1].tolist() == [298, 299, 300]
 
 
 def test_frf_from_experiment_picks_the_estimator():

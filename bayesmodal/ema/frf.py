@@ -321,7 +321,7 @@ def welch_frf(
 
 
 # --------------------------------------------------------------------------- pulses
-def pulse_segments(u, *, min_gap: int = 20) -> np.ndarray:
+def pulse_segments(u, *, min_gap: int = 20, drop_truncated: bool = True) -> np.ndarray:
     """Split a pulse train into pulse-to-pulse segments.
 
     Parameters
@@ -330,6 +330,10 @@ def pulse_segments(u, *, min_gap: int = 20) -> np.ndarray:
         Input with isolated pulses on a zero background.
     min_gap : int
         Runs of at least this many zero samples separate two pulses.
+    drop_truncated : bool
+        Drop the last segment when the end of the record cuts its free decay short (it
+        is shorter than a quarter of the median of the others, or than 8 samples): a
+        transient cut off early leaks into every frequency.  Ignored with one pulse.
 
     Returns
     -------
@@ -347,6 +351,9 @@ def pulse_segments(u, *, min_gap: int = 20) -> np.ndarray:
     >>> u = np.zeros(100); u[5:8] = 1.0; u[55:58] = 1.0
     >>> pulse_segments(u).tolist()
     [[5, 8, 55], [55, 58, 100]]
+    >>> u[98] = 1.0                     # a pulse two samples before the end of the record
+    >>> pulse_segments(u).tolist()
+    [[5, 8, 55], [55, 58, 98]]
     """
     u = np.asarray(u, dtype=float)
     nz = np.flatnonzero(u != 0)
@@ -356,7 +363,12 @@ def pulse_segments(u, *, min_gap: int = 20) -> np.ndarray:
     starts = np.r_[nz[0], nz[breaks + 1]]
     ends = np.r_[nz[breaks], nz[-1]] + 1
     stops = np.r_[starts[1:], u.size]
-    return np.column_stack([starts, ends, stops]).astype(int)
+    seg = np.column_stack([starts, ends, stops]).astype(int)
+    if drop_truncated and len(seg) > 1:
+        span = seg[:, 2] - seg[:, 0]
+        if span[-1] < max(8.0, 0.25 * float(np.median(span[:-1]))):
+            seg = seg[:-1]
+    return seg
 
 
 def is_pulse_train(u, *, max_duty: float = 0.1) -> bool:
