@@ -74,3 +74,14 @@ def test_posterior_intervals_and_elpd_on_a_hidden_delay():
     half = 0.5 * (iv.hi - iv.lo)
     assert abs(iv.median - h.theta_extension[0]) <= 3 * half + 1e-4
     assert d.gain["elpd_change"]["decisive"] and d.gain["delta_elpd"] > 0
+    # the posterior's fit percents (median over draws, 90 % interval) sit beside the
+    # least-squares ones; the delay model fits the training record better than the linear
+    post = d.gain["posterior"]
+    assert np.shape(post["fit_percent_after"]) == np.shape(d.gain["fit_percent_after"])
+    for key in ("fit_percent_before", "fit_percent_after"):
+        assert np.all(np.asarray(post[key + "_lo"]) <= np.asarray(post[key]))
+        assert np.all(np.asarray(post[key]) <= np.asarray(post[key + "_hi"]))
+    assert np.mean(post["fit_percent_after"]) > np.mean(post["fit_percent_before"])
+    from bayesmodal.cli._diagnose import _report
+
+    assert "posterior fit_percent_after:" in _report(d)

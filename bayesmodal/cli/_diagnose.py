@@ -38,6 +38,13 @@ def _report(d) -> str:
         if key in g:
             vals = "; ".join(", ".join(f"{x:.1f}" for x in row) for row in g[key])
             lines.append(f"{key}: {vals}")
+    for key, vals in (g.get("posterior") or {}).items():
+        if "fit_percent" in key and not key.endswith(("_lo", "_hi")):
+            lo, hi = g["posterior"][key + "_lo"], g["posterior"][key + "_hi"]
+            rows = "; ".join(", ".join(f"{m:.1f} [{a:.1f}, {b:.1f}]"
+                                       for m, a, b in zip(r, ra, rb, strict=True))
+                             for r, ra, rb in zip(vals, lo, hi, strict=True))
+            lines.append(f"posterior {key}: {rows}")
     if g.get("delta_elpd") is not None:
         lines.append(f"delta ELPD: {g['delta_elpd']:.1f} +- {g['delta_elpd_se']:.1f}")
     lines.append("tests:")

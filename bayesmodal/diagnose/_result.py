@@ -179,7 +179,9 @@ class Diagnosis:
     gain : Mapping
         ``fit_percent_before/after`` (per training experiment, per output),
         ``heldout_fit_percent_before/after`` (per held-out experiment), ``delta_elpd``,
-        ``delta_elpd_se``, ``criterion``.
+        ``delta_elpd_se``, ``criterion``; with the posterior, ``posterior``: the same fit
+        percents as medians over posterior draws with 90 % intervals (``*_lo``,
+        ``*_hi``) and ``heldout_delta_lpd``.
     interval_method : str
         ``"posterior"`` (emcee), ``"laplace"`` or ``"none"``.
     experiments : tuple of str

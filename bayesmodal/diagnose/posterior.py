@@ -2,9 +2,14 @@
 
 Both models are sampled with ``bayesmodal.inference.sample_posterior`` (AR(1) noise, the
 default priors; the extended model with ``extension=``) on the training experiments,
-started from the workflow's least-squares fits.  The extension's parameters get the
-median and the 90 % equal-tailed credible interval; the models are compared by the
-change in PSIS-LOO ELPD with its standard error (``bayesmodal.inference.elpd_change``).
+started from the workflow's least-squares fits, with one restart of the ensemble at its
+best walker half-way through the burn-in (``sample_posterior(restart=...)``: the static
+friction levels have separated modes of negligible mass that trap walkers).  The
+extension's parameters get the median and the 90 % equal-tailed credible interval; the
+models are compared by the change in PSIS-LOO ELPD with its standard error
+(``bayesmodal.inference.elpd_change``), and both posteriors are scored on the training and
+the held-out experiments by the fit percent of their draws
+(``bayesmodal.inference.predictive_check``: median and 90 % interval over draws).
 None of this feeds back into the decision.
 """
 
@@ -22,6 +27,18 @@ __all__ = ["posterior_summary", "sampler_supports_extensions"]
 DEFAULTS = {"n_steps": 1500, "noise": "ar1"}
 
 
+def _scores(run, model, exps, noise) -> dict:
+    """Fit percent of the posterior draws on ``exps`` (median, 90 % interval) and lpd."""
+    from ..inference import Likelihood, predictive_check
+
+    lik = Likelihood(model, list(exps), noise, run.likelihood.extension)
+    ps = predictive_check(lik, run.flat_draws)
+    return {"fit_percent": np.asarray(ps.fit_percent_median).tolist(),
+            "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
+            "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist(),
+            "lpd": float(ps.lpd), "n_draws": int(ps.n_draws)}
+
+
 def sampler_supports_extensions() -> bool:
     """True when ``sample_posterior`` accepts an ``extension`` argument."""
     from ..inference import sample_posterior
@@ -29,7 +46,7 @@ def sampler_supports_extensions() -> bool:
     return "extension" in inspect.signature(sample_posterior).parameters
 
 
-def posterior_summary(*, exps, ext, rig, fit, linear, rng, options):
+def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
     """Credible intervals (90 %) and ELPD change, or None without sampler support.
 
     Parameters
@@ -44,13 +61,17 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options):
         Least-squares fit of the linear model (the start of its chain).
     rng : numpy.random.Generator
     options : dict
-        ``sample_posterior`` keywords (``n_steps``, ``n_walkers``, ``noise``...).
+        ``sample_posterior`` keywords (``n_steps``, ``n_walkers``, ``noise``,
+        ``restart``...); ``restart`` defaults to half the burn-in, ``None`` turns it off.
+    heldout : sequence of Experiment
+        Experiments not used in the fit, scored by both posteriors.
 
     Returns
     -------
     dict or None
         ``parameters`` {name: Interval}, ``delta_elpd``, ``delta_elpd_se``,
-        ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``notes``.
+        ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``scores``
+        ({"linear"|name: {"train"|"heldout": fit percents and lpd}}), ``notes``.
     """
     if not sampler_supports_extensions():
         return None
@@ -71,6 +92,8 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options):
         kw.setdefault("n_walkers", 2 * n_par + (2 * n_par) % 2)
         kw["n_walkers"] = max(int(kw["n_walkers"]), 2 * n_par)
         kw["n_walkers"] += kw["n_walkers"] % 2
+        burn = kw.setdefault("burn", int(kw["n_steps"]) // 5)
+        kw.setdefault("restart", burn // 2 if burn >= 2 else None)
         run = sample_posterior(exps, model, extension=extension, start=start,
                                rng=np.random.default_rng(rng.integers(2**63)), warn=False,
                                **kw)
@@ -87,11 +110,16 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options):
         lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95])
         params[n] = Interval(float(med), float(lo), float(hi))
     change = elpd_change(runs["linear"], run, labels=("linear", ext.name))
+    scores = {label: {"train": _scores(r, model, exps, opts["noise"]),
+                      **({"heldout": _scores(r, model, heldout, opts["noise"])}
+                         if heldout else {})}
+              for label, r in runs.items()}
     return {
         "parameters": params,
         "delta_elpd": change.delta,
         "delta_elpd_se": change.se,
         "criterion": "PSIS-LOO ELPD (ArviZ), AR(1) likelihood, extended minus linear",
         "elpd": change.as_dict(),
+        "scores": scores,
         "notes": notes,
     }
