@@ -21,7 +21,6 @@ around ``bayesmodal.extensions.fit_extension_lsq`` and every half-ensemble is on
 from __future__ import annotations
 
 import copy
-
 import hashlib
 import json
 import math
