@@ -1,6 +1,11 @@
 #!/usr/bin/env bash
-# Install bayesmodal with its test extras and run the default test suite.
+# Install bayesmodal with its test extras and run the tests.  Without arguments: the
+# default suite (every test not marked slow, under 15 minutes on a 2-core machine); with
+# arguments: pytest with those (e.g. -m slow for the long statistical and fault tests).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python3 -m pip install -q -e ".[test]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+if [ $# -eq 0 ]; then
+    set -- -m "not slow"
+fi
 python3 -m pytest -q "$@"
