@@ -63,12 +63,15 @@ def _pulses(N=700):
     [
         ("coulomb_friction", [0.3, 0.2, 0.25, 0.3, 0.35, 0.25], 0.5),
         ("coulomb_friction", [0.05, 0.05, 0.05, 0.2, 0.2, 0.2], 0.5),
+        # cart 1 with a high static level that holds it while the others move: one
+        # sub-step is 1.3 counts off here (and 450 on the measured impulse input)
+        ("coulomb_friction", [0.245, 0.058, 0.167, 1.405, 0.305, 0.452], 0.5),
         ("backlash", [5e-4, 0.3], 0.75),
         ("backlash", [1e-4, 0.1], 0.75),
     ],
 )
 def test_default_substeps_are_accurate(name, effect, tol_counts):
-    """The defaults (one sub-step for friction, two for backlash) against the event-driven
+    """The defaults (four sub-steps for friction, two for backlash) against the event-driven
     reference: well below an encoder count, and about four times better with twice the
     sub-steps (second order), so the default is not at the edge of a breakdown."""
     ext = EXTENSIONS[name]
@@ -80,3 +83,22 @@ def test_default_substeps_are_accurate(name, effect, tol_counts):
     err_fine = np.max(np.abs(finer.simulate(RIG, theta, u, DT) - y_ref)) / COUNT
     assert err < tol_counts, err
     assert err_fine < err / 2.5, (err, err_fine)
+
+
+#: A posterior draw of the friction model on the measured impulses (high static level on
+#: cart 1), at which one sub-step per sample flips a stick decision on that record.
+HIGH_FS = np.array([5.7389, 1.5861, 1.4983, 1.1223, 1.8443, 3.1e-3, 5e-4, 0.3735, 0.109,
+                    0.2449, 0.0583, 0.1665, 1.405, 0.3054, 0.4516])
+
+
+def test_default_friction_substeps_on_the_measured_impulse_input():
+    from conftest import measured
+
+    e = measured("data_impulses.mat")
+    ext = EXTENSIONS["coulomb_friction"]
+    y_ref = REFERENCES["coulomb_friction"](RIG.springs_n_m, HIGH_FS, e.v_volt, e.dt)
+    err = np.max(np.abs(ext.simulate(RIG, HIGH_FS, e.v_volt, e.dt) - y_ref)) / COUNT
+    assert err < 0.5, err
+    # negative control: one sub-step per sample is hundreds of counts off on this record
+    one = type(ext)(n_sub=1).simulate(RIG, HIGH_FS, e.v_volt, e.dt)
+    assert np.max(np.abs(one - y_ref)) / COUNT > 50
