@@ -206,68 +206,36 @@ def _summary_of(idata, prob: float = 0.9) -> dict:
 
 
 def posterior_part(recs: dict, runs_dir: Path) -> dict:
-    """Posterior runs on the impulses: the shipped linear and friction configurations,
-    then a second friction stage restarted from the highest-posterior walker.
+    """Posterior runs on the impulses: the shipped linear and friction configurations.
 
-    The friction posterior has separated modes in the static levels ``Fs``: in the shipped
-    run part of the ensemble stays in a mode some 55 nats below the best one and R-hat
-    fails.  The second stage (as the emcee documentation advises for stuck walkers)
-    re-centres the whole ensemble on the best walker at the last step of the first stage
-    (with the posterior-mode refinement of ``sample_posterior``) and samples
-    again; intervals, the ELPD change and the held-out scores come from it.
+    The friction run (``runs/impulses_friction.toml``) re-centres its ensemble once on the
+    best walker during burn-in (``[sampler] restart``): the static levels ``Fs`` can
+    leave walkers in separated modes of negligible mass.  Intervals, the ELPD change and
+    the held-out scores come from the two runs as shipped.
     """
-    import emcee
-
     from bayesmodal.inference import (
         elpd_change,
         likelihood_from_idata,
         load_idata,
         posterior_matrix,
         predictive_check,
-        sample_posterior,
-        save_idata,
-        to_inference_data,
     )
     from bayesmodal.runs import run_config
 
     out: dict = {}
     idatas = {}
-    for label, cfg in (("linear", "impulses_free"), ("friction_stage1", "impulses_friction")):
+    for label, cfg in (("linear", "impulses_free"), ("friction", "impulses_friction")):
         folder = runs_dir / cfg
         res = run_config(ROOT / "runs" / f"{cfg}.toml", folder, resume=True)
         idatas[label] = load_idata(folder / "posterior.nc")
         out[label] = {"converged": bool(res.summary["convergence"]["converged"]),
                       "convergence": res.summary["convergence"]["verdict"]}
-    # the walkers' log posterior over the second half of stage 1: two groups
-    be = emcee.backends.HDFBackend(str(runs_dir / "impulses_friction" / "chain.h5"),
-                                   name="mcmc", read_only=True)
-    lp = be.get_log_prob()
-    half = lp.shape[0] // 2
-    walker_lp = np.median(lp[half:], axis=0)
-    top = walker_lp.max()
-    out["friction_stage1"]["walker_lp_below_best"] = np.round(top - walker_lp, 1).tolist()
-    chain = idatas["friction_stage1"].posterior
-    names = json.loads(chain.attrs["parameter_names"])
-    z = be.get_chain()
-    from bayesmodal.inference import priors_from_idata
-
-    # the walker with the highest log posterior at the last step
-    best = priors_from_idata(idatas["friction_stage1"]).to_physical(z[-1, np.argmax(lp[-1])])
+    names = json.loads(idatas["friction"].posterior.attrs["parameter_names"])
     n_mech = len(FRICTION.names(RIG))
-    nc = runs_dir / "friction_stage2.nc"
-    if nc.is_file():
-        idatas["friction"] = load_idata(nc)
-    else:
-        run = sample_posterior(recs["data_impulses"], MODEL, extension=FRICTION, noise="ar1",
-                               n_walkers=48, n_steps=10000, burn=3000, start=best[:n_mech],
-                               rng=2, backend=runs_dir / "friction_stage2.h5", warn=False)
-        idatas["friction"] = to_inference_data(run, n_predictive=0, rng=2)
-        save_idata(idatas["friction"], nc)
     diag = json.loads(idatas["friction"].posterior.attrs["diagnostics_json"])
-    out["friction"] = {"converged": bool(diag["converged"]), "max_rhat": diag["max_rhat"],
-                       "min_ess": diag["min_ess"], "n_over_tau": diag["n_over_tau"],
-                       "problems": diag["problems"],
-                       "start_names": names[:n_mech]}
+    out["friction"].update({"max_rhat": diag["max_rhat"], "min_ess": diag["min_ess"],
+                            "n_over_tau": diag["n_over_tau"], "problems": diag["problems"],
+                            "start_names": names[:n_mech]})
     for label in ("linear", "friction"):
         out[label]["parameters"] = _summary_of(idatas[label])
         lik = likelihood_from_idata(idatas[label])
