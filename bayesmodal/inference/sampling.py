@@ -647,7 +647,7 @@ def sample_posterior(
         return _start_ball(priors, c, scale, n_walkers, generator, log_post)
 
     # the run is split at ``restart`` (if any); ``stop`` is the end of the current stage
-    stop = n_steps if restart is None or done > restart else restart
+    stop = restart if restart is not None and done <= restart else n_steps
     if done == 0:
         z_init = ball(centre, gen)
         mt = np.random.RandomState(np.random.MT19937(np.random.SeedSequence(
@@ -662,15 +662,12 @@ def sample_posterior(
         sampler.run_mcmc(None, stop - done, progress=progress)
         n_eval += n_walkers * (stop - done)
         done = stop
-    if restart is not None and done == restart < n_steps:
+    if done == restart:  # (restart < burn < n_steps)
         best = be.get_chain()[restart - 1, np.argmax(be.get_log_prob()[restart - 1])]
         z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
         state = emcee.State(z_init, random_state=be.random_state)
         sampler.run_mcmc(state, n_steps - restart, progress=progress)
         n_eval += n_walkers * (n_steps - restart + 1)
-    elif done < n_steps:
-        sampler.run_mcmc(None, n_steps - done, progress=progress)
-        n_eval += n_walkers * (n_steps - done)
     elapsed = time.perf_counter() - t0
 
     z_chain = be.get_chain()[:n_steps]
