@@ -27,16 +27,37 @@ __all__ = ["posterior_summary", "sampler_supports_extensions"]
 DEFAULTS = {"n_steps": 1500, "noise": "ar1"}
 
 
-def _scores(run, model, exps, noise) -> dict:
-    """Fit percent of the posterior draws on ``exps`` (median, 90 % interval) and lpd."""
+def _fits(runs: dict, name: str, model, exps, heldout, noise) -> dict:
+    """Fit percents of both posteriors, in the layout of ``gain``.
+
+    ``[heldout_]fit_percent_{before,after}`` with ``_lo``/``_hi`` (median over draws and
+    90 % interval; before: the linear posterior, after: the extended one) on the training
+    and the held-out experiments, and ``heldout_delta_lpd``.  They complement the
+    least-squares fit percents (the decision's basis) and do not replace them: the
+    friction posterior of the measured impulses is multimodal in the static levels, and
+    short chains put walkers in modes whose held-out predictions differ by tens of
+    points (docs/diagnose.md).
+    """
     from ..inference import Likelihood, predictive_check
 
-    lik = Likelihood(model, list(exps), noise, run.likelihood.extension)
-    ps = predictive_check(lik, run.flat_draws)
-    return {"fit_percent": np.asarray(ps.fit_percent_median).tolist(),
-            "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
-            "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist(),
-            "lpd": float(ps.lpd), "n_draws": int(ps.n_draws)}
+    out: dict = {}
+    for prefix, data in (("", exps), ("heldout_", heldout)):
+        if not data:
+            continue
+        lpd = {}
+        for when, label in (("before", "linear"), ("after", name)):
+            run = runs[label]
+            ps = predictive_check(
+                Likelihood(model, list(data), noise, run.likelihood.extension),
+                run.flat_draws)
+            key = f"{prefix}fit_percent_{when}"
+            out[key] = np.asarray(ps.fit_percent_median).tolist()
+            out[key + "_lo"] = np.asarray(ps.fit_percent_lo).tolist()
+            out[key + "_hi"] = np.asarray(ps.fit_percent_hi).tolist()
+            lpd[label] = float(ps.lpd)
+        if prefix:
+            out["heldout_delta_lpd"] = lpd[name] - lpd["linear"]
+    return out
 
 
 def sampler_supports_extensions() -> bool:
@@ -70,8 +91,8 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
     -------
     dict or None
         ``parameters`` {name: Interval}, ``delta_elpd``, ``delta_elpd_se``,
-        ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``scores``
-        ({"linear"|name: {"train"|"heldout": fit percents and lpd}}), ``notes``.
+        ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``fits`` (see
+        ``_fits``), ``notes``.
     """
     if not sampler_supports_extensions():
         return None
@@ -110,16 +131,12 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
         lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95])
         params[n] = Interval(float(med), float(lo), float(hi))
     change = elpd_change(runs["linear"], run, labels=("linear", ext.name))
-    scores = {label: {"train": _scores(r, model, exps, opts["noise"]),
-                      **({"heldout": _scores(r, model, heldout, opts["noise"])}
-                         if heldout else {})}
-              for label, r in runs.items()}
     return {
         "parameters": params,
         "delta_elpd": change.delta,
         "delta_elpd_se": change.se,
         "criterion": "PSIS-LOO ELPD (ArviZ), AR(1) likelihood, extended minus linear",
         "elpd": change.as_dict(),
-        "scores": scores,
+        "fits": _fits(runs, ext.name, model, exps, heldout, opts["noise"]),
         "notes": notes,
     }

@@ -117,31 +117,6 @@ def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | 
     return idx, label
 
 
-def _posterior_fits(gain: dict, scores: dict, name: str) -> None:
-    """Fit percents of the two posteriors, under ``gain["posterior"]``.
-
-    Medians over draws of the fit percent with their 90 % intervals, on the training
-    and the held-out experiments, and the change of the held-out log predictive density.
-    They complement the least-squares fit percents at the top level of ``gain`` (the
-    decision's basis) and do not replace them: the friction posterior of the measured
-    impulses is multimodal in the static levels, and short chains put walkers in modes
-    whose held-out predictions differ by tens of points (docs/diagnose.md).
-    """
-    post: dict = {}
-    for role, prefix in (("train", ""), ("heldout", "heldout_")):
-        if role not in scores["linear"]:
-            continue
-        for when, label in (("before", "linear"), ("after", name)):
-            sc = scores[label][role]
-            post[f"{prefix}fit_percent_{when}"] = sc["fit_percent"]
-            post[f"{prefix}fit_percent_{when}_lo"] = sc["fit_percent_lo"]
-            post[f"{prefix}fit_percent_{when}_hi"] = sc["fit_percent_hi"]
-        if role == "heldout":
-            post["heldout_delta_lpd"] = (scores[name]["heldout"]["lpd"]
-                                         - scores["linear"]["heldout"]["lpd"])
-    gain["posterior"] = post
-
-
 def _fit_percent(exps, sims) -> list[list[float]]:
     return [fit_percent(e.y_m, y).tolist() for e, y in zip(exps, sims, strict=True)]
 
@@ -413,7 +388,7 @@ def diagnose(
                 if post.get(key) is not None:
                     gain[key] = post[key]
             gain["elpd_change"] = post.get("elpd")
-            _posterior_fits(gain, post["scores"], c)
+            gain["posterior"] = post["fits"]
             notes.extend(post.get("notes", ()))
         else:
             notes.append("the sampler has no extension support here: intervals are from a "
