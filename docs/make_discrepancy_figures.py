@@ -230,12 +230,9 @@ def posterior_part(recs: dict, runs_dir: Path) -> dict:
         idatas[label] = load_idata(folder / "posterior.nc")
         out[label] = {"converged": bool(res.summary["convergence"]["converged"]),
                       "convergence": res.summary["convergence"]["verdict"]}
-    names = json.loads(idatas["friction"].posterior.attrs["parameter_names"])
-    n_mech = len(FRICTION.names(RIG))
     diag = json.loads(idatas["friction"].posterior.attrs["diagnostics_json"])
     out["friction"].update({"max_rhat": diag["max_rhat"], "min_ess": diag["min_ess"],
-                            "n_over_tau": diag["n_over_tau"], "problems": diag["problems"],
-                            "start_names": names[:n_mech]})
+                            "n_over_tau": diag["n_over_tau"], "problems": diag["problems"]})
     for label in ("linear", "friction"):
         out[label]["parameters"] = _summary_of(idatas[label])
         lik = likelihood_from_idata(idatas[label])
