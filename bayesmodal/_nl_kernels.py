@@ -15,7 +15,8 @@ contiguous, the lane count is a compile-time constant (a power of two up to
 scalars, and the branches of the hybrid models (stick, slip, contact) are written on local
 scalars so that the compiler turns them into per-lane selects and vectorises across
 parameter sets.  Lanes take every branch's cost, but SIMD across 8 lanes more than pays
-for it.
+for it.  The friction kernel takes each sample in one exact step and takes it again in
+corrected sub-steps only for groups of lanes with an event in it (see ``coulomb_run``).
 
 Flat layouts (float64): parameters ``P (rows, width)``, state ``X (rows, width)`` updated in
 place, outputs ``Y (N, n_out, width)`` with ``Y[k]`` the positions at ``t = k dt``.  The
@@ -43,8 +44,14 @@ from numba.extending import intrinsic
 
 MAX_WIDTH = 64
 
-#: Newton steps for the velocity zero crossing of the friction kernel.
+#: Safeguarded Newton steps for the events of the friction kernel (a velocity zero or a
+#: held force reaching the static level, on cubic Hermite interpolants in time).
 HERMITE_NEWTON = 2
+
+#: Lanes of the friction kernel that take the event-corrected sub-steps together when
+#: one of them needs them (two AVX-512 vectors of float64: LLVM does not vectorise loops
+#: of 8); the others keep their quick result, so that no lane depends on its group.
+REFINE_GROUP = 16
 
 #: Newton steps for the impact time of the backlash kernel.
 IMPACT_NEWTON = 2
@@ -71,6 +78,30 @@ def _fma_sum(init: str, products) -> str:
     for a, b in products:
         expr = f"fma({a}, {b}, {expr})"
     return expr
+
+
+def _cubic_root(t: str, x: str, c: tuple[str, str, str, str], up: str) -> list[str]:
+    """Code locating the root ``x`` in [0, 1] of ``c0 + x (c1 + x (c2 + x c3))``.
+
+    Starts from the chord (``x`` must hold it) and takes ``HERMITE_NEWTON`` Newton steps
+    safeguarded by the bracket [lo, hi] (a step leaving it bisects instead); ``up`` is
+    the code of a boolean, true when the cubic rises through its root.  On cubics with an
+    inflection or strong curvature in the step plain Newton from the chord overshoots
+    (a break-away located 0.18 of a step late on a quadratically rising force).
+    """
+    c0, c1, c2, c3 = c
+    lines = [f"{t}lo = 0.0", f"{t}hi = 1.0"]
+    for _ in range(HERMITE_NEWTON):
+        lines += [
+            f"{t}g = {c0} + {x} * ({c1} + {x} * ({c2} + {x} * {c3}))",
+            f"{t}dg = {c1} + {x} * (2.0 * {c2} + 3.0 * {x} * {c3})",
+            f"{t}past = (g > 0.0) == ({up})",
+            f"{t}hi = {x} if past else hi",
+            f"{t}lo = lo if past else {x}",
+            f"{t}xn = {x} - g / dg if dg != 0.0 else -1.0",
+            f"{t}{x} = xn if xn > lo and xn < hi else 0.5 * (lo + hi)",
+        ]
+    return lines
 
 
 def padded_width(nb: int) -> int:
@@ -295,22 +326,26 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
 
 # ---------------------------------------------------------------------------------------
 # Coulomb friction with stick-slip
-@functools.lru_cache(maxsize=16)
-def coulomb_kernel(n: int, width: int):
-    """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``)."""
-    s, w = 2 * n, width
+def _coulomb_load(t, P, X, n) -> list[str]:
+    """Code loading a lane's state and friction parameters into scalars."""
+    s = 2 * n
     R, C = range(s), range(n)
-    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("G", n * s), ("gb", n),
-                       ("mi", n), ("fc", n), ("fs", n)])
-    X = _Rows("X", w, [("x", s), ("st", n), ("d", n), ("xs", n)])
-    L = _head("P, X, u, n_sub, h, Y", n, w, X)
-    L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
-    t = "                "
+    L: list[str] = []
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     for i in C:
         L += [f"{t}st{i} = {X('st', i)} != 0.0", f"{t}d{i} = {X('d', i)}",
               f"{t}xs{i} = {X('xs', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}",
               f"{t}gb{i} = {P('gb', i)}", f"{t}mi{i} = {P('mi', i)}"]
+    return L
+
+
+def _coulomb_predict(t, P, X, n, mats, rates: bool = True) -> list[str]:
+    """Code of the friction decision at the step start and the state predicted with it
+    held over the step (matrices ``mats = (A, B, F)`` of the step), the net forces at the
+    end (``Fe``) and, with ``rates``, the velocities and accelerations at both ends."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    L: list[str] = []
     # friction over the sub-step: stuck carts hold the net force (or break away at once
     # when the input jumped past Fs), sliding carts get -Fc dir; written as selects (no
     # nested branches) so that the compiler vectorises across lanes
@@ -323,17 +358,37 @@ def coulomb_kernel(n: int, width: int):
               f"{t}f{i} = -F{i} if hold else -fc{i} * d{i}",
               f"{t}st{i} = hold"]
     for r in R:
-        terms = " + ".join([f"{P('A', r * s + j)} * x{j}" for j in R]
-                           + [f"{P('fh', r * n + j)} * f{j}" for j in C])
-        L.append(f"{t}n{r} = {P('bh', r)} * uk + {terms}")
+        prods = [(P(mats[0], r * s + j), f"x{j}") for j in R]
+        prods += [(P(mats[2], r * n + j), f"f{j}") for j in C]
+        L.append(f"{t}n{r} = {P(mats[1], r)} * uk + " + " + ".join(f"{a} * {b}" for a, b in prods))
+    # net forces at the end; a held cart's force changed over the step, and holding it
+    # with its start value would let it drift and pull on its neighbours: hold it with
+    # the force ramping to its end value instead (one correction with the ramp response)
+    for i in C:
+        fe = " + ".join(f"{P('G', i * s + j)} * n{j}" for j in R)
+        L += [f"{t}Fe{i} = gb{i} * uk + {fe}",
+              f"{t}df{i} = F{i} - (Fe{i} + {P('G', i * s + i)} * (xs{i} - n{i})"
+              f" - {P('G', i * s + n + i)} * n{n + i}) if st{i} else 0.0"]
+    for r in R:
+        prods = [(P(mats[3], r * n + j), f"df{j}") for j in C]
+        L.append(f"{t}n{r} = {_fma_sum(f'n{r}', prods)}")
     # net forces at the end, and the rate of change of the net force at both ends
     # (G times velocities and accelerations; held carts neither move nor accelerate)
     for i in C:
         fe = " + ".join(f"{P('G', i * s + j)} * n{j}" for j in R)
-        L += [f"{t}Fe{i} = gb{i} * uk + {fe}",
-              f"{t}A0_{i} = (F{i} + f{i}) * mi{i}",
-              f"{t}A1_{i} = 0.0 if st{i} else (Fe{i} + f{i}) * mi{i}",
-              f"{t}V1_{i} = 0.0 if st{i} else n{n + i}"]
+        L += [f"{t}Fe{i} = gb{i} * uk + {fe}"]
+        if rates:
+            L += [f"{t}A0_{i} = (F{i} + f{i}) * mi{i}",
+                  f"{t}A1_{i} = 0.0 if st{i} else (Fe{i} + f{i}) * mi{i}",
+                  f"{t}V1_{i} = 0.0 if st{i} else n{n + i}"]
+    return L
+
+
+def _coulomb_events(t, P, X, n) -> list[str]:
+    """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    L: list[str] = []
     for i in C:
         v = n + i
         r0 = " + ".join([f"{P('G', i * s + j)} * x{n + j}" for j in C]
@@ -356,13 +411,20 @@ def coulomb_kernel(n: int, width: int):
               # q(s) = q0 + s (k0 + s (c2 + s c3)), the Hermite cubic in power form
               f"{t}c2 = 3.0 * (q1 - q0) - 2.0 * k0 - k1",
               f"{t}c3 = 2.0 * (q0 - q1) + k0 + k1",
-              f"{t}g = q0 - fs{i} + ab * (k0 + ab * (c2 + ab * c3))",
-              f"{t}dg = k0 + ab * (2.0 * c2 + 3.0 * ab * c3)",
-              f"{t}ab = ab - g / dg if slip and dg != 0.0 else ab",
-              f"{t}tb = (1.0 - (0.0 if ab < 0.0 else (1.0 if ab > 1.0 else ab))) * h",
-              f"{t}dvb = db * (0.5 * (aE + fs{i}) - fc{i}) * mi{i} * tb",
-              f"{t}dxb = db * mi{i} * tb * tb * ({1 / 6!r} * aE + {1 / 3!r} * fs{i}"
-              f" - 0.5 * fc{i})",
+              f"{t}qs = q0 - fs{i}"]
+        L += _cubic_root(t, "ab", ("qs", "k0", "c2", "c3"), "True")
+        L += [f"{t}ab = ab if slip else 0.0",
+              # velocity and displacement gained from the break-away to the end of the
+              # step under the net force q(s) less the kinetic level: integrals of
+              # (q - Fc) and (1 - s)(q - Fc) over [ab, 1] (antiderivatives J1 and J2)
+              f"{t}p0 = q0 - fc{i}",
+              f"{t}j1 = ab * (p0 + ab * (0.5 * k0 + ab * ({1 / 3!r} * c2 + 0.25 * ab * c3)))",
+              f"{t}j2 = ab * ab * (0.5 * p0 + ab * ({1 / 3!r} * k0 + ab * (0.25 * c2"
+              f" + 0.2 * ab * c3)))",
+              f"{t}i0 = p0 + 0.5 * k0 + {1 / 3!r} * c2 + 0.25 * c3 - j1",
+              f"{t}i1 = 0.5 * p0 + {1 / 3!r} * k0 + 0.25 * c2 + 0.2 * c3 - j2",
+              f"{t}dvb = db * mi{i} * h * i0",
+              f"{t}dxb = db * mi{i} * h * h * (i0 - i1)",
               # sliding: a velocity reversal inside the step, located on the cubic Hermite
               # interpolant of the velocity (end values and accelerations)
               f"{t}v0 = x{v}",
@@ -375,7 +437,7 @@ def coulomb_kernel(n: int, width: int):
               # v(s) = v0 + s (m0 + s (e2 + s e3))
               f"{t}e2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1",
               f"{t}e3 = 2.0 * (v0 - v1) + m0 + m1"]
-        for _ in range(HERMITE_NEWTON):
+        for _ in range(2):
             L += [f"{t}g = v0 + a * (m0 + a * (e2 + a * e3))",
                   f"{t}dg = m0 + a * (2.0 * e2 + 3.0 * a * e3)",
                   f"{t}a = a - g / dg if dg != 0.0 else a",
@@ -389,41 +451,186 @@ def coulomb_kernel(n: int, width: int):
               f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
               f" - a * (v0 + a * (0.5 * m0 + a * ({1 / 3!r} * e2 + 0.25 * a * e3))))",
               f"{t}p = n{i} - after if stick else n{i} + 0.5 * dv * tau",
+              # stuck at the crossing, but the held net force reaches Fs again before
+              # the end of the step: break away there (linear in time from the crossing)
+              f"{t}Fk = Fe + {P('G', i * s + i)} * (p - n{i}) - {P('G', i * s + v)} * n{v}",
+              f"{t}aK = abs(Fk)",
+              f"{t}brk = stick and aK >= fs{i}",
+              f"{t}dk = math.copysign(1.0, Fk)",
+              f"{t}qx = dk * (F{i} + a * (Fe - F{i}))",
+              f"{t}ak = a + (1.0 - a) * (fs{i} - qx) / (aK - qx) if brk and aK > qx else 1.0",
+              f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
+              f"{t}tk = (1.0 - ak) * h",
+              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - fc{i}) * mi{i} * tk",
+              f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
+              f" - 0.5 * fc{i})",
+              f"{t}p = p + dxk if brk else p",
               f"{t}n{i} = (xs{i} + dxb if slip else xs{i}) if st{i} else p",
-              f"{t}n{v} = (dvb if slip else 0.0) if st{i} else (0.0 if stick else v1 + dv)",
+              f"{t}n{v} = ((dvb if slip else 0.0) if st{i} else"
+              f" ((dvk if brk else 0.0) if stick else v1 + dv))",
               f"{t}xs{i} = p if stick else xs{i}",
-              f"{t}d{i} = db if slip else (-d{i} if flip else d{i})",
-              f"{t}st{i} = (st{i} and not slip) or stick"]
+              f"{t}d{i} = db if slip else (dk if brk else (-d{i} if flip else d{i}))",
+              f"{t}st{i} = (st{i} and not slip) or (stick and not brk)"]
+    return L
+
+
+def _coulomb_store(t, P, X, n) -> list[str]:
+    """Code storing a lane's state."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    L: list[str] = []
     L += [f"{t}{X('x', r)} = n{r}" for r in R]
     for i in C:
         L += [f"{t}{X('st', i)} = 1.0 if st{i} else 0.0", f"{t}{X('d', i)} = d{i}",
               f"{t}{X('xs', i)} = xs{i}"]
-    return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
+    return L
 
 
-def coulomb_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, u, n_sub, h, x0):
+def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
+    """Code of a step without event corrections that counts the lanes needing them.
+
+    Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
+    ``step``) and keeps held carts in place.  The lane's flag (the last row of ``S``) is
+    set, and ``ev`` counts it, if any cart had or may have had an event in the step: the
+    velocity of a sliding cart or the held force of a stuck one tested at the end, at the
+    midpoint of its cubic Hermite interpolant and on the linear extrapolations from both
+    ends (a velocity dipping through zero and back, or a held force peaking past ``Fs``
+    inside the step, which the end values alone would hide).
+    """
+    s = 2 * n
+    C = range(n)
+    L = [f"{t}S[{r * w} + b] = X[{r * w} + b]" for r in range(X.size)]
+    L += _coulomb_load(t, P, X, n)
+    L += _coulomb_predict(t, P, X, n, mats)
+    flags = []
+    for i in C:
+        v = n + i
+        r0 = _fma_sum("0.0", [(P("G", i * s + j), f"x{n + j}") for j in C]
+                      + [(P("G", i * s + n + j), f"A0_{j}") for j in C])
+        r1 = _fma_sum("0.0", [(P("G", i * s + j), f"V1_{j}") for j in C]
+                      + [(P("G", i * s + n + j), f"A1_{j}") for j in C])
+        L += [f"{t}q1 = Fe{i} + {P('G', i * s + i)} * (xs{i} - n{i}) - {P('G', i * s + v)} * n{v}",
+              f"{t}k0 = {step} * ({r0})",
+              f"{t}k1 = {step} * ({r1})",
+              f"{t}qm = 0.5 * (F{i} + q1) + 0.125 * (k0 - k1)",
+              f"{t}hit = (abs(q1) >= fs{i} or abs(qm) >= fs{i} or abs(F{i} + k0) >= fs{i}"
+              f" or abs(q1 - k1) >= fs{i})",
+              f"{t}m0 = A0_{i} * {step}",
+              f"{t}m1 = A1_{i} * {step}",
+              f"{t}vm = 0.5 * (x{v} + n{v}) + 0.125 * (m0 - m1)",
+              f"{t}turn = (d{i} * n{v} < 0.0 or d{i} * vm < 0.0 or d{i} * (x{v} + m0) < 0.0"
+              f" or d{i} * (n{v} - m1) < 0.0)",
+              f"{t}ev{i} = hit if st{i} else turn",
+              f"{t}n{i} = xs{i} if st{i} else n{i}",
+              f"{t}n{v} = 0.0 if st{i} else n{v}"]
+        flags.append(f"ev{i}")
+    L += [f"{t}e = {' or '.join(flags)}",
+          f"{t}S[{X.size * w} + b] = 1.0 if e else 0.0",
+          f"{t}ev += 1 if e else 0"]
+    return L + _coulomb_store(t, P, X, n)
+
+
+@functools.lru_cache(maxsize=16)
+def coulomb_kernel(n: int, width: int, adaptive: bool = True):
+    """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
+
+    The kernel returns how many times a group of lanes took a sample again in sub-steps
+    (0 without ``adaptive``).
+    """
+    w = width
+    s = 2 * n
+    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s),
+                       ("bd", s), ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n),
+                       ("mi", n), ("fc", n), ("fs", n)])
+    X = _Rows("X", w, [("x", s), ("st", n), ("d", n), ("xs", n)])
+    L = _head("P, X, u, n_sub, h, Y", n, w, X)
+    # S, S2: state at the start of the sample and sub-step, and a last row with the
+    # lane's event flag (one array less for the vectoriser to check for aliasing);
+    # T, T2: the quick results
+    flag = X.size * w
+    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})", "    T = np.empty_like(X)",
+              f"    S2 = np.empty(X.shape[0] + {w})", "    T2 = np.empty_like(X)",
+              "    dt = h * n_sub", "    nref = 0"]
+
+    def corrected(t):
+        return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, X, n, ("A", "bh", "fh", "rh"))
+                + _coulomb_events(t, P, X, n) + _coulomb_store(t, P, X, n))
+
+    if not adaptive:
+        L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
+        L += corrected(" " * 16)
+        L += ["    return nref"]
+        return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
+    g = min(w, REFINE_GROUP)
+    rows = range(X.size)
+
+    def retake(t, start, result):
+        # keep the quick step's result, go back to the step's start
+        return ([f"{t}for b in range(g0, g0 + {g}):"]
+                + [f"{t}    {result}[{r * w} + b] = X[{r * w} + b]" for r in rows]
+                + [f"{t}    X[{r * w} + b] = {start}[{r * w} + b]" for r in rows])
+
+    def keep_quick(t, start, result):
+        # lanes without an event take the quick step's result: every lane's result
+        # depends on its own parameters only, never on the other lanes of its group
+        return ([f"{t}for b in range(g0, g0 + {g}):"]
+                + [f"{t}    X[{r * w} + b] = X[{r * w} + b] if {start}[{flag} + b] != 0.0"
+                   f" else {result}[{r * w} + b]" for r in rows])
+
+    # the sample in one step; a group with an event takes it again in sub-steps, each
+    # first without corrections and again with them where a lane of the group needs them
+    L += [f"        for g0 in range(0, {w}, {g}):",
+          "            ev = 0",
+          f"            for b in range(g0, g0 + {g}):"]
+    L += _coulomb_quiet_step(" " * 16, P, X, n, w, ("Ad", "bd", "fd", "rd"), "dt")
+    L += ["            if ev > 0:", "                nref += 1"] + retake(" " * 16, "S", "T")
+    L += ["                for sub in range(n_sub):",
+          "                    ev = 0",
+          f"                    for b in range(g0, g0 + {g}):"]
+    L += [line.replace("S[", "S2[") for line in
+          _coulomb_quiet_step(" " * 24, P, X, n, w, ("A", "bh", "fh", "rh"), "h")]
+    L += ["                    if ev > 0:"] + retake(" " * 24, "S2", "T2")
+    L += [f"                        for b in range(g0, g0 + {g}):"]
+    L += corrected(" " * 28)
+    L += keep_quick(" " * 24, "S2", "T2")
+    L += keep_quick(" " * 16, "S", "T")
+    L += ["    return nref"]
+    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive>")
+
+
+def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
+                adaptive=True):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
-    Per sub-step: the friction force of each cart is decided at the start (stuck carts
-    hold the net force exactly, ``f = -F``, while ``|F| < Fs``, or break away at once if
-    the input jumped past ``Fs``; sliding carts get ``f = -Fc dir``), the state is advanced
-    exactly with that force held, and the events inside the step are then located on cubic
-    Hermite interpolants in time (values and rates at both ends, two Newton steps from the
-    chord) and corrected:
+    A step: the friction force of each cart is decided at its start (stuck carts hold the
+    net force, ``f = -F``, while ``|F| < Fs``, or break away at once if the input jumped
+    past ``Fs``; sliding carts get ``f = -Fc dir``) and the state is advanced exactly with
+    that force held, a stuck cart's holding force ramping to its end value (one
+    correction with the ramp response, so that the held cart does not drift and pull on
+    its neighbours).  That is all a step without an event needs.
 
-    - a stuck cart whose held net force reached ``Fs`` inside the step broke away ``tb``
-      before its end; it gets the velocity and displacement of that slide under the mean
-      net force;
+    Each sample is first taken in one such step.  A lane that had, or may have had, an
+    event in it (see ``_coulomb_quiet_step``) takes the sample again in ``n_sub``
+    sub-steps ``h``, each again first quick and then, for a lane with an event in it, with
+    the events located on cubic Hermite interpolants in time (values and rates at both
+    ends, safeguarded Newton from the chord) and corrected:
+
+    - a stuck cart whose held net force reached ``Fs`` inside the step broke away there
+      and gains the velocity and displacement of the integrals of the interpolated net
+      force less ``Fc`` from then to the end;
     - a sliding cart whose velocity changed sign crossed zero ``tau`` before the end.  If
       the net force there is below ``Fs`` it sticks where the velocity vanished (the
-      distance travelled since is the integral of the velocity interpolant); otherwise
-      friction reverses and the wrong force over ``tau`` is undone:
+      distance travelled since is the integral of the velocity interpolant), and breaks
+      away again later in the same step if its held force reaches ``Fs`` by the end;
+      otherwise friction reverses and the wrong force over ``tau`` is undone:
       ``dv = 2 Fc dir tau / m``, ``dx = dv tau / 2``.
 
-    The error is second order in the sub-step, but a stuck-or-reverse decision taken near
-    ``|F| = Fs`` can flip and change the whole future: on the rig one sub-step per
-    sample is a few tenths of a count off at small static levels but 450 counts off
-    where cart 1's static level is high; four sub-steps (the default) stay below 0.1.
+    Lanes run in groups of ``REFINE_GROUP`` (vectorised) and a group takes the corrected
+    path when one of its lanes needs it, but every lane keeps the result of the path its
+    own flags chose: the output of a parameter set never depends on the others in the
+    batch.  The error is second order in the sub-step where events are, but a
+    stick-or-reverse decision taken with ``|F|`` within a fraction of a percent of ``Fs``
+    can flip and change the whole future (as in any fixed-step scheme).
 
     Parameters
     ----------
@@ -433,6 +640,10 @@ def coulomb_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, u, n_sub, h, x0):
         Response to the input held over a sub-step.
     Fh : ndarray, shape (nb, s, n)
         Response to a force held on each cart over a sub-step.
+    Rh : ndarray, shape (nb, s, n)
+        Response to a force on each cart ramping from 0 to 1 over a sub-step.
+    Ad, Bd, Fd, Rd : ndarray
+        The same over a whole sample interval.
     G : ndarray, shape (nb, n, s)
         ``[-K, -C]``: spring and damper force on each cart, N.
     gb : ndarray, shape (nb, n)
@@ -446,6 +657,8 @@ def coulomb_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, u, n_sub, h, x0):
     h : float
         Sub-step, s.
     x0 : ndarray, shape (nb, s)
+    adaptive : bool
+        False: every sample in ``n_sub`` corrected sub-steps (slower; for checks).
 
     Returns
     -------
@@ -455,9 +668,9 @@ def coulomb_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, u, n_sub, h, x0):
     n = Fc.shape[1]
     v = x0[:, n:]
     state = [x0, v == 0.0, np.sign(v), x0[:, :n]]
-    params = [Ah, Bh, Fh, G, gb, minv, Fc, Fs]
-    return run_batched(functools.partial(coulomb_kernel, n), params, state, u, n,
-                       int(n_sub), float(h))
+    params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
+    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
+    return run_batched(lambda w: kernel(w), params, state, u, n, int(n_sub), float(h))
 
 
 # ---------------------------------------------------------------------------------------

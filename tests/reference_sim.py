@@ -17,6 +17,10 @@ from scipy.integrate import solve_ivp
 
 RTOL = 1e-10
 ATOL = 1e-13
+#: Largest solver step of the event-driven friction reference, in samples: event
+#: functions are checked at step ends only, so a held cart's force that went past Fs and
+#: back within one solver step would be missed.
+MAX_STEP_FRACTION = 0.25
 V_EPS = 1e-12  # m/s, velocity below which a reversing cart counts as stopped
 
 
@@ -225,7 +229,8 @@ def simulate_coulomb_ref(springs, theta, u, dt):
         return evs
 
     def update_modes(z, v):
-        # at a segment start: stuck carts whose force exceeds Fs break away
+        # at a segment start and after every event: stuck carts whose force exceeds Fs
+        # break away
         F = net(z, v)
         for i in range(n):
             if stuck[i] and abs(F[i]) >= fs[i]:
@@ -240,7 +245,7 @@ def simulate_coulomb_ref(springs, theta, u, dt):
             mask = (t_s > t) & (t_s <= t1)
             sol = solve_ivp(rhs, (t, t1), z, method="DOP853", args=(val,),
                             events=make_events(val), dense_output=True,
-                            rtol=RTOL, atol=ATOL)
+                            rtol=RTOL, atol=ATOL, max_step=MAX_STEP_FRACTION * dt)
             t_stop = sol.t[-1]
             take = mask & (t_s <= t_stop)
             if take.any():
@@ -259,6 +264,9 @@ def simulate_coulomb_ref(springs, theta, u, dt):
                         d[i] = 0.0
                     else:
                         d[i] = np.sign(F[i])
+                # a held cart whose force went past Fs at this event (the event
+                # functions only see upward crossings) breaks away now
+                update_modes(z, val)
                 for j in range(n):
                     if stuck[j]:
                         z[n + j] = 0.0

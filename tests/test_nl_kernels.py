@@ -58,26 +58,39 @@ def _pulses(N=700):
 
 # effect sizes other than the ones of test_extensions: a high static level, equal levels,
 # a wide and a narrow gap with heavy and light motor
-@pytest.mark.parametrize(
-    ("name", "effect", "tol_counts"),
-    [
-        ("coulomb_friction", [0.3, 0.2, 0.25, 0.3, 0.35, 0.25], 0.5),
-        ("coulomb_friction", [0.05, 0.05, 0.05, 0.2, 0.2, 0.2], 0.5),
-        # cart 1 with a high static level that holds it while the others move: one
-        # sub-step is 1.3 counts off here (and 450 on the measured impulse input)
-        ("coulomb_friction", [0.245, 0.058, 0.167, 1.405, 0.305, 0.452], 0.5),
-        ("backlash", [5e-4, 0.3], 0.75),
-        ("backlash", [1e-4, 0.1], 0.75),
-    ],
-)
-def test_default_substeps_are_accurate(name, effect, tol_counts):
-    """The defaults (four sub-steps for friction, two for backlash) against the event-driven
-    reference: well below an encoder count, and about four times better with twice the
-    sub-steps (second order), so the default is not at the edge of a breakdown."""
-    ext = EXTENSIONS[name]
+FRICTION_CASES = [
+    [0.3, 0.2, 0.25, 0.3, 0.35, 0.25],
+    [0.05, 0.05, 0.05, 0.2, 0.2, 0.2],
+    # cart 1 with a high static level that holds it while the others move
+    [0.245, 0.058, 0.167, 1.405, 0.305, 0.452],
+]
+
+
+@pytest.mark.parametrize("effect", FRICTION_CASES)
+def test_default_friction_is_accurate_with_margin(effect):
+    """The default (four sub-steps where events are) against the event-driven reference:
+    well below an encoder count, and still so with half the sub-steps, so that the default
+    is not at the edge of a breakdown."""
+    ext = EXTENSIONS["coulomb_friction"]
     theta = np.r_[TABLE3, effect]
     u = _pulses()
-    y_ref = REFERENCES[name](RIG.springs_n_m, theta, u, DT)
+    y_ref = REFERENCES["coulomb_friction"](RIG.springs_n_m, theta, u, DT)
+    err = np.max(np.abs(ext.simulate(RIG, theta, u, DT) - y_ref)) / COUNT
+    half = type(ext)(n_sub=ext.n_sub // 2).simulate(RIG, theta, u, DT)
+    err_half = np.max(np.abs(half - y_ref)) / COUNT
+    assert err < 0.1, err
+    assert err_half < 0.5, err_half
+
+
+@pytest.mark.parametrize(("effect", "tol_counts"), [([5e-4, 0.3], 0.75), ([1e-4, 0.1], 0.75)])
+def test_default_backlash_substeps_are_accurate(effect, tol_counts):
+    """The default (two sub-steps) against the event-driven reference: below an encoder
+    count, and about four times better with twice the sub-steps (second order), so the
+    default is not at the edge of a breakdown."""
+    ext = EXTENSIONS["backlash"]
+    theta = np.r_[TABLE3, effect]
+    u = _pulses()
+    y_ref = REFERENCES["backlash"](RIG.springs_n_m, theta, u, DT)
     err = np.max(np.abs(ext.simulate(RIG, theta, u, DT) - y_ref)) / COUNT
     finer = type(ext)(n_sub=2 * ext.n_sub)
     err_fine = np.max(np.abs(finer.simulate(RIG, theta, u, DT) - y_ref)) / COUNT
@@ -86,7 +99,8 @@ def test_default_substeps_are_accurate(name, effect, tol_counts):
 
 
 #: A posterior draw of the friction model on the measured impulses (high static level on
-#: cart 1), at which one sub-step per sample flips a stick decision on that record.
+#: cart 1), at which one sub-step per sample used to flip a stick decision on that record
+#: (a cart sticking and breaking away again within one step was held to the step's end).
 HIGH_FS = np.array([5.7389, 1.5861, 1.4983, 1.1223, 1.8443, 3.1e-3, 5e-4, 0.3735, 0.109,
                     0.2449, 0.0583, 0.1665, 1.405, 0.3054, 0.4516])
 
@@ -97,8 +111,102 @@ def test_default_friction_substeps_on_the_measured_impulse_input():
     e = measured("data_impulses.mat")
     ext = EXTENSIONS["coulomb_friction"]
     y_ref = REFERENCES["coulomb_friction"](RIG.springs_n_m, HIGH_FS, e.v_volt, e.dt)
-    err = np.max(np.abs(ext.simulate(RIG, HIGH_FS, e.v_volt, e.dt) - y_ref)) / COUNT
-    assert err < 0.5, err
-    # negative control: one sub-step per sample is hundreds of counts off on this record
-    one = type(ext)(n_sub=1).simulate(RIG, HIGH_FS, e.v_volt, e.dt)
-    assert np.max(np.abs(one - y_ref)) / COUNT > 50
+    y = ext.simulate(RIG, HIGH_FS, e.v_volt, e.dt)
+    assert np.max(np.abs(y - y_ref)) / COUNT < 0.1
+    # negative control: the comparison sees a 2 % change of cart 1's static level
+    other = HIGH_FS.copy()
+    other[12] *= 1.02
+    y_other = REFERENCES["coulomb_friction"](RIG.springs_n_m, other, e.v_volt, e.dt)
+    assert np.max(np.abs(y_other - y_ref)) / COUNT > 5
+
+
+#: A draw at which a stuck cart's force passes its static level while another cart
+#: reverses (measured impulses, near sample 2266).  The reference used to miss the
+#: break-away there (its event functions only see upward crossings, and it did not check
+#: the stuck carts again after another cart's event): 423 counts off the kernel.
+HELD_PAST_FS = np.array([6.270499, 1.515944, 1.422741, 1.117235, 3.20796, 1.853952, 2.071799,
+                         0.002135, 0.00001, 0.049189, 0.020692, 0.340077, 0.049189, 1.195213,
+                         1.33248])
+
+
+def test_reference_releases_a_held_cart_after_another_carts_event():
+    from conftest import measured
+
+    e = measured("data_impulses.mat")
+    u = e.v_volt[:2400]
+    y_ref = REFERENCES["coulomb_friction"](RIG.springs_n_m, HELD_PAST_FS, u, e.dt)
+    y = EXTENSIONS["coulomb_friction"].simulate(RIG, HELD_PAST_FS, u, e.dt)
+    assert np.max(np.abs(y - y_ref)) / COUNT < 0.5
+    # the reference's released cart 2 moves on after sample 2266 (it stayed put before)
+    assert abs(y_ref[2300, 1] - y_ref[2267, 1]) / COUNT > 50
+
+
+def _friction_draws(n, rng):
+    """Linear parameters within 10 % of Table 3, friction levels up to 1.6 N."""
+    lin = TABLE3 * (1 + 0.1 * rng.uniform(-1, 1, (n, TABLE3.size)))
+    fc = rng.uniform(0.0, 0.4, (n, 3))
+    fs = fc + rng.uniform(0.0, 1.2, (n, 3)) * (rng.random((n, 3)) < 0.7)
+    return np.concatenate([lin, fc, fs], axis=1)
+
+
+@pytest.mark.parametrize(("record", "most_retaken"),
+                         [("data_impulses.mat", 0.35), ("data_sine_sweep_fast.mat", 0.75)])
+def test_adaptive_friction_matches_corrected_sub_steps_everywhere(record, most_retaken,
+                                                                   monkeypatch):
+    """Taking quiet samples in one step changes the result by hundredths of a count
+    against corrected sub-steps in every sample, and lane groups take only part of the
+    samples again in sub-steps (a quarter of them on the impulses, half on the fast
+    sweep, for this spread-out cloud of parameters); each lane's result does not depend
+    on the rest of its batch."""
+    from conftest import measured
+
+    import bayesmodal._nl_kernels as nk
+
+    e = measured(record)
+    u = e.v_volt[:3000]
+    theta = _friction_draws(32, np.random.default_rng(5))
+    ext = EXTENSIONS["coulomb_friction"]
+    fixed = type(ext)(adaptive=False).simulate(RIG, theta, u, e.dt)
+    # the kernel returns how often a group of lanes took a sample or sub-step again
+    retaken = []
+    compiled = nk.coulomb_kernel
+
+    def counting(n, width, adaptive=True):
+        kernel = compiled(n, width, adaptive)
+        return lambda *args: retaken.append(kernel(*args))
+
+    monkeypatch.setattr(nk, "coulomb_kernel", counting)
+    y = ext.simulate(RIG, theta, u, e.dt)
+    monkeypatch.undo()
+    # different paths, the same answer: hundredths of a count, up to the accuracy of
+    # either where a stick-or-reverse decision is marginal
+    diff = np.max(np.abs(y - fixed), axis=(1, 2)) / COUNT
+    assert 0 < np.median(diff) < 0.02 and np.max(diff) < 0.5, diff
+    for i in (0, 17, 31):
+        np.testing.assert_array_equal(y[i], ext.simulate(RIG, theta[i], u, e.dt))
+    # 32 lanes: two groups of 16
+    share = retaken[0] / (2 * u.size)
+    assert 0.0 < share < most_retaken, share
+
+
+@pytest.mark.slow
+def test_friction_accuracy_over_random_levels_on_measured_inputs():
+    """Random friction levels (up to 1.6 N) and linear parameters on three measured
+    inputs: the default stays below half a count of the event-driven reference; one
+    sub-step per sample (negative control) is not."""
+    from conftest import measured
+
+    theta = _friction_draws(6, np.random.default_rng(11))
+    ext = EXTENSIONS["coulomb_friction"]
+    worst_one = 0.0
+    for record in ("data_impulses.mat", "data_steps.mat", "data_sine_sweep_fast.mat"):
+        e = measured(record)
+        u = e.v_volt[:2500]
+        y = ext.simulate(RIG, theta, u, e.dt)
+        y1 = type(ext)(n_sub=1).simulate(RIG, theta, u, e.dt)
+        for i, th in enumerate(theta):
+            y_ref = REFERENCES["coulomb_friction"](RIG.springs_n_m, th, u, e.dt)
+            err = np.max(np.abs(y[i] - y_ref)) / COUNT
+            assert err < 0.5, (record, i, err)
+            worst_one = max(worst_one, np.max(np.abs(y1[i] - y_ref)) / COUNT)
+    assert worst_one > 1.0, worst_one
