@@ -4,7 +4,9 @@ import json
 
 import pytest
 
-from bayesmodal.bench import EXTENSION_MAX_RATIO, bench_extensions
+import numpy as np
+
+from bayesmodal.bench import EXTENSION_MAX_RATIO, bench_extensions, rig_input
 from bayesmodal.cli import main
 from bayesmodal.extensions import EXTENSIONS
 
@@ -18,6 +20,10 @@ def test_bench_extensions_reports_every_extension_against_the_same_run():
         lo, hi = sorted(r["ratio_per_round"])
         assert r["ratio_to_linear"] == pytest.approx((lo + hi) / 2)  # median of two
         assert r["meets_target"] == (r["ratio_to_linear"] <= EXTENSION_MAX_RATIO)
+        lo, hi = sorted(r["ratio_per_round_rig_input"])
+        assert r["ratio_to_linear_rig_input"] == pytest.approx((lo + hi) / 2)
+        assert r["meets_target_rig_input"] == (
+            r["ratio_to_linear_rig_input"] <= EXTENSION_MAX_RATIO)
     assert out["coulomb_friction"]["n_sub"] == EXTENSIONS["coulomb_friction"].n_sub
     assert out["motor_lag"]["n_sub"] is None
 
@@ -36,3 +42,20 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
     assert main(["bench", "--json", "--quick", "--samples", "300", "--batch", "4",
                  "--no-extensions"]) == 0
     assert "extensions" not in json.loads(capsys.readouterr().out)
+
+
+def test_rig_input_has_pulses_steps_and_a_sweep():
+    dt = 0.005
+    u = rig_input(6000, dt)
+    assert u.shape == (6000,) and np.all(np.isfinite(u))
+    pulses, steps, sweep = u[:2000], u[2000:4000], u[4000:]
+    # pulses: 9 samples of +-3 V every 1.5 s, zero in between
+    assert set(np.unique(np.abs(pulses))) == {0.0, 3.0}
+    assert np.count_nonzero(pulses) == 9 * len(range(1, 2000, 300))
+    # steps: held levels of 0.5 and 1 V
+    assert set(np.unique(np.abs(steps))) == {0.5, 1.0}
+    # sweep: 1.5 V amplitude, its zero crossings speed up (rising frequency)
+    assert np.max(np.abs(sweep)) == pytest.approx(1.5, abs=0.01)
+    crossings = np.flatnonzero(np.diff(np.sign(sweep)) != 0)
+    gaps = np.diff(crossings)
+    assert gaps[:5].mean() > 4 * gaps[-5:].mean()
