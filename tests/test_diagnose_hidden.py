@@ -157,6 +157,9 @@ def test_bad_input_is_refused():
         diagnose(h.experiment, train=3, posterior=False, n_null=19)
     with pytest.raises(ConfigError, match="unknown candidate"):
         diagnose(h.experiment, candidates=["magic"], posterior=False, n_null=19)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ConfigError, match="n_starts"):
+            diagnose(h.experiment, posterior=False, n_null=19, n_starts=bad)
     with pytest.raises(DataError, match="no experiments"):
         diagnose([], posterior=False)
     two = Experiment(h.experiment.t_s, h.experiment.v_volt, h.experiment.y_m[:, :2])
@@ -177,3 +180,22 @@ def test_profiled_ar1_terms_match_the_likelihood_module():
     sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
     ref = ar1_terms(r[None], sigma[None], phi[None])[0]
     assert np.allclose(ar1_pointwise([r]), ref.ravel(), rtol=1e-12, atol=1e-9)
+
+
+def test_best_starts_are_the_cheapest_grid_points_in_order():
+    from bayesmodal.diagnose.starts import best_start, best_starts
+    from bayesmodal.extensions import EXTENSIONS
+    from bayesmodal.extensions.fit import extension_residuals
+    from bayesmodal.fit import fit_lsq
+    from bayesmodal.system import LinearModel, Rig
+
+    h = make("coulomb_friction", 3, n_samples=800)
+    rig = Rig()
+    ext = EXTENSIONS["coulomb_friction"]
+    lin = fit_lsq([h.experiment], LinearModel(rig, "free"))
+    starts = best_starts(ext, rig, lin.theta, [h.experiment], 4)
+    assert starts.shape == (4, len(ext.names(rig)))
+    np.testing.assert_array_equal(starts[0], best_start(ext, rig, lin.theta, [h.experiment]))
+    cost = np.sum(extension_residuals(ext, rig, starts, [h.experiment]) ** 2, axis=1)
+    assert np.all(np.diff(cost) >= 0), cost
+    assert len({tuple(s) for s in starts}) == 4

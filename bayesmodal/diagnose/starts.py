@@ -20,7 +20,7 @@ from ..extensions.fit import extension_residuals
 from ..simulate import simulate_linear
 from ..system import LinearModel, Rig
 
-__all__ = ["extra_starts", "best_start"]
+__all__ = ["best_start", "best_starts", "extra_starts"]
 
 
 def _spring_extension(rig: Rig, theta_lin, experiments) -> np.ndarray:
@@ -78,9 +78,9 @@ def floor_dampers(rig: Rig, theta_lin: np.ndarray, floor: float = DAMPER_FLOOR) 
     return th
 
 
-def best_start(ext: Extension, rig: Rig, theta_lin: np.ndarray,
-               experiments: Sequence[Experiment]) -> np.ndarray:
-    """The full parameter vector (linear fit + best extension start) of least cost.
+def best_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
+                experiments: Sequence[Experiment], n: int = 1) -> np.ndarray:
+    """The ``n`` full parameter vectors (linear fit + extension start) of least cost.
 
     A linear fit that compensates a missing effect often drives some dampers to zero;
     the least-squares fit optimises the absolute dampers on a log scale, where a damper at
@@ -89,6 +89,11 @@ def best_start(ext: Extension, rig: Rig, theta_lin: np.ndarray,
     effect (friction) also shows as inflated viscous damping in the linear fit, which
     the optimiser may not trade back for the effect; so the dampers are tried scaled by
     ``DAMPER_SCALES`` as well, with every extension start.
+
+    Returns
+    -------
+    ndarray, shape (min(n, n_candidates), n_params)
+        Best first.
     """
     grid = np.concatenate([ext.start_grid(rig), extra_starts(ext, rig, theta_lin, experiments)])
     p = theta_lin.size
@@ -105,4 +110,11 @@ def best_start(ext: Extension, rig: Rig, theta_lin: np.ndarray,
     with np.errstate(all="ignore"):
         cost = np.sum(r**2, axis=1)
     cost = np.where(np.isfinite(cost), cost, np.inf)  # softening springs can diverge
-    return cands[int(np.argmin(cost))]
+    order = np.argsort(cost, kind="stable")
+    return cands[order[: max(int(n), 1)]]
+
+
+def best_start(ext: Extension, rig: Rig, theta_lin: np.ndarray,
+               experiments: Sequence[Experiment]) -> np.ndarray:
+    """The full parameter vector of least cost (see ``best_starts``)."""
+    return best_starts(ext, rig, theta_lin, experiments, 1)[0]
