@@ -137,7 +137,9 @@ def _bench_problem(n_samples: int, batch: int, rng):
 def rig_input(n_samples: int, dt: float = 0.005) -> np.ndarray:
     """A rig-like excitation, V: pulses, steps and a sine sweep, each a third of the record.
 
-    The ECP rig's experiments (and so its likelihoods) use these inputs; the cost of the
+    Sized like the measured ECP experiments (``ecp210-3dof``): 3 V pulses of 45 ms every
+    10 s, 0.5 V steps held 5 s on and 5 s off, a 0.2 V linear sweep from 0.5 to 12 Hz
+    (over the three modes).  The likelihoods run on such records, and the cost of the
     stick-slip friction kernel depends on how often carts stick, reverse or break away,
     which differs from the random input of the other timings (a new random force every
     sample keeps every cart reversing all the time).
@@ -153,19 +155,19 @@ def rig_input(n_samples: int, dt: float = 0.005) -> np.ndarray:
     -------
     ndarray, shape (N,)
     """
-    t = np.arange(n_samples) * dt
     third = max(n_samples // 3, 1)
     u = np.zeros(n_samples)
-    period = max(int(round(1.5 / dt)), 10)
-    for k0 in range(1, third, period):  # 3 V pulses of 45 ms, alternating sign
-        u[k0 : min(k0 + 9, third)] = 3.0 * (1 if (k0 // period) % 2 == 0 else -1)
-    hold = max(int(round(2.0 / dt)), 1)
-    for j, k0 in enumerate(range(third, 2 * third, hold)):  # steps of 0.5 and 1 V
-        u[k0 : min(k0 + hold, 2 * third)] = (0.5, 1.0, -0.5, -1.0)[j % 4]
-    ts = t[2 * third :] - t[2 * third]
+    period = max(int(round(10.0 / dt)), 10)
+    width = max(int(round(0.045 / dt)), 1)
+    for k0 in range(1, third, period):
+        u[k0 : min(k0 + width, third)] = 3.0
+    hold = max(int(round(5.0 / dt)), 1)
+    for j, k0 in enumerate(range(third, 2 * third, hold)):
+        u[k0 : min(k0 + hold, 2 * third)] = 0.5 if j % 2 == 0 else 0.0
+    ts = np.arange(n_samples - 2 * third) * dt
     span = max(ts[-1], dt) if ts.size else dt
-    f0, f1 = 0.5, 12.0  # linear sweep over the modes (about 1 to 10 Hz), 1.5 V
-    u[2 * third :] = 1.5 * np.sin(2 * np.pi * (f0 * ts + 0.5 * (f1 - f0) / span * ts**2))
+    f0, f1 = 0.5, 12.0
+    u[2 * third :] = 0.2 * np.sin(2 * np.pi * (f0 * ts + 0.5 * (f1 - f0) / span * ts**2))
     return u
 
 

@@ -46,16 +46,17 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
 
 def test_rig_input_has_pulses_steps_and_a_sweep():
     dt = 0.005
-    u = rig_input(6000, dt)
-    assert u.shape == (6000,) and np.all(np.isfinite(u))
-    pulses, steps, sweep = u[:2000], u[2000:4000], u[4000:]
-    # pulses: 9 samples of +-3 V every 1.5 s, zero in between
-    assert set(np.unique(np.abs(pulses))) == {0.0, 3.0}
-    assert np.count_nonzero(pulses) == 9 * len(range(1, 2000, 300))
-    # steps: held levels of 0.5 and 1 V
-    assert set(np.unique(np.abs(steps))) == {0.5, 1.0}
-    # sweep: 1.5 V amplitude, its zero crossings speed up (rising frequency)
-    assert np.max(np.abs(sweep)) == pytest.approx(1.5, abs=0.01)
+    u = rig_input(12000, dt)
+    assert u.shape == (12000,) and np.all(np.isfinite(u))
+    pulses, steps, sweep = u[:4000], u[4000:8000], u[8000:]
+    # pulses: 9 samples (45 ms) of 3 V every 10 s, zero in between
+    assert set(np.unique(pulses)) == {0.0, 3.0}
+    assert np.count_nonzero(pulses) == 9 * 2
+    # steps: 0.5 V held for 5 s, then 0 for 5 s
+    assert set(np.unique(steps)) == {0.0, 0.5}
+    assert np.count_nonzero(steps) == 1000 + 1000
+    # sweep: 0.2 V amplitude, its zero crossings speed up (rising frequency)
+    assert np.max(np.abs(sweep)) == pytest.approx(0.2, abs=0.005)
     crossings = np.flatnonzero(np.diff(np.sign(sweep)) != 0)
     gaps = np.diff(crossings)
     assert gaps[:5].mean() > 4 * gaps[-5:].mean()
