@@ -326,6 +326,30 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
 
 # ---------------------------------------------------------------------------------------
 # Coulomb friction with stick-slip
+def _held_force(P, n: int, i: int, fe: str, x: str) -> str:
+    """Code of cart i's net force at the step end were it held at ``x`` (velocity 0):
+    the end force ``fe`` without the cart's own spring and damper motion over the step."""
+    s = 2 * n
+    return f"{fe} + {P('G', i * s + i)} * ({x} - n{i}) - {P('G', i * s + n + i)} * n{n + i}"
+
+
+def _force_rates(P, n: int, i: int) -> tuple[list, list]:
+    """The products whose sums are the rates of change of cart i's net force at the step
+    start and end, N/s: ``G`` times the velocities and accelerations (``x{n+j}``,
+    ``A0_j``; ``V1_j``, ``A1_j``)."""
+    s, C = 2 * n, range(n)
+    r0 = ([(P("G", i * s + j), f"x{n + j}") for j in C]
+          + [(P("G", i * s + n + j), f"A0_{j}") for j in C])
+    r1 = ([(P("G", i * s + j), f"V1_{j}") for j in C]
+          + [(P("G", i * s + n + j), f"A1_{j}") for j in C])
+    return r0, r1
+
+
+def _sum(products) -> str:
+    """Code of ``sum(a * b)``."""
+    return " + ".join(f"{a} * {b}" for a, b in products)
+
+
 def _coulomb_load(t, P, X, n) -> list[str]:
     """Code loading a lane's state and friction parameters into scalars."""
     s = 2 * n
@@ -367,8 +391,8 @@ def _coulomb_predict(t, P, X, n, mats, rates: bool = True) -> list[str]:
     for i in C:
         fe = " + ".join(f"{P('G', i * s + j)} * n{j}" for j in R)
         L += [f"{t}Fe{i} = gb{i} * uk + {fe}",
-              f"{t}df{i} = F{i} - (Fe{i} + {P('G', i * s + i)} * (xs{i} - n{i})"
-              f" - {P('G', i * s + n + i)} * n{n + i}) if st{i} else 0.0"]
+              f"{t}df{i} = F{i} - ({_held_force(P, n, i, f'Fe{i}', f'xs{i}')}) if st{i}"
+              " else 0.0"]
     for r in R:
         prods = [(P(mats[3], r * n + j), f"df{j}") for j in C]
         L.append(f"{t}n{r} = {_fma_sum(f'n{r}', prods)}")
@@ -386,19 +410,14 @@ def _coulomb_predict(t, P, X, n, mats, rates: bool = True) -> list[str]:
 
 def _coulomb_events(t, P, X, n) -> list[str]:
     """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
-    s = 2 * n
-    R, C = range(s), range(n)
     L: list[str] = []
-    for i in C:
+    for i in range(n):
         v = n + i
-        r0 = " + ".join([f"{P('G', i * s + j)} * x{n + j}" for j in C]
-                        + [f"{P('G', i * s + n + j)} * A0_{j}" for j in C])
-        r1 = " + ".join([f"{P('G', i * s + j)} * V1_{j}" for j in C]
-                        + [f"{P('G', i * s + n + j)} * A1_{j}" for j in C])
+        r0, r1 = (_sum(r) for r in _force_rates(P, n, i))
         L += [f"{t}Fe = Fe{i}",
               # stuck: did the net force on the held cart reach Fs inside the step?
               # (on its cubic Hermite interpolant in time, Newton from the chord)
-              f"{t}Fh = Fe + {P('G', i * s + i)} * (xs{i} - n{i}) - {P('G', i * s + v)} * n{v}",
+              f"{t}Fh = {_held_force(P, n, i, 'Fe', f'xs{i}')}",
               f"{t}aE = abs(Fh)",
               f"{t}slip = st{i} and aE >= fs{i}",
               f"{t}db = math.copysign(1.0, Fh)",
@@ -453,7 +472,7 @@ def _coulomb_events(t, P, X, n) -> list[str]:
               f"{t}p = n{i} - after if stick else n{i} + 0.5 * dv * tau",
               # stuck at the crossing, but the held net force reaches Fs again before
               # the end of the step: break away there (linear in time from the crossing)
-              f"{t}Fk = Fe + {P('G', i * s + i)} * (p - n{i}) - {P('G', i * s + v)} * n{v}",
+              f"{t}Fk = {_held_force(P, n, i, 'Fe', 'p')}",
               f"{t}aK = abs(Fk)",
               f"{t}brk = stick and aK >= fs{i}",
               f"{t}dk = math.copysign(1.0, Fk)",
@@ -497,7 +516,6 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
     ends (a velocity dipping through zero and back, or a held force peaking past ``Fs``
     inside the step, which the end values alone would hide).
     """
-    s = 2 * n
     C = range(n)
     L = [f"{t}S[{r * w} + b] = X[{r * w} + b]" for r in range(X.size)]
     L += _coulomb_load(t, P, X, n)
@@ -505,11 +523,8 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
     flags = []
     for i in C:
         v = n + i
-        r0 = _fma_sum("0.0", [(P("G", i * s + j), f"x{n + j}") for j in C]
-                      + [(P("G", i * s + n + j), f"A0_{j}") for j in C])
-        r1 = _fma_sum("0.0", [(P("G", i * s + j), f"V1_{j}") for j in C]
-                      + [(P("G", i * s + n + j), f"A1_{j}") for j in C])
-        L += [f"{t}q1 = Fe{i} + {P('G', i * s + i)} * (xs{i} - n{i}) - {P('G', i * s + v)} * n{v}",
+        r0, r1 = (_fma_sum("0.0", r) for r in _force_rates(P, n, i))
+        L += [f"{t}q1 = {_held_force(P, n, i, f'Fe{i}', f'xs{i}')}",
               f"{t}k0 = {step} * ({r0})",
               f"{t}k1 = {step} * ({r1})",
               f"{t}qm = 0.5 * (F{i} + q1) + 0.125 * (k0 - k1)",

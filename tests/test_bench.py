@@ -2,9 +2,8 @@
 
 import json
 
-import pytest
-
 import numpy as np
+import pytest
 
 from bayesmodal.bench import EXTENSION_MAX_RATIO, bench_extensions, rig_input
 from bayesmodal.cli import main
