@@ -44,9 +44,12 @@ from numba.extending import intrinsic
 
 MAX_WIDTH = 64
 
-#: Safeguarded Newton steps for the events of the friction kernel (a velocity zero or a
-#: held force reaching the static level, on cubic Hermite interpolants in time).
+#: Safeguarded Newton steps for the break-away time of the friction kernel (a held force
+#: reaching the static level, on its cubic Hermite interpolant in time).
 HERMITE_NEWTON = 2
+
+#: Newton steps from the chord for the velocity zero of the friction kernel.
+REVERSAL_NEWTON = 2
 
 #: Lanes of the friction kernel that take the event-corrected sub-steps together when
 #: one of them needs them (two AVX-512 vectors of float64: LLVM does not vectorise loops
@@ -80,12 +83,12 @@ def _fma_sum(init: str, products) -> str:
     return expr
 
 
-def _cubic_root(t: str, x: str, c: tuple[str, str, str, str], up: str) -> list[str]:
-    """Code locating the root ``x`` in [0, 1] of ``c0 + x (c1 + x (c2 + x c3))``.
+def _rising_cubic_root(t: str, x: str, c: tuple[str, str, str, str]) -> list[str]:
+    """Code locating the root ``x`` in [0, 1] of ``c0 + x (c1 + x (c2 + x c3))``, which
+    is negative at 0 and not negative at 1.
 
     Starts from the chord (``x`` must hold it) and takes ``HERMITE_NEWTON`` Newton steps
-    safeguarded by the bracket [lo, hi] (a step leaving it bisects instead); ``up`` is
-    the code of a boolean, true when the cubic rises through its root.  On cubics with an
+    safeguarded by the bracket [lo, hi] (a step leaving it bisects instead).  On cubics with an
     inflection or strong curvature in the step plain Newton from the chord overshoots
     (a break-away located 0.18 of a step late on a quadratically rising force).
     """
@@ -95,9 +98,8 @@ def _cubic_root(t: str, x: str, c: tuple[str, str, str, str], up: str) -> list[s
         lines += [
             f"{t}g = {c0} + {x} * ({c1} + {x} * ({c2} + {x} * {c3}))",
             f"{t}dg = {c1} + {x} * (2.0 * {c2} + 3.0 * {x} * {c3})",
-            f"{t}past = (g > 0.0) == ({up})",
-            f"{t}hi = {x} if past else hi",
-            f"{t}lo = lo if past else {x}",
+            f"{t}hi = {x} if g > 0.0 else hi",
+            f"{t}lo = lo if g > 0.0 else {x}",
             f"{t}xn = {x} - g / dg if dg != 0.0 else -1.0",
             f"{t}{x} = xn if xn > lo and xn < hi else 0.5 * (lo + hi)",
         ]
@@ -363,10 +365,11 @@ def _coulomb_load(t, P, X, n) -> list[str]:
     return L
 
 
-def _coulomb_predict(t, P, X, n, mats, rates: bool = True) -> list[str]:
+def _coulomb_predict(t, P, n, mats) -> list[str]:
     """Code of the friction decision at the step start and the state predicted with it
-    held over the step (matrices ``mats = (A, B, F)`` of the step), the net forces at the
-    end (``Fe``) and, with ``rates``, the velocities and accelerations at both ends."""
+    held over the step (matrices ``mats = (A, B, F, R)`` of the step: input, held and
+    ramped force responses), the net forces at the end (``Fe``) and the velocities and
+    accelerations at both ends."""
     s = 2 * n
     R, C = range(s), range(n)
     L: list[str] = []
@@ -384,31 +387,32 @@ def _coulomb_predict(t, P, X, n, mats, rates: bool = True) -> list[str]:
     for r in R:
         prods = [(P(mats[0], r * s + j), f"x{j}") for j in R]
         prods += [(P(mats[2], r * n + j), f"f{j}") for j in C]
-        L.append(f"{t}n{r} = {P(mats[1], r)} * uk + " + " + ".join(f"{a} * {b}" for a, b in prods))
+        L.append(f"{t}n{r} = {P(mats[1], r)} * uk + {_sum(prods)}")
+
+    def end_force(i):
+        return f"{t}Fe{i} = gb{i} * uk + {_sum((P('G', i * s + j), f'n{j}') for j in R)}"
+
     # net forces at the end; a held cart's force changed over the step, and holding it
     # with its start value would let it drift and pull on its neighbours: hold it with
     # the force ramping to its end value instead (one correction with the ramp response)
     for i in C:
-        fe = " + ".join(f"{P('G', i * s + j)} * n{j}" for j in R)
-        L += [f"{t}Fe{i} = gb{i} * uk + {fe}",
+        L += [end_force(i),
               f"{t}df{i} = F{i} - ({_held_force(P, n, i, f'Fe{i}', f'xs{i}')}) if st{i}"
               " else 0.0"]
     for r in R:
         prods = [(P(mats[3], r * n + j), f"df{j}") for j in C]
         L.append(f"{t}n{r} = {_fma_sum(f'n{r}', prods)}")
-    # net forces at the end, and the rate of change of the net force at both ends
+    # net forces at the end again, and the rates of change of the net force at both ends
     # (G times velocities and accelerations; held carts neither move nor accelerate)
     for i in C:
-        fe = " + ".join(f"{P('G', i * s + j)} * n{j}" for j in R)
-        L += [f"{t}Fe{i} = gb{i} * uk + {fe}"]
-        if rates:
-            L += [f"{t}A0_{i} = (F{i} + f{i}) * mi{i}",
-                  f"{t}A1_{i} = 0.0 if st{i} else (Fe{i} + f{i}) * mi{i}",
-                  f"{t}V1_{i} = 0.0 if st{i} else n{n + i}"]
+        L += [end_force(i),
+              f"{t}A0_{i} = (F{i} + f{i}) * mi{i}",
+              f"{t}A1_{i} = 0.0 if st{i} else (Fe{i} + f{i}) * mi{i}",
+              f"{t}V1_{i} = 0.0 if st{i} else n{n + i}"]
     return L
 
 
-def _coulomb_events(t, P, X, n) -> list[str]:
+def _coulomb_events(t, P, n) -> list[str]:
     """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
     L: list[str] = []
     for i in range(n):
@@ -431,7 +435,7 @@ def _coulomb_events(t, P, X, n) -> list[str]:
               f"{t}c2 = 3.0 * (q1 - q0) - 2.0 * k0 - k1",
               f"{t}c3 = 2.0 * (q0 - q1) + k0 + k1",
               f"{t}qs = q0 - fs{i}"]
-        L += _cubic_root(t, "ab", ("qs", "k0", "c2", "c3"), "True")
+        L += _rising_cubic_root(t, "ab", ("qs", "k0", "c2", "c3"))
         L += [f"{t}ab = ab if slip else 0.0",
               # velocity and displacement gained from the break-away to the end of the
               # step under the net force q(s) less the kinetic level: integrals of
@@ -456,7 +460,7 @@ def _coulomb_events(t, P, X, n) -> list[str]:
               # v(s) = v0 + s (m0 + s (e2 + s e3))
               f"{t}e2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1",
               f"{t}e3 = 2.0 * (v0 - v1) + m0 + m1"]
-        for _ in range(2):
+        for _ in range(REVERSAL_NEWTON):
             L += [f"{t}g = v0 + a * (m0 + a * (e2 + a * e3))",
                   f"{t}dg = m0 + a * (2.0 * e2 + 3.0 * a * e3)",
                   f"{t}a = a - g / dg if dg != 0.0 else a",
@@ -493,7 +497,7 @@ def _coulomb_events(t, P, X, n) -> list[str]:
     return L
 
 
-def _coulomb_store(t, P, X, n) -> list[str]:
+def _coulomb_store(t, X, n) -> list[str]:
     """Code storing a lane's state."""
     s = 2 * n
     R, C = range(s), range(n)
@@ -519,7 +523,7 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
     C = range(n)
     L = [f"{t}S[{r * w} + b] = X[{r * w} + b]" for r in range(X.size)]
     L += _coulomb_load(t, P, X, n)
-    L += _coulomb_predict(t, P, X, n, mats)
+    L += _coulomb_predict(t, P, n, mats)
     flags = []
     for i in C:
         v = n + i
@@ -542,7 +546,7 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
     L += [f"{t}e = {' or '.join(flags)}",
           f"{t}S[{X.size * w} + b] = 1.0 if e else 0.0",
           f"{t}ev += 1 if e else 0"]
-    return L + _coulomb_store(t, P, X, n)
+    return L + _coulomb_store(t, X, n)
 
 
 @functools.lru_cache(maxsize=16)
@@ -559,23 +563,24 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
                        ("mi", n), ("fc", n), ("fs", n)])
     X = _Rows("X", w, [("x", s), ("st", n), ("d", n), ("xs", n)])
     L = _head("P, X, u, n_sub, h, Y", n, w, X)
-    # S, S2: state at the start of the sample and sub-step, and a last row with the
-    # lane's event flag (one array less for the vectoriser to check for aliasing);
-    # T, T2: the quick results
-    flag = X.size * w
-    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})", "    T = np.empty_like(X)",
-              f"    S2 = np.empty(X.shape[0] + {w})", "    T2 = np.empty_like(X)",
-              "    dt = h * n_sub", "    nref = 0"]
+    L.insert(1, "    nref = 0")
 
     def corrected(t):
-        return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, X, n, ("A", "bh", "fh", "rh"))
-                + _coulomb_events(t, P, X, n) + _coulomb_store(t, P, X, n))
+        return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"))
+                + _coulomb_events(t, P, n) + _coulomb_store(t, X, n))
 
     if not adaptive:
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16)
         L += ["    return nref"]
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
+    # S, S2: state at the start of the sample and sub-step, and a last row with the
+    # lane's event flag (one array less for the vectoriser to check for aliasing);
+    # T, T2: the quick results
+    flag = X.size * w
+    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})", "    T = np.empty_like(X)",
+              f"    S2 = np.empty(X.shape[0] + {w})", "    T2 = np.empty_like(X)",
+              "    dt = h * n_sub"]
     g = min(w, REFINE_GROUP)
     rows = range(X.size)
 
@@ -628,7 +633,7 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     event in it (see ``_coulomb_quiet_step``) takes the sample again in ``n_sub``
     sub-steps ``h``, each again first quick and then, for a lane with an event in it, with
     the events located on cubic Hermite interpolants in time (values and rates at both
-    ends, safeguarded Newton from the chord) and corrected:
+    ends; Newton from the chord, safeguarded for the break-away) and corrected:
 
     - a stuck cart whose held net force reached ``Fs`` inside the step broke away there
       and gains the velocity and displacement of the integrals of the interpolated net
@@ -685,7 +690,7 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     state = [x0, v == 0.0, np.sign(v), x0[:, :n]]
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
     kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
-    return run_batched(lambda w: kernel(w), params, state, u, n, int(n_sub), float(h))
+    return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
 
 
 # ---------------------------------------------------------------------------------------

@@ -285,6 +285,7 @@ def diagnose(
     scored: list[CandidateScore] = []
     fits = {}
     after_tests = {}
+    peak_volt = max(float(np.max(np.abs(e.v_volt))) for e in train_exps)
     for c in order:
         ext = EXTENSIONS[c]
         k = len(ext.specs(rig))
@@ -297,8 +298,7 @@ def diagnose(
             with np.errstate(all="ignore"):
                 ef = None
                 for theta0 in best_starts(ext, rig, linear.theta, train_exps, n_starts):
-                    inactive = c == "input_saturation" and theta0[-1] >= max(
-                        float(np.max(np.abs(e.v_volt))) for e in train_exps)
+                    inactive = c == "input_saturation" and theta0[-1] >= peak_volt
                     f = fit_extension_lsq(train_exps, ext, rig, theta0=theta0, linear=linear,
                                           max_nfev=1 if inactive else max_nfev)
                     if ef is None or f.cost < ef.cost:
