@@ -56,6 +56,10 @@ REVERSAL_NEWTON = 2
 #: of 8); the others keep their quick result, so that no lane depends on its group.
 REFINE_GROUP = 16
 
+#: Relative margin below the static level under which a stuck cart of the friction
+#: kernel is at rest for certain over a step (rounding of the step is ~1e-16).
+REST_MARGIN = 1e-9
+
 #: Newton steps for the impact time of the backlash kernel.
 IMPACT_NEWTON = 2
 
@@ -380,8 +384,8 @@ def _coulomb_predict(t, P, n, mats) -> list[str]:
         gz = " + ".join(f"{P('G', i * s + j)} * x{j}" for j in R)
         L += [f"{t}F{i} = gb{i} * uk + {gz}",
               f"{t}aF{i} = abs(F{i})",
-              f"{t}hold = st{i} and aF{i} < fs{i}",
-              f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} and not hold else d{i}",
+              f"{t}hold = st{i} & (aF{i} < fs{i})",
+              f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} != hold else d{i}",
               f"{t}f{i} = -F{i} if hold else -fc{i} * d{i}",
               f"{t}st{i} = hold"]
     for r in R:
@@ -396,9 +400,11 @@ def _coulomb_predict(t, P, n, mats) -> list[str]:
     # with its start value would let it drift and pull on its neighbours: hold it with
     # the force ramping to its end value instead (one correction with the ramp response)
     for i in C:
+        # (a product with 1 or 0, not a branch: the compiler would sink the end force
+        # into the branch and not vectorise the loop)
         L += [end_force(i),
-              f"{t}df{i} = F{i} - ({_held_force(P, n, i, f'Fe{i}', f'xs{i}')}) if st{i}"
-              " else 0.0"]
+              f"{t}df{i} = (1.0 if st{i} else 0.0) * (F{i} -"
+              f" ({_held_force(P, n, i, f'Fe{i}', f'xs{i}')}))"]
     for r in R:
         prods = [(P(mats[3], r * n + j), f"df{j}") for j in C]
         L.append(f"{t}n{r} = {_fma_sum(f'n{r}', prods)}")
@@ -532,21 +538,45 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
               f"{t}k0 = {step} * ({r0})",
               f"{t}k1 = {step} * ({r1})",
               f"{t}qm = 0.5 * (F{i} + q1) + 0.125 * (k0 - k1)",
-              f"{t}hit = (abs(q1) >= fs{i} or abs(qm) >= fs{i} or abs(F{i} + k0) >= fs{i}"
-              f" or abs(q1 - k1) >= fs{i})",
+              f"{t}hit = ((abs(q1) >= fs{i}) | (abs(qm) >= fs{i}) | (abs(F{i} + k0) >= fs{i})"
+              f" | (abs(q1 - k1) >= fs{i}))",
               f"{t}m0 = A0_{i} * {step}",
               f"{t}m1 = A1_{i} * {step}",
               f"{t}vm = 0.5 * (x{v} + n{v}) + 0.125 * (m0 - m1)",
-              f"{t}turn = (d{i} * n{v} < 0.0 or d{i} * vm < 0.0 or d{i} * (x{v} + m0) < 0.0"
-              f" or d{i} * (n{v} - m1) < 0.0)",
+              f"{t}turn = ((d{i} * n{v} < 0.0) | (d{i} * vm < 0.0) | (d{i} * (x{v} + m0) < 0.0)"
+              f" | (d{i} * (n{v} - m1) < 0.0))",
               f"{t}ev{i} = hit if st{i} else turn",
               f"{t}n{i} = xs{i} if st{i} else n{i}",
               f"{t}n{v} = 0.0 if st{i} else n{v}"]
         flags.append(f"ev{i}")
-    L += [f"{t}e = {' or '.join(flags)}",
+    L += [f"{t}e = {' | '.join(flags)}",
           f"{t}S[{X.size * w} + b] = 1.0 if e else 0.0",
           f"{t}ev += 1 if e else 0"]
     return L + _coulomb_store(t, X, n)
+
+
+def _coulomb_at_rest(t, P, X, n) -> list[str]:
+    """Code adding 1 to ``nq`` for a lane at rest over the coming step.
+
+    A lane is at rest when every cart is stuck and each one's net force at the step start
+    is below its static level by more than ``REST_MARGIN`` times the size of the terms
+    it sums.  Over a step with the input held, such a lane's state does not change: the
+    quick step would return it bit for bit (held carts are put back where they stuck,
+    with velocity 0, and no held force can reach ``Fs``: the rounding of the quick step
+    is ~1e-16 of the same terms), so the kernel skips the step for a group of lanes all
+    at rest.  The test depends on the lane's own state only, and skipping changes no
+    result: the output is the same whatever the batch.
+    """
+    s = 2 * n
+    L: list[str] = [f"{t}rest = True"]
+    for i in range(n):
+        terms = [f"{P('gb', i)} * uk"] + [f"{P('G', i * s + j)} * {X('x', j)}"
+                                          for j in range(s)]
+        L += [f"{t}Fq = {' + '.join(terms)}",
+              f"{t}mq = {' + '.join(f'abs({term})' for term in terms)}",
+              f"{t}rest = rest & ({X('st', i)} != 0.0)"
+              f" & (abs(Fq) + {REST_MARGIN!r} * mq < {P('fs', i)})"]
+    return L + [f"{t}nq += 1 if rest else 0"]
 
 
 @functools.lru_cache(maxsize=16)
@@ -554,7 +584,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many times a group of lanes took a sample again in sub-steps
-    (0 without ``adaptive``).
+    and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
     """
     w = width
     s = 2 * n
@@ -563,7 +593,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
                        ("mi", n), ("fc", n), ("fs", n)])
     X = _Rows("X", w, [("x", s), ("st", n), ("d", n), ("xs", n)])
     L = _head("P, X, u, n_sub, h, Y", n, w, X)
-    L.insert(1, "    nref = 0")
+    L[1:1] = ["    nref = 0", "    nrest = 0"]
 
     def corrected(t):
         return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"))
@@ -572,16 +602,17 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
     if not adaptive:
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16)
-        L += ["    return nref"]
+        L += ["    return nref, nrest"]
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
     # S, S2: state at the start of the sample and sub-step, and a last row with the
     # lane's event flag (one array less for the vectoriser to check for aliasing);
     # T, T2: the quick results
     flag = X.size * w
+    g = min(w, REFINE_GROUP)
     L[1:1] = [f"    S = np.empty(X.shape[0] + {w})", "    T = np.empty_like(X)",
               f"    S2 = np.empty(X.shape[0] + {w})", "    T2 = np.empty_like(X)",
               "    dt = h * n_sub"]
-    g = min(w, REFINE_GROUP)
+    L += [f"        for g0 in range(0, {w}, {g}):"]
     rows = range(X.size)
 
     def retake(t, start, result):
@@ -597,9 +628,13 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
                 + [f"{t}    X[{r * w} + b] = X[{r * w} + b] if {start}[{flag} + b] != 0.0"
                    f" else {result}[{r * w} + b]" for r in rows])
 
+    # a group whose lanes are all at rest skips the sample (the state does not change);
     # the sample in one step; a group with an event takes it again in sub-steps, each
     # first without corrections and again with them where a lane of the group needs them
-    L += [f"        for g0 in range(0, {w}, {g}):",
+    L += ["            nq = 0",
+          f"            for b in range(g0, g0 + {g}):"]
+    L += _coulomb_at_rest(" " * 16, P, X, n)
+    L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
           "            ev = 0",
           f"            for b in range(g0, g0 + {g}):"]
     L += _coulomb_quiet_step(" " * 16, P, X, n, w, ("Ad", "bd", "fd", "rd"), "dt")
@@ -614,7 +649,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
     L += corrected(" " * 28)
     L += keep_quick(" " * 24, "S2", "T2")
     L += keep_quick(" " * 16, "S", "T")
-    L += ["    return nref"]
+    L += ["    return nref, nrest"]
     return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive>")
 
 

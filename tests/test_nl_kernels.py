@@ -185,8 +185,47 @@ def test_adaptive_friction_matches_corrected_sub_steps_everywhere(record, most_r
     for i in (0, 17, 31):
         np.testing.assert_array_equal(y[i], ext.simulate(RIG, theta[i], u, e.dt))
     # 32 lanes: two groups of 16
-    share = retaken[0] / (2 * u.size)
+    share = retaken[0][0] / (2 * u.size)
     assert 0.0 < share < most_retaken, share
+
+
+def test_friction_groups_at_rest_skip_samples_and_change_nothing(monkeypatch):
+    """A group of lanes whose carts are all stuck below their static levels skips the
+    sample; the output of a lane is bit for bit the same whether its group skips (16
+    friction lanes together, or the lane alone) or cannot (a lane without friction in its
+    group, which never rests)."""
+    from conftest import measured
+
+    import bayesmodal._nl_kernels as nk
+
+    e = measured("data_impulses.mat")
+    u = e.v_volt[:4000]  # two pulses and the rest after them
+    theta = _friction_draws(16, np.random.default_rng(8))
+    no_friction = theta[:1].copy()
+    no_friction[:, 9:] = 0.0
+    counts = []
+    compiled = nk.coulomb_kernel
+
+    def counting(n, width, adaptive=True):
+        kernel = compiled(n, width, adaptive)
+        return lambda *args: counts.append(kernel(*args))
+
+    monkeypatch.setattr(nk, "coulomb_kernel", counting)
+    ext = EXTENSIONS["coulomb_friction"]
+    together = ext.simulate(RIG, theta, u, e.dt)
+    mixed = ext.simulate(RIG, np.concatenate([no_friction, theta[:15]]), u, e.dt)
+    alone = [ext.simulate(RIG, theta[i], u, e.dt) for i in (0, 6, 14)]
+    monkeypatch.undo()
+    rests = [c[1] for c in counts]
+    # the friction group rests for part of the record, the group with a frictionless
+    # lane never does, a lane alone rests at least as often as its group
+    assert 0 < rests[0] < u.size and rests[1] == 0 and min(rests[2:]) >= rests[0], rests
+    np.testing.assert_array_equal(together[:15], mixed[1:])
+    for i, y in zip((0, 6, 14), alone):
+        np.testing.assert_array_equal(together[i], y)
+    # at rest the positions do not move at all
+    still = np.all(np.diff(together, axis=1) == 0.0, axis=(0, 2))
+    assert still.sum() >= rests[0] - 1
 
 
 @pytest.mark.slow
