@@ -221,7 +221,7 @@ def test_friction_groups_at_rest_skip_samples_and_change_nothing(monkeypatch):
     # lane never does, a lane alone rests at least as often as its group
     assert 0 < rests[0] < u.size and rests[1] == 0 and min(rests[2:]) >= rests[0], rests
     np.testing.assert_array_equal(together[:15], mixed[1:])
-    for i, y in zip((0, 6, 14), alone):
+    for i, y in zip((0, 6, 14), alone, strict=True):
         np.testing.assert_array_equal(together[i], y)
     # at rest the positions do not move at all
     still = np.all(np.diff(together, axis=1) == 0.0, axis=(0, 2))
