@@ -104,8 +104,10 @@ def _rising_cubic_root(t: str, x: str, c: tuple[str, str, str, str]) -> list[str
             f"{t}dg = {c1} + {x} * (2.0 * {c2} + 3.0 * {x} * {c3})",
             f"{t}hi = {x} if g > 0.0 else hi",
             f"{t}lo = lo if g > 0.0 else {x}",
-            f"{t}xn = {x} - g / dg if dg != 0.0 else -1.0",
-            f"{t}{x} = xn if xn > lo and xn < hi else 0.5 * (lo + hi)",
+            f"{t}xn = {x} - g / dg",
+            f"{t}xn = xn if dg != 0.0 else -1.0",
+            f"{t}xb = 0.5 * (lo + hi)",
+            f"{t}{x} = xn if (xn > lo) & (xn < hi) else xb",
         ]
     return lines
 
@@ -429,9 +431,10 @@ def _coulomb_events(t, P, n) -> list[str]:
               # (on its cubic Hermite interpolant in time, Newton from the chord)
               f"{t}Fh = {_held_force(P, n, i, 'Fe', f'xs{i}')}",
               f"{t}aE = abs(Fh)",
-              f"{t}slip = st{i} and aE >= fs{i}",
+              f"{t}slip = st{i} & (aE >= fs{i})",
               f"{t}db = math.copysign(1.0, Fh)",
-              f"{t}ab = (fs{i} - aF{i}) / (aE - aF{i}) if slip and aE > aF{i} else 0.0",
+              f"{t}ab = (fs{i} - aF{i}) / (aE - aF{i})",
+              f"{t}ab = ab if slip & (aE > aF{i}) else 0.0",
               f"{t}ab = (0.0 if ab < 0.0 else (1.0 if ab > 1.0 else ab))",
               f"{t}q0 = db * F{i}",
               f"{t}q1 = db * Fh",
@@ -458,8 +461,9 @@ def _coulomb_events(t, P, n) -> list[str]:
               # interpolant of the velocity (end values and accelerations)
               f"{t}v0 = x{v}",
               f"{t}v1 = n{v}",
-              f"{t}rev = not st{i} and d{i} * v1 < 0.0",
-              f"{t}a = v0 / (v0 - v1) if v0 != v1 else 0.0",
+              f"{t}rev = (not st{i}) & (d{i} * v1 < 0.0)",
+              f"{t}a = v0 / (v0 - v1)",
+              f"{t}a = a if v0 != v1 else 0.0",
               f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))",
               f"{t}m0 = (F{i} + f{i}) * mi{i} * h",
               f"{t}m1 = (Fe + f{i}) * mi{i} * h",
@@ -469,37 +473,50 @@ def _coulomb_events(t, P, n) -> list[str]:
         for _ in range(REVERSAL_NEWTON):
             L += [f"{t}g = v0 + a * (m0 + a * (e2 + a * e3))",
                   f"{t}dg = m0 + a * (2.0 * e2 + 3.0 * a * e3)",
-                  f"{t}a = a - g / dg if dg != 0.0 else a",
+                  f"{t}an = a - g / dg",
+                  f"{t}a = an if dg != 0.0 else a",
                   f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))"]
         L += [f"{t}tau = (1.0 - a) * h",
               # stick if the net force at the crossing is below Fs, else slide back
-              f"{t}stick = rev and abs(F{i} + a * (Fe - F{i})) < fs{i}",
-              f"{t}flip = rev and not stick",
-              f"{t}dv = 2.0 * fc{i} * d{i} * mi{i} * tau if flip else 0.0",
+              f"{t}stick = rev & (abs(F{i} + a * (Fe - F{i})) < fs{i})",
+              f"{t}flip = rev != stick",
+              f"{t}dv = 2.0 * fc{i} * d{i} * mi{i} * tau",
+              f"{t}dv = dv if flip else 0.0",
               # distance travelled after the crossing: integral of the interpolant
               f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
               f" - a * (v0 + a * (0.5 * m0 + a * ({1 / 3!r} * e2 + 0.25 * a * e3))))",
-              f"{t}p = n{i} - after if stick else n{i} + 0.5 * dv * tau",
+              f"{t}pa = n{i} - after",
+              f"{t}pb = n{i} + 0.5 * dv * tau",
+              f"{t}p = pa if stick else pb",
               # stuck at the crossing, but the held net force reaches Fs again before
               # the end of the step: break away there (linear in time from the crossing)
               f"{t}Fk = {_held_force(P, n, i, 'Fe', 'p')}",
               f"{t}aK = abs(Fk)",
-              f"{t}brk = stick and aK >= fs{i}",
+              f"{t}brk = stick & (aK >= fs{i})",
               f"{t}dk = math.copysign(1.0, Fk)",
               f"{t}qx = dk * (F{i} + a * (Fe - F{i}))",
-              f"{t}ak = a + (1.0 - a) * (fs{i} - qx) / (aK - qx) if brk and aK > qx else 1.0",
+              f"{t}ak = a + (1.0 - a) * (fs{i} - qx) / (aK - qx)",
+              f"{t}ak = ak if brk & (aK > qx) else 1.0",
               f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
               f"{t}tk = (1.0 - ak) * h",
               f"{t}dvk = dk * (0.5 * (aK + fs{i}) - fc{i}) * mi{i} * tk",
               f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
               f" - 0.5 * fc{i})",
-              f"{t}p = p + dxk if brk else p",
-              f"{t}n{i} = (xs{i} + dxb if slip else xs{i}) if st{i} else p",
-              f"{t}n{v} = ((dvb if slip else 0.0) if st{i} else"
-              f" ((dvk if brk else 0.0) if stick else v1 + dv))",
+              f"{t}pk = p + dxk",
+              f"{t}p = pk if brk else p",
+              f"{t}xb = xs{i} + dxb",
+              f"{t}xh = xb if slip else xs{i}",
+              f"{t}n{i} = xh if st{i} else p",
+              f"{t}vh = dvb if slip else 0.0",
+              f"{t}vk = dvk if brk else 0.0",
+              f"{t}vf = v1 + dv",
+              f"{t}vs = vk if stick else vf",
+              f"{t}n{v} = vh if st{i} else vs",
               f"{t}xs{i} = p if stick else xs{i}",
-              f"{t}d{i} = db if slip else (dk if brk else (-d{i} if flip else d{i}))",
-              f"{t}st{i} = (st{i} and not slip) or (stick and not brk)"]
+              f"{t}dr = -d{i} if flip else d{i}",
+              f"{t}dr = dk if brk else dr",
+              f"{t}d{i} = db if slip else dr",
+              f"{t}st{i} = (st{i} != slip) | (stick != brk)"]
     return L
 
 
