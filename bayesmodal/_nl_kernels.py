@@ -51,9 +51,11 @@ HERMITE_NEWTON = 2
 #: Newton steps from the chord for the velocity zero of the friction kernel.
 REVERSAL_NEWTON = 2
 
-#: Lanes of the friction kernel that take the event-corrected sub-steps together when
-#: one of them needs them (two AVX-512 vectors of float64: LLVM does not vectorise loops
-#: of 8); the others keep their quick result, so that no lane depends on its group.
+#: Lanes of the friction kernel that take a sample together (two AVX-512 vectors of
+#: float64: LLVM does not vectorise loops of 8), and lanes with an event packed together
+#: to take it again in sub-steps; a packed group takes the event-corrected path when one
+#: of its lanes needs it and the others keep their quick result, so that no lane depends
+#: on the rest of its batch.
 REFINE_GROUP = 16
 
 #: Relative margin below the static level under which a stuck cart of the friction
@@ -544,7 +546,7 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
     inside the step, which the end values alone would hide).
     """
     C = range(n)
-    L = [f"{t}S[{r * w} + b] = X[{r * w} + b]" for r in range(X.size)]
+    L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
     L += _coulomb_load(t, P, X, n)
     L += _coulomb_predict(t, P, n, mats)
     flags = []
@@ -600,72 +602,101 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 def coulomb_kernel(n: int, width: int, adaptive: bool = True):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
-    The kernel returns how many times a group of lanes took a sample again in sub-steps
+    The kernel returns how many packed groups of lanes took a sample again in sub-steps
     and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
     """
     w = width
     s = 2 * n
-    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s),
-                       ("bd", s), ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n),
-                       ("mi", n), ("fc", n), ("fs", n)])
-    X = _Rows("X", w, [("x", s), ("st", n), ("d", n), ("xs", n)])
+    p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
+              ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
+              ("fs", n)]
+    x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
+    P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X)
     L[1:1] = ["    nref = 0", "    nrest = 0"]
 
-    def corrected(t):
+    def corrected(t, P, X):
         return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"))
                 + _coulomb_events(t, P, n) + _coulomb_store(t, X, n))
 
     if not adaptive:
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
-        L += corrected(" " * 16)
+        L += corrected(" " * 16, P, X)
         L += ["    return nref, nrest"]
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
-    # S, S2: state at the start of the sample and sub-step, and a last row with the
-    # lane's event flag (one array less for the vectoriser to check for aliasing);
-    # T, T2: the quick results
-    flag = X.size * w
+    # S: state at the start of the sample, and a last row with the lane's event flag (one
+    # array less for the vectoriser to check for aliasing).  Lanes with an event are
+    # packed (parameters PP, state XX) into groups of g and take the sample again there;
+    # S2: state at the start of a sub-step and flags, T2: the quick results
     g = min(w, REFINE_GROUP)
-    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})", "    T = np.empty_like(X)",
-              f"    S2 = np.empty(X.shape[0] + {w})", "    T2 = np.empty_like(X)",
-              "    dt = h * n_sub"]
-    L += [f"        for g0 in range(0, {w}, {g}):"]
+    PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
+    flag2 = X.size * g
+    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})",
+              f"    PP = np.empty({P.size * g})", f"    XX = np.empty({X.size * g})",
+              f"    S2 = np.empty({(X.size + 1) * g})", f"    T2 = np.empty({X.size * g})",
+              f"    idx = np.empty({w}, np.int64)",
+              "    dt = h * n_sub",
+              # unused packed slots hold copies of lane 0 (valid numbers)
+              f"    for j in range({g}):",
+              f"        for r in range({P.size}):",
+              f"            PP[r * {g} + j] = P[r * {w}]",
+              f"        for r in range({X.size}):",
+              f"            XX[r * {g} + j] = X[r * {w}]"]
     rows = range(X.size)
 
     def retake(t, start, result):
         # keep the quick step's result, go back to the step's start
-        return ([f"{t}for b in range(g0, g0 + {g}):"]
-                + [f"{t}    {result}[{r * w} + b] = X[{r * w} + b]" for r in rows]
-                + [f"{t}    X[{r * w} + b] = {start}[{r * w} + b]" for r in rows])
+        return ([f"{t}for b in range({g}):"]
+                + [f"{t}    {result}[{r * g} + b] = XX[{r * g} + b]" for r in rows]
+                + [f"{t}    XX[{r * g} + b] = {start}[{r * g} + b]" for r in rows])
 
     def keep_quick(t, start, result):
         # lanes without an event take the quick step's result: every lane's result
         # depends on its own parameters only, never on the other lanes of its group
-        return ([f"{t}for b in range(g0, g0 + {g}):"]
-                + [f"{t}    X[{r * w} + b] = X[{r * w} + b] if {start}[{flag} + b] != 0.0"
-                   f" else {result}[{r * w} + b]" for r in rows])
+        return ([f"{t}for b in range({g}):"]
+                + [f"{t}    XX[{r * g} + b] = XX[{r * g} + b] if {start}[{flag2} + b] != 0.0"
+                   f" else {result}[{r * g} + b]" for r in rows])
 
     # a group whose lanes are all at rest skips the sample (the state does not change);
-    # the sample in one step; a group with an event takes it again in sub-steps, each
-    # first without corrections and again with them where a lane of the group needs them
-    L += ["            nq = 0",
+    # the others take the sample in one step, and the lanes with an event in it take it
+    # again in sub-steps, packed into groups: each sub-step first without corrections and
+    # again with them where a lane of the packed group needs them
+    L += ["        nf = 0",
+          f"        for g0 in range(0, {w}, {g}):",
+          "            nq = 0",
           f"            for b in range(g0, g0 + {g}):"]
     L += _coulomb_at_rest(" " * 16, P, X, n)
     L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
           "            ev = 0",
           f"            for b in range(g0, g0 + {g}):"]
     L += _coulomb_quiet_step(" " * 16, P, X, n, w, ("Ad", "bd", "fd", "rd"), "dt")
-    L += ["            if ev > 0:", "                nref += 1"] + retake(" " * 16, "S", "T")
-    L += ["                for sub in range(n_sub):",
-          "                    ev = 0",
-          f"                    for b in range(g0, g0 + {g}):"]
+    L += ["            if ev > 0:",
+          f"                for b in range(g0, g0 + {g}):",
+          f"                    if S[{X.size * w} + b] != 0.0:",
+          "                        idx[nf] = b",
+          "                        nf += 1",
+          f"        for c0 in range(0, nf, {g}):",
+          "            nref += 1",
+          f"            m = min({g}, nf - c0)",
+          "            for j in range(m):",
+          "                bj = idx[c0 + j]",
+          f"                for r in range({P.size}):",
+          f"                    PP[r * {g} + j] = P[r * {w} + bj]",
+          f"                for r in range({X.size}):",
+          f"                    XX[r * {g} + j] = S[r * {w} + bj]",
+          "            for sub in range(n_sub):",
+          "                ev = 0",
+          f"                for b in range({g}):"]
     L += [line.replace("S[", "S2[") for line in
-          _coulomb_quiet_step(" " * 24, P, X, n, w, ("A", "bh", "fh", "rh"), "h")]
-    L += ["                    if ev > 0:"] + retake(" " * 24, "S2", "T2")
-    L += [f"                        for b in range(g0, g0 + {g}):"]
-    L += corrected(" " * 28)
-    L += keep_quick(" " * 24, "S2", "T2")
-    L += keep_quick(" " * 16, "S", "T")
+          _coulomb_quiet_step(" " * 20, PP, XX, n, g, ("A", "bh", "fh", "rh"), "h")]
+    L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
+    L += [f"                    for b in range({g}):"]
+    L += corrected(" " * 24, PP, XX)
+    L += keep_quick(" " * 20, "S2", "T2")
+    L += ["            for j in range(m):",
+          "                bj = idx[c0 + j]",
+          f"                for r in range({X.size}):",
+          f"                    X[r * {w} + bj] = XX[r * {g} + j]"]
     L += ["    return nref, nrest"]
     return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive>")
 
@@ -697,12 +728,15 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
       otherwise friction reverses and the wrong force over ``tau`` is undone:
       ``dv = 2 Fc dir tau / m``, ``dx = dv tau / 2``.
 
-    Lanes run in groups of ``REFINE_GROUP`` (vectorised) and a group takes the corrected
-    path when one of its lanes needs it, but every lane keeps the result of the path its
-    own flags chose: the output of a parameter set never depends on the others in the
-    batch.  The error is second order in the sub-step where events are, but a
-    stick-or-reverse decision taken with ``|F|`` within a fraction of a percent of ``Fs``
-    can flip and change the whole future (as in any fixed-step scheme).
+    Lanes run in groups of ``REFINE_GROUP`` (vectorised); a group whose lanes are all at
+    rest skips the sample, and the lanes with an event in a sample (from any group) are
+    packed into groups of ``REFINE_GROUP`` that take it again in sub-steps.  A packed
+    group takes the corrected path in a sub-step when one of its lanes needs it, but every
+    lane keeps the result of the path its own flags chose: the output of a parameter set
+    never depends on the others in the batch.  The error is second order in the sub-step
+    where events are, but a stick-or-reverse decision taken with ``|F|`` within a fraction
+    of a percent of ``Fs`` can flip and change the whole future (as in any fixed-step
+    scheme).
 
     Parameters
     ----------

@@ -167,7 +167,7 @@ def test_adaptive_friction_matches_corrected_sub_steps_everywhere(record, most_r
     theta = _friction_draws(32, np.random.default_rng(5))
     ext = EXTENSIONS["coulomb_friction"]
     fixed = type(ext)(adaptive=False).simulate(RIG, theta, u, e.dt)
-    # the kernel returns how often a group of lanes took a sample or sub-step again
+    # the kernel returns how often a packed group of lanes took a sample again
     retaken = []
     compiled = nk.coulomb_kernel
 
@@ -184,7 +184,7 @@ def test_adaptive_friction_matches_corrected_sub_steps_everywhere(record, most_r
     assert 0 < np.median(diff) < 0.02 and np.max(diff) < 0.5, diff
     for i in (0, 17, 31):
         np.testing.assert_array_equal(y[i], ext.simulate(RIG, theta[i], u, e.dt))
-    # 32 lanes: two groups of 16
+    # 32 lanes: at most two packed groups of 16 per sample
     share = retaken[0][0] / (2 * u.size)
     assert 0.0 < share < most_retaken, share
 
