@@ -108,6 +108,8 @@ def test_cli_json_on_a_csv(tmp_path, capsys):
     assert "cause: none" in text and "whiteness" in text
     assert main(["diagnose", str(path), "--null", "5", "--no-posterior"]) == 2
     assert "null" in capsys.readouterr().err
+    assert main(["diagnose", str(path), "--null", "19", "--no-posterior", "--starts", "0"]) == 2
+    assert "n_starts" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ calibration pieces

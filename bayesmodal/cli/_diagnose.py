@@ -20,6 +20,9 @@ def register(sub) -> None:
                    help="null data sets of the calibration (default %(default)s)")
     p.add_argument("--steps", type=int, default=1500, metavar="N",
                    help="emcee steps per walker of the posterior step (default %(default)s)")
+    p.add_argument("--starts", type=int, default=3, metavar="N",
+                   help="least-squares fits per candidate extension, from the N best points "
+                   "of its start grid; the cheapest wins (default %(default)s)")
     p.add_argument("--train", type=int, default=0, metavar="K",
                    help="index of the training experiment among DATA (default %(default)s)")
     p.set_defaults(func=run)
@@ -63,7 +66,8 @@ def run(args) -> int:
 
     exps = load_args(args)
     d = diagnose(exps, train=args.train, n_null=args.null, posterior=not args.no_posterior,
-                 rng=args.seed, posterior_options={"n_steps": args.steps})
+                 rng=args.seed, posterior_options={"n_steps": args.steps},
+                 n_starts=args.starts)
     if args.plots:
         from ..diagnose.plots import write_plots
 
