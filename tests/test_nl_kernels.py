@@ -149,6 +149,22 @@ def _friction_draws(n, rng):
     return np.concatenate([lin, fc, fs], axis=1)
 
 
+def _count_kernel_calls(monkeypatch) -> list:
+    """Patch the friction kernel to record what each call returns: (packed groups that
+    took a sample again in sub-steps, samples a group at rest skipped)."""
+    import bayesmodal._nl_kernels as nk
+
+    returned = []
+    compiled = nk.coulomb_kernel
+
+    def counting(n, width, adaptive=True):
+        kernel = compiled(n, width, adaptive)
+        return lambda *args: returned.append(kernel(*args))
+
+    monkeypatch.setattr(nk, "coulomb_kernel", counting)
+    return returned
+
+
 @pytest.mark.parametrize(("record", "most_retaken"),
                          [("data_impulses.mat", 0.35), ("data_sine_sweep_fast.mat", 0.75)])
 def test_adaptive_friction_matches_corrected_sub_steps_everywhere(record, most_retaken,
@@ -160,22 +176,12 @@ def test_adaptive_friction_matches_corrected_sub_steps_everywhere(record, most_r
     on the rest of its batch."""
     from conftest import measured
 
-    import bayesmodal._nl_kernels as nk
-
     e = measured(record)
     u = e.v_volt[:3000]
     theta = _friction_draws(32, np.random.default_rng(5))
     ext = EXTENSIONS["coulomb_friction"]
     fixed = type(ext)(adaptive=False).simulate(RIG, theta, u, e.dt)
-    # the kernel returns how often a packed group of lanes took a sample again
-    retaken = []
-    compiled = nk.coulomb_kernel
-
-    def counting(n, width, adaptive=True):
-        kernel = compiled(n, width, adaptive)
-        return lambda *args: retaken.append(kernel(*args))
-
-    monkeypatch.setattr(nk, "coulomb_kernel", counting)
+    retaken = _count_kernel_calls(monkeypatch)
     y = ext.simulate(RIG, theta, u, e.dt)
     monkeypatch.undo()
     # different paths, the same answer: hundredths of a count, up to the accuracy of
@@ -196,21 +202,12 @@ def test_friction_groups_at_rest_skip_samples_and_change_nothing(monkeypatch):
     group, which never rests)."""
     from conftest import measured
 
-    import bayesmodal._nl_kernels as nk
-
     e = measured("data_impulses.mat")
     u = e.v_volt[:4000]  # two pulses and the rest after them
     theta = _friction_draws(16, np.random.default_rng(8))
     no_friction = theta[:1].copy()
     no_friction[:, 9:] = 0.0
-    counts = []
-    compiled = nk.coulomb_kernel
-
-    def counting(n, width, adaptive=True):
-        kernel = compiled(n, width, adaptive)
-        return lambda *args: counts.append(kernel(*args))
-
-    monkeypatch.setattr(nk, "coulomb_kernel", counting)
+    counts = _count_kernel_calls(monkeypatch)
     ext = EXTENSIONS["coulomb_friction"]
     together = ext.simulate(RIG, theta, u, e.dt)
     mixed = ext.simulate(RIG, np.concatenate([no_friction, theta[:15]]), u, e.dt)
