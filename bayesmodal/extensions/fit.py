@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from .._errors import DataError, ModelError
+from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
 from ..fit import LSQResult, fit_lsq
 from ..metrics import fit_percent
@@ -54,7 +54,7 @@ class ExtensionFit:
     fit_percent : ndarray, shape (n_experiments, n_outputs)
         Fit percentage per experiment and output.
     cost : float
-        Half the sum of squared residuals, m^2.
+        Half the sum of squared residuals (weighted by ``weights`` if given), m^2.
     sigma_m : ndarray, shape (n_outputs,)
         RMS residual per output, pooled over experiments, m.
     linear : LSQResult
@@ -115,6 +115,23 @@ def extension_residuals(
     return np.concatenate(parts, axis=1)
 
 
+def _root_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray | None:
+    """Square roots of the experiment weights, one per stacked residual (the layout of
+    ``extension_residuals``); None for equal weights.  Raises ConfigError for unusable
+    weights."""
+    if weights is None:
+        return None
+    w = np.asarray(weights, dtype=float)
+    if w.shape != (len(experiments),):
+        raise ConfigError(f"weights: need one per experiment ({len(experiments)}), got "
+                          f"shape {w.shape}")
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise ConfigError(f"weights must be finite, non-negative and not all zero, got "
+                          f"{w.tolist()}")
+    return np.concatenate([np.full(e.n_samples * e.n_outputs, np.sqrt(wi))
+                           for e, wi in zip(experiments, w, strict=True)])
+
+
 def _as_list(experiments) -> list[Experiment]:
     if isinstance(experiments, Experiment):
         return [experiments]
@@ -135,6 +152,7 @@ def fit_extension_lsq(
     max_nfev: int = 200,
     n_starts: int = 1,
     damper_scales: Sequence[float] = (1.0,),
+    weights: Sequence[float] | None = None,
 ) -> ExtensionFit:
     """Least-squares fit of an extended model.
 
@@ -163,6 +181,11 @@ def fit_extension_lsq(
         Factors applied to the linear fit's dampers in the start candidates (each grid
         point is tried with each factor); ``(1.0,)`` keeps the linear dampers, ``(1.0,
         0.3, 0.1)`` lets friction take over part of the viscous damping from the start.
+    weights : sequence of float, optional
+        Weight of each experiment's squared residuals in the cost (default all 1), e.g.
+        ``(1.0, 0.1)`` to trace how far a second record can pull the fit before the first
+        one's fit degrades.  Non-negative, finite, not all zero; the grid ranking and the
+        returned ``cost`` use them too.
 
     Returns
     -------
@@ -172,6 +195,8 @@ def fit_extension_lsq(
     ------
     DataError
         For no experiments, an all-zero input or a wrong number of outputs.
+    ConfigError
+        For ``weights`` of the wrong length, negative, non-finite or all zero.
     ModelError
         For an impossible ``theta0`` or a ``linear`` fit that is not free damping.
 
@@ -188,12 +213,17 @@ def fit_extension_lsq(
     for e in experiments:
         if e.n_outputs != rig.n_carts:
             raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")
+    root_w = _root_weights(weights, experiments)
     if linear is None:
         linear = fit_lsq(experiments, model)
     elif linear.model.damping != "free" or linear.model.n_carts != rig.n_carts:
         raise ModelError("the linear start must be a free-damping fit of the same rig")
     p_lin = model.n_params
     specs = ext.specs(rig)
+
+    def residuals(theta):
+        r = extension_residuals(ext, rig, theta, experiments)
+        return r if root_w is None else r * root_w
 
     if theta0 is None:
         grid = ext.start_grid(rig)
@@ -206,7 +236,7 @@ def fit_extension_lsq(
         cands = np.concatenate([np.repeat(lin_starts, len(grid), axis=0),
                                 np.tile(grid, (len(lin_starts), 1))], axis=1)
         cands = cands[ext.valid(rig, cands)]
-        r = extension_residuals(ext, rig, cands, experiments)
+        r = residuals(cands)
         order = np.argsort(np.sum(r**2, axis=1))
         starts = [cands[i] for i in order[: max(1, int(n_starts))]]
     else:
@@ -233,7 +263,7 @@ def fit_extension_lsq(
         return np.concatenate([lin, ext.from_opt(rig, w[..., p_lin:] * ext_scale)], axis=-1)
 
     def fun(w):
-        return extension_residuals(ext, rig, to_theta(w[None]), experiments)[0]
+        return residuals(to_theta(w[None]))[0]
 
     def jac(w):
         n = w.size
@@ -245,7 +275,7 @@ def fit_extension_lsq(
             step = h[i] if w[i] + h[i] <= upper[i] else -h[i]
             ws[i + 1, i] += step
             h[i] = step
-        r = extension_residuals(ext, rig, to_theta(ws), experiments)
+        r = residuals(to_theta(ws))
         return ((r[1:] - r[0]) / h[:, None]).T
 
     best = None
@@ -274,12 +304,13 @@ def fit_extension_lsq(
         fits.append(fit_percent(e.y_m, yh))
         sq.append(((e.y_m - yh) ** 2).sum(axis=0))
     n_total = sum(e.n_samples for e in experiments)
+    w_exp = np.ones(len(experiments)) if weights is None else np.asarray(weights, float)
     return ExtensionFit(
         extension=ext,
         rig=rig,
         theta=theta,
         fit_percent=np.array(fits),
-        cost=0.5 * float(np.sum(sq)),
+        cost=0.5 * float(np.sum(w_exp[:, None] * np.array(sq))),
         sigma_m=np.sqrt(np.sum(sq, axis=0) / n_total),
         linear=linear,
         theta_start=theta_start,
