@@ -301,6 +301,85 @@ def gain_counterfactual_part(recs: dict, theta: np.ndarray) -> dict:
     return out
 
 
+#: Weights of the held-out step record in the trade-off fits (the impulses weigh 1).
+TRADEOFF_WEIGHTS = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
+
+
+def _profile_loglik(r: np.ndarray) -> dict:
+    """Log-likelihood of residuals ``r`` (N, n_out), m, maximised over the noise
+    parameters of each output: white Gaussian (sigma) and AR(1) (phi, sigma), nats."""
+    from bayesmodal.inference.likelihood import ar1_terms
+
+    n = r.shape[0]
+    sig_w = np.sqrt(np.mean(r**2, axis=0))
+    white = float(np.sum(-0.5 * n * (np.log(2 * np.pi * sig_w**2) + 1.0)))
+    phi = np.clip(np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0), -0.9999, 0.9999)
+    sig = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
+    ar1 = float(np.sum(ar1_terms(r[None], sig[None], phi[None])))
+    return {"white": white, "ar1": ar1, "phi": phi.tolist()}
+
+
+def tradeoff_part(recs: dict, lin_lsq, theta0) -> list:
+    """How far the step record can pull the friction fit before the impulse fit degrades:
+    least squares on the impulses and the steps with the steps weighted by each of
+    ``TRADEOFF_WEIGHTS`` (``fit_extension_lsq(weights=...)``), all started from the
+    single-start impulse optimum ``theta0``; each point's fit of every record and its
+    impulse log-likelihood maximised over white and AR(1) noise."""
+    imp, steps = recs["data_impulses"], recs["data_steps"]
+    out = []
+    for lam in TRADEOFF_WEIGHTS:
+        fit = fit_extension_lsq([imp, steps], FRICTION, RIG, theta0=theta0, linear=lin_lsq,
+                                weights=(1.0, lam))
+        r = imp.y_m - predict(fit.theta, imp, FRICTION)
+        out.append({"weight_steps": lam, "theta": fit.theta.tolist(),
+                    "impulse_cost": 0.5 * float(np.sum(r**2)),
+                    "impulse_loglik": _profile_loglik(r),
+                    "fits": fits_on(fit.theta, recs, FRICTION)})
+    return out
+
+
+def loglik_references(recs: dict, num: dict) -> dict:
+    """Impulse log-likelihoods (``_profile_loglik``) and fits of the linear and friction
+    least-squares estimates and of the friction posterior median, beside the trade-off."""
+    imp = recs["data_impulses"]
+    thetas = {"linear_lsq": (np.asarray(num["linear"]["theta"]), None),
+              "friction_lsq": (np.asarray(num["friction"]["theta"]), FRICTION)}
+    if num.get("posterior"):
+        med = num["posterior"]["friction"]["parameters"]
+        thetas["friction_posterior_median"] = (
+            np.array([med[n]["median"] for n in FRICTION.names(RIG)]), FRICTION)
+    return {label: {"impulse_loglik": _profile_loglik(imp.y_m - predict(th, imp, ext)),
+                    "fits": fits_on(th, recs, ext)}
+            for label, (th, ext) in thetas.items()}
+
+
+def tradeoff_figure(recs: dict, num: dict, out: Path) -> str:
+    """Impulse fit against the held-out fits along the trade-off."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts = num["tradeoff"]
+    x = [mean_fit(p["fits"], "data_impulses") for p in pts]
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for name, mark in (("data_steps", "o-"), ("data_sine_sweep_fast", "s--"),
+                       ("data_sine_sweep_slow", "^--")):
+        ax.plot(x, [mean_fit(p["fits"], name) for p in pts], mark, label=SHORT[name])
+        ax.axhline(mean_fit(num["linear"]["fits"], name), color="0.7", lw=0.8)
+    for p, xi in zip(pts, x, strict=True):
+        ax.annotate(f"{p['weight_steps']:g}", (xi, mean_fit(p["fits"], "data_steps")),
+                    textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.set_xlabel("fit on the impulses, % (mean over carts)")
+    ax.set_ylabel("fit of the other records, %")
+    ax.set_title("friction fits: impulses + steps weighted by the labelled factor\n"
+                 "(grey: the linear model fitted on the impulses)")
+    ax.invert_xaxis()
+    ax.legend()
+    _save(fig, out / "discrepancy_tradeoff.png")
+    return "discrepancy_tradeoff.png"
+
+
 # ----------------------------------------------------------------------------- figures
 def _save(fig, path: Path) -> None:
     import matplotlib.pyplot as plt
@@ -424,6 +503,8 @@ def figures(recs: dict, num: dict, objs: dict, out: Path) -> list[str]:
     ax.set_title("drive gain fitted to each record on its own")
     _save(fig, out / "discrepancy_gain.png")
     made.append("discrepancy_gain.png")
+    if "tradeoff" in num:
+        made.append(tradeoff_figure(recs, num, out))
     return made
 
 
@@ -456,6 +537,8 @@ def compute(*, runs_dir: Path | None, log=print) -> tuple[dict, dict]:
     num["basins"] = basins_part(recs, lin["_lsq"])
     log(f"basins done ({time.perf_counter() - t0:.0f} s)")
     num["numerics"] = numerics_part(recs, np.asarray(num["friction"]["theta"]))
+    num["tradeoff"] = tradeoff_part(recs, lin["_lsq"], np.asarray(num["friction"]["theta"]))
+    log(f"trade-off fits done ({time.perf_counter() - t0:.0f} s)")
     num["static_gain"] = static_gain_part(recs)
     num["per_record"] = per_record_part(recs)
     log(f"per-record fits done ({time.perf_counter() - t0:.0f} s)")
@@ -470,6 +553,7 @@ def compute(*, runs_dir: Path | None, log=print) -> tuple[dict, dict]:
         med = num["posterior"]["friction"]["parameters"]
         theta = np.array([med[n]["median"] for n in FRICTION.names(RIG)])
         num["gain_counterfactual"] = gain_counterfactual_part(recs, theta)
+    num["loglik_references"] = loglik_references(recs, num)
     return num, objs
 
 
@@ -478,8 +562,25 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures"))
     ap.add_argument("--runs", default=str(ROOT / "out" / "discrepancy_runs"))
     ap.add_argument("--quick", action="store_true", help="skip the posterior runs")
+    ap.add_argument("--tradeoff-only", action="store_true",
+                    help="recompute only the trade-off fits and the log-likelihood references "
+                    "(section 5) into the existing discrepancy.json, from its estimates")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    if args.tradeoff_only:
+        path = out / "discrepancy.json"
+        num = json.loads(path.read_text())
+        recs = load_records()
+        lin = fit_lsq(recs["data_impulses"], MODEL)
+        if not np.allclose(lin.theta, num["linear"]["theta"], rtol=1e-6):
+            raise SystemExit("the linear fit differs from discrepancy.json: run the whole "
+                             "script")
+        num["tradeoff"] = _public(tradeoff_part(recs, lin, np.asarray(num["friction"]["theta"])))
+        num["loglik_references"] = loglik_references(recs, num)
+        made = tradeoff_figure(recs, num, out)
+        path.write_text(json.dumps(num, indent=1, default=float) + "\n")
+        print(f"wrote {made} and the trade-off into {path}")
+        return 0
     num, objs = compute(runs_dir=None if args.quick else Path(args.runs),
                         log=lambda m: print(m, file=sys.stderr, flush=True))
     made = figures(load_records(), num, objs, out)
