@@ -635,6 +635,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
               f"    PP = np.empty({P.size * g})", f"    XX = np.empty({X.size * g})",
               f"    S2 = np.empty({(X.size + 1) * g})", f"    T2 = np.empty({X.size * g})",
               f"    idx = np.empty({w}, np.int64)",
+              f"    slot = np.zeros({g}, np.int64)",
               "    dt = h * n_sub",
               # unused packed slots hold copies of lane 0 (valid numbers)
               f"    for j in range({g}):",
@@ -680,8 +681,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
           f"            m = min({g}, nf - c0)",
           "            for j in range(m):",
           "                bj = idx[c0 + j]",
-          f"                for r in range({P.size}):",
-          f"                    PP[r * {g} + j] = P[r * {w} + bj]",
+          # a slot keeps its lane's parameters until another lane is packed there (the
+          # rows of the whole-sample step, Ad to rd, are not used in sub-steps)
+          "                if slot[j] != bj:",
+          "                    slot[j] = bj",
+          f"                    for r in range({P.offset['Ad']}):",
+          f"                        PP[r * {g} + j] = P[r * {w} + bj]",
+          f"                    for r in range({P.offset['G']}, {P.size}):",
+          f"                        PP[r * {g} + j] = P[r * {w} + bj]",
           f"                for r in range({X.size}):",
           f"                    XX[r * {g} + j] = S[r * {w} + bj]",
           "            for sub in range(n_sub):",
