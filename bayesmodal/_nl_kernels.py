@@ -16,7 +16,8 @@ scalars, and the branches of the hybrid models (stick, slip, contact) are writte
 scalars so that the compiler turns them into per-lane selects and vectorises across
 parameter sets.  Lanes take every branch's cost, but SIMD across 8 lanes more than pays
 for it.  The friction kernel takes each sample in one exact step and takes it again in
-corrected sub-steps only for groups of lanes with an event in it (see ``coulomb_run``).
+corrected sub-steps only for the lanes with an event in it, packed into full vectors
+(see ``coulomb_run``).
 
 Flat layouts (float64): parameters ``P (rows, width)``, state ``X (rows, width)`` updated in
 place, outputs ``Y (N, n_out, width)`` with ``Y[k]`` the positions at ``t = k dt``.  The
@@ -534,7 +535,7 @@ def _coulomb_store(t, X, n) -> list[str]:
     return L
 
 
-def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
+def _coulomb_quiet_step(t, P, X, n, mats, step) -> list[str]:
     """Code of a step without event corrections that counts the lanes needing them.
 
     Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
@@ -545,7 +546,7 @@ def _coulomb_quiet_step(t, P, X, n, w, mats, step) -> list[str]:
     ends (a velocity dipping through zero and back, or a held force peaking past ``Fs``
     inside the step, which the end values alone would hide).
     """
-    C = range(n)
+    C, w = range(n), X.width
     L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
     L += _coulomb_load(t, P, X, n)
     L += _coulomb_predict(t, P, n, mats)
@@ -670,7 +671,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
     L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
           "            ev = 0",
           f"            for b in range(g0, g0 + {g}):"]
-    L += _coulomb_quiet_step(" " * 16, P, X, n, w, ("Ad", "bd", "fd", "rd"), "dt")
+    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt")
     L += ["            if ev > 0:",
           f"                for b in range(g0, g0 + {g}):",
           f"                    if S[{X.size * w} + b] != 0.0:",
@@ -695,7 +696,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
           "                ev = 0",
           f"                for b in range({g}):"]
     L += [line.replace("S[", "S2[") for line in
-          _coulomb_quiet_step(" " * 20, PP, XX, n, g, ("A", "bh", "fh", "rh"), "h")]
+          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h")]
     L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
     L += [f"                    for b in range({g}):"]
     L += corrected(" " * 24, PP, XX)

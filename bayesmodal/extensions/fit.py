@@ -115,12 +115,11 @@ def extension_residuals(
     return np.concatenate(parts, axis=1)
 
 
-def _root_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray | None:
-    """Square roots of the experiment weights, one per stacked residual (the layout of
-    ``extension_residuals``); None for equal weights.  Raises ConfigError for unusable
-    weights."""
+def _experiment_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray:
+    """The weight of each experiment in the cost (all 1 for None).  Raises ConfigError
+    for unusable weights."""
     if weights is None:
-        return None
+        return np.ones(len(experiments))
     w = np.asarray(weights, dtype=float)
     if w.shape != (len(experiments),):
         raise ConfigError(f"weights: need one per experiment ({len(experiments)}), got "
@@ -128,8 +127,7 @@ def _root_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray | No
     if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
         raise ConfigError(f"weights must be finite, non-negative and not all zero, got "
                           f"{w.tolist()}")
-    return np.concatenate([np.full(e.n_samples * e.n_outputs, np.sqrt(wi))
-                           for e, wi in zip(experiments, w, strict=True)])
+    return w
 
 
 def _as_list(experiments) -> list[Experiment]:
@@ -213,7 +211,10 @@ def fit_extension_lsq(
     for e in experiments:
         if e.n_outputs != rig.n_carts:
             raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")
-    root_w = _root_weights(weights, experiments)
+    w_exp = _experiment_weights(weights, experiments)
+    # square roots of the weights, one per stacked residual (extension_residuals' layout)
+    root_w = None if weights is None else np.repeat(
+        np.sqrt(w_exp), [e.n_samples * e.n_outputs for e in experiments])
     if linear is None:
         linear = fit_lsq(experiments, model)
     elif linear.model.damping != "free" or linear.model.n_carts != rig.n_carts:
@@ -304,7 +305,6 @@ def fit_extension_lsq(
         fits.append(fit_percent(e.y_m, yh))
         sq.append(((e.y_m - yh) ** 2).sum(axis=0))
     n_total = sum(e.n_samples for e in experiments)
-    w_exp = np.ones(len(experiments)) if weights is None else np.asarray(weights, float)
     return ExtensionFit(
         extension=ext,
         rig=rig,
