@@ -6,7 +6,8 @@
 # A finished run is kept (--resume is a no-op then); delete the folder to sample again.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python3 -m pip install -q -e . 2>&1 | grep -v "Running pip as the 'root' user" || true
+. scripts/_venv.sh
+ensure_venv ""
 bayesmodal report --out out/report "$@"
 bayesmodal run runs/impulses_free.toml --resume
 echo "open runs/impulses_free/report.html in a browser (e.g. xdg-open runs/impulses_free/report.html)"

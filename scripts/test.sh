@@ -4,8 +4,9 @@
 # arguments: pytest with those (e.g. -m slow for the long statistical and fault tests).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python3 -m pip install -q -e ".[test]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+. scripts/_venv.sh
+ensure_venv "[test]"
 if [ $# -eq 0 ]; then
     set -- -m "not slow"
 fi
-python3 -m pytest -q "$@"
+"$VENV/bin/python" -m pytest -q "$@"
