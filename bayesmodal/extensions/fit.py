@@ -38,7 +38,7 @@ from ..metrics import fit_percent
 from ..system import Rig
 from ._base import Extension
 
-__all__ = ["ExtensionFit", "fit_extension_lsq", "extension_residuals"]
+__all__ = ["ExtensionFit", "fit_extension_lsq", "extension_residuals", "extension_cost"]
 
 
 @dataclass(frozen=True)
@@ -113,6 +113,36 @@ def extension_residuals(
         yh = extension.simulate(rig, theta, e.v_volt, e.dt)
         parts.append((e.y_m[None] - yh).reshape(theta.shape[0], -1))
     return np.concatenate(parts, axis=1)
+
+
+def extension_cost(
+    extension: Extension, rig: Rig, theta: np.ndarray, experiments: Sequence[Experiment],
+    weights: Sequence[float] | None = None,
+) -> np.ndarray:
+    """The cost ``fit_extension_lsq`` minimises: half the weighted sum of squared residuals.
+
+    Parameters
+    ----------
+    extension : Extension
+    rig : Rig
+    theta : ndarray, shape (nb, n_params)
+    experiments : sequence of Experiment
+    weights : sequence of float, optional
+        One non-negative weight per experiment (default all 1).
+
+    Returns
+    -------
+    ndarray, shape (nb,), m^2
+        ``0.5 * sum_e w_e * sum_k |y_e,k - yhat_e,k(theta)|^2``.
+    """
+    experiments = _as_list(experiments)
+    w = _experiment_weights(weights, experiments)
+    theta = np.atleast_2d(np.asarray(theta, dtype=float))
+    total = np.zeros(theta.shape[0])
+    for we, e in zip(w, experiments, strict=True):
+        r = e.y_m[None] - extension.simulate(rig, theta, e.v_volt, e.dt)
+        total += 0.5 * we * np.sum(r**2, axis=(1, 2))
+    return total
 
 
 def _experiment_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray:
