@@ -117,6 +117,9 @@ def _attrs(run) -> dict:
             "problems": list(run.diagnostics.problems),
         }),
     }
+    layout = getattr(lik, "layout", None)
+    if layout is not None:
+        attrs["record_layout_json"] = json.dumps(layout.to_dict())
     if run.lsq is not None:
         attrs["lsq_theta_json"] = json.dumps(run.lsq.theta.tolist())
         attrs["lsq_fit_percent_json"] = json.dumps(run.lsq.fit_percent.tolist())
@@ -157,10 +160,15 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
     cd = {"chain": np.arange(n_chain), "draw": np.arange(n_draw)}
     attrs = _attrs(run)
 
-    posterior = xr.Dataset(
-        {nm: (("chain", "draw"), draws[:, :, i]) for i, nm in enumerate(run.names)},
-        coords=cd, attrs=attrs,
-    )
+    variables = {nm: (("chain", "draw"), draws[:, :, i]) for i, nm in enumerate(run.names)}
+    if hasattr(lik, "record_theta"):
+        # several records: the model parameters at the population centre (e.g. g_v =
+        # mu_g_v), so that code written for one record (modal propagation) finds them
+        mech = lik.split(draws.reshape(-1, n_par))[0]
+        for j, nm in enumerate(lik.mech_names):
+            if nm not in variables:
+                variables[nm] = (("chain", "draw"), mech[:, j].reshape(n_chain, n_draw))
+    posterior = xr.Dataset(variables, coords=cd, attrs=attrs)
     sample_stats = xr.Dataset(
         {
             "lp": (("chain", "draw"), run.retained_log_prob),
@@ -198,11 +206,15 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
         step = max(1, round(n_chain * n_draw / n_predictive))
         idx = np.arange(0, n_draw, step)
         sub = draws[:, idx].reshape(-1, n_par)
-        mech, sigma, phi = lik.split(sub)
-        y_hat = np.concatenate(lik.predict(mech), axis=1)
-        noise = np.concatenate(
-            [simulate_noise(sigma, phi, e.n_samples, rng) for e in exps], axis=1
-        )
+        if hasattr(lik, "predict_theta"):  # several records with their own parameters
+            y_hat = np.concatenate(lik.predict_theta(sub), axis=1)
+            noise = np.concatenate(lik.noise_draws(sub, rng), axis=1)
+        else:
+            mech, sigma, phi = lik.split(sub)
+            y_hat = np.concatenate(lik.predict(mech), axis=1)
+            noise = np.concatenate(
+                [simulate_noise(sigma, phi, e.n_samples, rng) for e in exps], axis=1
+            )
         shape = (n_chain, idx.size, y_obs.shape[0], n_out)
         groups["posterior_predictive"] = xr.Dataset(
             {
@@ -282,6 +294,13 @@ def likelihood_from_idata(idata, experiments=None):
     from .likelihood import Likelihood
 
     exps = experiments_from_idata(idata) if experiments is None else experiments
+    layout = idata.posterior.attrs.get("record_layout_json")
+    if layout:
+        from .records import RecordLayout, RecordsLikelihood
+
+        return RecordsLikelihood(model_from_idata(idata), tuple(exps),
+                                 idata.posterior.attrs["noise"], extension_from_idata(idata),
+                                 RecordLayout.from_dict(json.loads(layout)))
     return Likelihood(model_from_idata(idata), tuple(exps), idata.posterior.attrs["noise"],
                       extension_from_idata(idata))
 

@@ -86,8 +86,12 @@ class LogPosterior:
         ll = np.full(z.shape[0], -np.inf)
         ok = np.isfinite(lp)
         if np.any(ok):
-            ll[ok] = self.likelihood(self.priors.to_physical(z[ok]))
-        post = np.where(np.isfinite(ll), lp + ll, -np.inf)
+            th = self.priors.to_physical(z[ok])
+            ll[ok] = self.likelihood(th)
+            population = getattr(self.likelihood, "log_population", None)
+            if population is not None:  # hierarchical per-record parameters
+                lp[ok] = lp[ok] + population(th)
+        post = np.where(np.isfinite(ll) & np.isfinite(lp), lp + ll, -np.inf)
         return np.column_stack([post, ll])
 
 
@@ -476,6 +480,7 @@ def sample_posterior(
     warn: bool = True,
     extension=None,
     restart: int | None = None,
+    layout=None,
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -537,6 +542,13 @@ def sample_posterior(
         the restart and have had ``burn - restart`` steps to spread out again.  The
         restart is deterministic for an integer ``rng`` and survives a resume from
         ``backend``.
+    layout : RecordLayout, optional
+        Several records, one physical system (``bayesmodal.inference.records``): the
+        parameters named in ``layout.per_record`` get one value per record, independent
+        or drawn from a sampled population; the others are shared.  The likelihood is a
+        ``RecordsLikelihood`` and the default priors ``record_priors``.  The walkers start
+        from the joint least-squares fit with per-record gains and offsets solved in
+        closed form (``records_start``).  None (default): every parameter is shared.
 
     Returns
     -------
@@ -557,10 +569,20 @@ def sample_posterior(
     (60, 32, 9)
     """
     exps = as_experiments(experiments)
-    lik = Likelihood(model, exps, noise, extension)
+    if layout is None:
+        lik = Likelihood(model, exps, noise, extension)
+    else:
+        from .records import RecordsLikelihood
+
+        lik = RecordsLikelihood(model, exps, noise, extension, layout)
     ext = lik.extension
     if priors is None:
-        priors = default_priors(model, noise=noise, extension=ext)
+        if layout is None:
+            priors = default_priors(model, noise=noise, extension=ext)
+        else:
+            from .records import record_priors
+
+            priors = record_priors(lik)
     log_post = LogPosterior(lik, priors)
     n_par = priors.n_params
     n_walkers = int(n_walkers)
@@ -601,8 +623,15 @@ def sample_posterior(
             start = fit_extension_lsq(list(exps), ext, model.rig, linear=start)
         lsq = start if isinstance(start, ExtensionFit) else None
         theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
-        theta_mech = _inside_priors(ext.check(model.rig, theta_mech), priors)
-    centre = np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
+        theta_mech = ext.check(model.rig, theta_mech)
+        if layout is None:
+            theta_mech = _inside_priors(theta_mech, priors)
+    if layout is None:
+        centre = np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
+    else:
+        from .records import records_start
+
+        centre = _inside_priors(records_start(lik, theta_mech), priors)
 
     gen = np.random.default_rng(rng)
     # the restart ball's seed comes from a copy of the generator, so that the stream of
@@ -625,6 +654,7 @@ def sample_posterior(
         "seed": int(rng) if isinstance(rng, (int, np.integer)) else None,
         "refine": bool(refine),
         **({} if restart is None else {"restart": restart}),
+        **({} if layout is None else {"layout": lik.layout.to_dict()}),
     }
     # the hash identifies the target and ensemble; a resumed run may extend n_steps
     chash = config_hash(config)

@@ -27,8 +27,14 @@ __all__ = [
 
 
 def parameter_intervals(idata, prob: float = 0.9) -> dict[str, Interval]:
-    """Median, equal-tailed and HDI intervals of every posterior parameter."""
+    """Median, equal-tailed and HDI intervals of every posterior parameter.
+
+    A run on several records with per-record model parameters also has them at the
+    population centre (e.g. ``g_v``, see ``to_inference_data``); they are included.
+    """
     names = json.loads(idata.posterior.attrs["parameter_names"])
+    mech = json.loads(idata.posterior.attrs.get("mechanical_names", "[]"))
+    names += [nm for nm in mech if nm not in names and nm in idata.posterior]
     draws = posterior_matrix(idata, names).reshape(-1, len(names))
     return {nm: credible_interval(draws[:, i], prob) for i, nm in enumerate(names)}
 

@@ -1,0 +1,597 @@
+"""Several records, one physical system: shared, per-record and hierarchical parameters.
+
+The records of one rig share its physics (masses, dampers, springs, extension
+parameters) but not everything: the drive gain ``g_v`` differs from record to record on
+the ECP 210 (about 6.1 N/V on the steps, 5.5 on the impulses, 4.5-5.2 on the sweeps), and
+the amplifier has an input offset ``v0`` (V).  A :class:`RecordLayout` says which
+parameters are per record and how:
+
+``"independent"``
+    Each record ``r`` has its own value ``p[r]`` with the parameter's default prior.
+``"hierarchical"``
+    The values are drawn from a population, which is sampled too.  For a positive
+    parameter (sampled in log, e.g. ``g_v``) the population is log-normal,
+    ``log p[r] ~ N(log mu_p, tau_p^2)`` with ``tau_p`` the relative spread; for a signed
+    one (``v0``) normal, ``p[r] ~ N(mu_p, tau_p^2)`` with ``tau_p`` in the parameter's
+    unit.  ``mu_p`` gets the parameter's default prior and ``tau_p`` a half-normal prior
+    (scale :data:`TAU_SCALE`).  This is the standard remedy when records disagree: a new
+    record is predicted with a value drawn from the population, not with one record's.
+
+The input offset ``v0`` is not a parameter of the single-record model; declaring it adds
+``v0[r]`` to every record (``v = v_measured + v0``).  For the linear model the output is
+linear in ``g_v`` and in the input, so with unit-gain simulations ``a = S(v)`` and
+``b = S(1)`` the prediction is ``y = g_v (a + v0 b)`` (two simulations per record).
+
+Noise parameters (``sigma_j``, ``phi_j``) are shared by the records unless
+``noise_per_record``; a new record is then predicted with the shared noise model (or, per
+record, with a training record's noise parameters drawn at random).
+
+Parameter vector: the shared model parameters in the model's order, then for every
+per-record parameter (in layout order) ``mu_p, tau_p`` if hierarchical and ``p[r]`` for
+every record, then the noise parameters (``sigma_j[r]``... when per record).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from ..data import Experiment
+from ..simulate import simulate_linear
+from ..system import LinearModel
+from .likelihood import (
+    Likelihood,
+    ar1_terms,
+    residual_loglik,
+    simulate_noise,
+    white_terms,
+)
+from .priors import Normal, PriorSet, default_priors, noise_names
+
+__all__ = [
+    "RecordLayout",
+    "RecordsLikelihood",
+    "record_priors",
+    "records_start",
+    "PER_RECORD_KINDS",
+    "TAU_SCALE",
+    "DEFAULT_LAYOUT",
+]
+
+PER_RECORD_KINDS = ("independent", "hierarchical")
+
+#: Scale of the half-normal prior of a population spread ``tau_p``: relative for a
+#: log-sampled parameter (0.1 = 10 %), V for the input offset.
+TAU_SCALE = {"log": 0.1, "v0": 0.05}
+
+#: Prior of an independent input offset, and of a hierarchical offset's mean, V.
+V0_PRIOR = Normal(0.0, 0.1, lo=-1.0, hi=1.0)
+
+
+def _record_key(name: str) -> str:
+    """A record name usable inside parameter names (letters, digits, ``_ - .``)."""
+    key = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_")
+    return key or "record"
+
+
+@dataclass(frozen=True)
+class RecordLayout:
+    """Which parameters are per record, and how.
+
+    Parameters
+    ----------
+    per_record : mapping of str to {"independent", "hierarchical"}
+        Model parameter names (``g_v``, a mass, a damper, an extension parameter) or
+        ``"v0"`` (the input offset, V), e.g. ``{"g_v": "hierarchical", "v0":
+        "hierarchical"}``.  Empty: every parameter is shared, as in a single-record run.
+    noise_per_record : bool
+        Each record has its own noise parameters (default: shared).
+
+    Examples
+    --------
+    >>> RecordLayout({"g_v": "hierarchical"}).kinds
+    (('g_v', 'hierarchical'),)
+    """
+
+    per_record: Mapping[str, str] = field(default_factory=dict)
+    noise_per_record: bool = False
+
+    def __post_init__(self) -> None:
+        items = tuple((str(k), str(v)) for k, v in dict(self.per_record).items())
+        for name, kind in items:
+            if kind not in PER_RECORD_KINDS:
+                raise ConfigError(
+                    f"per-record parameter {name}: kind must be one of {PER_RECORD_KINDS}, "
+                    f"got {kind!r}")
+        object.__setattr__(self, "per_record", dict(items))
+        object.__setattr__(self, "noise_per_record", bool(self.noise_per_record))
+
+    @property
+    def kinds(self) -> tuple[tuple[str, str], ...]:
+        return tuple(self.per_record.items())
+
+    def to_dict(self) -> dict:
+        return {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> RecordLayout:
+        return cls(dict(d.get("per_record", {})), bool(d.get("noise_per_record", False)))
+
+
+#: The package's default for several records: a drive gain and an input offset per record,
+#: both drawn from a population (docs/uncertainty.md shows the measurements behind it).
+DEFAULT_LAYOUT = RecordLayout({"g_v": "hierarchical", "v0": "hierarchical"})
+
+
+@dataclass(frozen=True, eq=False)
+class RecordsLikelihood:
+    """Log-likelihood of several records of one rig with per-record parameters.
+
+    Parameters
+    ----------
+    model : LinearModel
+    experiments : sequence of Experiment
+        At least one; names must be distinct (they name the per-record parameters).
+    noise : {"ar1", "white"}
+    extension : str or Extension, optional
+        A model extension on the free-damping model.
+    layout : RecordLayout
+        Per-record parameters (default :data:`DEFAULT_LAYOUT`).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameter vector's names (see the module docstring).
+    record_keys : tuple of str
+        Record names as they appear in parameter names, ``p[key]``.
+
+    Examples
+    --------
+    >>> from bayesmodal.system import LinearModel, Rig
+    >>> t = np.arange(200) * 0.005
+    >>> exps = [Experiment(t, 3.0 * (t < 0.05), np.zeros((200, 3)), name=n) for n in "ab"]
+    >>> lik = RecordsLikelihood(LinearModel(Rig(), "proportional"), exps, "white")
+    >>> lik.names[:5]
+    ('m1', 'm2', 'm3', 'ca', 'cb')
+    >>> lik.names[5:9]
+    ('mu_g_v', 'tau_g_v', 'g_v[a]', 'g_v[b]')
+    """
+
+    model: LinearModel
+    experiments: tuple[Experiment, ...]
+    noise: str = "ar1"
+    extension: object = None
+    layout: RecordLayout = DEFAULT_LAYOUT
+
+    def __post_init__(self) -> None:
+        exps = (self.experiments,) if isinstance(self.experiments, Experiment) else tuple(
+            self.experiments)
+        # one single-record likelihood per record: it validates outputs, noise, extension
+        singles = tuple(Likelihood(self.model, (e,), self.noise, self.extension) for e in exps)
+        if not exps:
+            raise DataError("no experiments given")
+        keys = tuple(_record_key(e.name) for e in exps)
+        if len(set(keys)) != len(keys):
+            raise DataError(
+                f"record names must be distinct to name per-record parameters, got "
+                f"{[e.name for e in exps]}; give each Experiment its own name")
+        layout = self.layout if isinstance(self.layout, RecordLayout) else RecordLayout(
+            **dict(self.layout))
+        mech = singles[0].mech_names
+        for name, _ in layout.kinds:
+            if name != "v0" and name not in mech:
+                raise ConfigError(
+                    f"per-record parameter {name!r} is not a model parameter; choose from "
+                    f"{list(mech) + ['v0']}")
+        ext = singles[0].extension
+        if "v0" in layout.per_record and ext is not None:
+            raise ConfigError(
+                "an input offset per record (v0) is built for the linear model; with a model "
+                "extension add the input_offset effect and declare its parameter per record")
+        object.__setattr__(self, "experiments", exps)
+        object.__setattr__(self, "layout", layout)
+        object.__setattr__(self, "extension", ext)
+        object.__setattr__(self, "_singles", singles)
+        object.__setattr__(self, "record_keys", keys)
+        object.__setattr__(self, "_index", self._build_index(mech))
+
+    # ---------------------------------------------------------------- layout
+    def _build_index(self, mech: tuple[str, ...]) -> dict:
+        names: list[str] = []
+        per = self.layout.per_record
+        shared = [nm for nm in mech if nm not in per]
+        names += shared
+        groups = {}
+        for p, kind in self.layout.kinds:
+            g = {"kind": kind}
+            if kind == "hierarchical":
+                g["mu"] = len(names)
+                g["tau"] = len(names) + 1
+                names += [f"mu_{p}", f"tau_{p}"]
+            g["records"] = list(range(len(names), len(names) + len(self.record_keys)))
+            names += [f"{p}[{k}]" for k in self.record_keys]
+            groups[p] = g
+        n_out = self.n_outputs
+        base_noise = noise_names(n_out, self.noise)
+        if self.layout.noise_per_record:
+            noise = [[len(names) + r * len(base_noise) + j for j in range(len(base_noise))]
+                     for r in range(len(self.record_keys))]
+            names += [f"{nm}[{k}]" for k in self.record_keys for nm in base_noise]
+        else:
+            noise = [list(range(len(names), len(names) + len(base_noise)))] * len(
+                self.record_keys)
+            names += list(base_noise)
+        return {"names": tuple(names), "mech": mech,
+                "shared": [mech.index(nm) for nm in shared],
+                "shared_pos": list(range(len(shared))), "groups": groups, "noise": noise}
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self._index["names"]
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    @property
+    def n_outputs(self) -> int:
+        return self.model.n_carts
+
+    @property
+    def n_records(self) -> int:
+        return len(self.experiments)
+
+    @property
+    def mech_names(self) -> tuple[str, ...]:
+        """The single-record model parameters (linear, then the extension's)."""
+        return self._index["mech"]
+
+    @property
+    def extension_name(self) -> str | None:
+        return None if self.extension is None else self.extension.name
+
+    @property
+    def n_data(self) -> int:
+        return sum(e.n_samples * e.n_outputs for e in self.experiments)
+
+    def hierarchical_names(self) -> tuple[str, ...]:
+        return tuple(p for p, k in self.layout.kinds if k == "hierarchical")
+
+    # ---------------------------------------------------------------- mapping
+    def record_theta(self, theta: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
+        """Record ``r``'s single-record parameters and input offset.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (nb, P)
+
+        Returns
+        -------
+        full : ndarray, shape (nb, n_mech + n_noise)
+            In the layout of a single-record :class:`Likelihood` of the same model.
+        v0 : ndarray, shape (nb,)
+            Input offset, V (zero when not per record).
+        """
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        ix = self._index
+        nb = theta.shape[0]
+        mech = np.empty((nb, len(ix["mech"])))
+        mech[:, ix["shared"]] = theta[:, ix["shared_pos"]]
+        v0 = np.zeros(nb)
+        for p, g in ix["groups"].items():
+            val = theta[:, g["records"][r]]
+            if p == "v0":
+                v0 = val
+            else:
+                mech[:, ix["mech"].index(p)] = val
+        return np.concatenate([mech, theta[:, ix["noise"][r]]], axis=1), v0
+
+    def population(self, theta: np.ndarray, p: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(mu_p, tau_p)`` of a hierarchical parameter, each shape (nb,), else None."""
+        g = self._index["groups"].get(p)
+        if g is None or g["kind"] != "hierarchical":
+            return None
+        theta = np.atleast_2d(theta)
+        return theta[:, g["mu"]], theta[:, g["tau"]]
+
+    def log_population(self, theta: np.ndarray) -> np.ndarray:
+        """Log density of the per-record values under their populations, shape (nb,).
+
+        The term ``sum_p sum_r log p(p[r] | mu_p, tau_p)`` of the joint prior that a
+        product of independent priors cannot express; ``LogPosterior`` adds it.  The
+        per-record values' own entries in the :class:`PriorSet` are uniform over the
+        parameter's support and only truncate the population.
+        """
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        out = np.zeros(theta.shape[0])
+        with np.errstate(all="ignore"):
+            for p, g in self._index["groups"].items():
+                if g["kind"] != "hierarchical":
+                    continue
+                mu, tau = theta[:, g["mu"]], theta[:, g["tau"]]
+                x = theta[:, g["records"]]
+                if p != "v0" and _positive(p):
+                    z = (np.log(x) - np.log(mu)[:, None]) / tau[:, None]
+                    dens = -0.5 * z**2 - np.log(tau)[:, None] - np.log(x)
+                else:
+                    z = (x - mu[:, None]) / tau[:, None]
+                    dens = -0.5 * z**2 - np.log(tau)[:, None]
+                out += np.sum(dens, axis=1) - 0.5 * x.shape[1] * np.log(2 * np.pi)
+        return np.where(np.isfinite(out), out, -np.inf)
+
+    def admissible(self, theta: np.ndarray) -> np.ndarray:
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        if theta.shape[-1] != self.n_params:
+            raise ConfigError(
+                f"parameter vectors must have length {self.n_params} {self.names}, "
+                f"got shape {theta.shape}")
+        ok = np.all(np.isfinite(theta), axis=-1)
+        for r, single in enumerate(self._singles):
+            ok &= single.admissible(self.record_theta(theta, r)[0])
+        for g in self._index["groups"].values():
+            if g["kind"] == "hierarchical":
+                ok &= theta[:, g["tau"]] > 0
+        return ok
+
+    # ---------------------------------------------------------------- evaluation
+    def predict_record(self, theta: np.ndarray, r: int, experiment: Experiment | None = None
+                       ) -> np.ndarray:
+        """Noise-free outputs of record ``r``'s parameters, shape (nb, N, n_out), m.
+
+        ``experiment`` (default: record ``r``) gives the input; ``theta`` must be
+        admissible.
+        """
+        full, v0 = self.record_theta(theta, r)
+        mech = full[:, : len(self.mech_names)]
+        return self.predict_mech(mech, v0, experiment or self.experiments[r])
+
+    def predict_mech(self, mech: np.ndarray, v0: np.ndarray, e: Experiment) -> np.ndarray:
+        """Outputs of single-record parameter sets with input offsets on one input.
+
+        Parameters
+        ----------
+        mech : ndarray, shape (nb, n_mech)
+        v0 : ndarray, shape (nb,), V
+        e : Experiment
+            Gives the input ``v`` and ``dt``.
+
+        Returns
+        -------
+        ndarray, shape (nb, N, n_out), m
+        """
+        if self.extension is not None:
+            return self.extension.simulate(self.model.rig, mech, e.v_volt, e.dt)
+        if not np.any(v0):
+            return simulate_linear(self.model, mech, e.v_volt, e.dt)
+        # linear in g_v and in the input: y = g_v (S1(v) + v0 S1(1)) with unit-gain S1
+        unit = mech.copy()
+        g = unit[:, 0].copy()
+        unit[:, 0] = 1.0
+        a = simulate_linear(self.model, unit, e.v_volt, e.dt)
+        b = simulate_linear(self.model, unit, np.ones(e.n_samples), e.dt)
+        return g[:, None, None] * (a + v0[:, None, None] * b)
+
+    def _noise(self, full: np.ndarray):
+        p = len(self.mech_names)
+        n = self.n_outputs
+        sigma = full[:, p : p + n]
+        phi = full[:, p + n : p + 2 * n] if self.noise == "ar1" else None
+        return sigma, phi
+
+    def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
+        """Pointwise log-likelihood terms per record, each shape (nb, N_r, n_out)."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        ok = self.admissible(theta)
+        out = [np.full((theta.shape[0], e.n_samples, e.n_outputs), -np.inf)
+               for e in self.experiments]
+        if not np.any(ok):
+            return out
+        for r, e in enumerate(self.experiments):
+            full, _ = self.record_theta(theta[ok], r)
+            sigma, phi = self._noise(full)
+            yh = self.predict_record(theta[ok], r)
+            with np.errstate(all="ignore"):
+                r_ = e.y_m[None] - yh
+                t = white_terms(r_, sigma) if phi is None else ar1_terms(r_, sigma, phi)
+            out[r][ok] = np.where(np.isfinite(t), t, -np.inf)
+        return out
+
+    def record_loglik(self, theta: np.ndarray) -> np.ndarray:
+        """Log-likelihood of each record, shape (nb, n_records); ``-inf`` if impossible."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        ok = self.admissible(theta)
+        out = np.full((theta.shape[0], self.n_records), -np.inf)
+        if not np.any(ok):
+            return out
+        th = theta[ok]
+        with np.errstate(all="ignore"):
+            for r, e in enumerate(self.experiments):
+                full, _ = self.record_theta(th, r)
+                sigma, phi = self._noise(full)
+                yh = self.predict_record(th, r)
+                ll = residual_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), sigma, phi)
+                out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
+        return out
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        """Total log-likelihood over the records, shape (nb,)."""
+        return np.sum(self.record_loglik(theta), axis=1)
+
+    # ---------------------------------------------------------------- compatibility
+    def split(self, theta: np.ndarray):
+        """Mechanical parameters at the population centre, and the first record's noise.
+
+        For code written for one record (modal propagation, which does not depend on
+        ``g_v`` or ``v0``): a per-record model parameter is replaced by ``mu_p``
+        (hierarchical) or by the geometric mean over records (independent).
+        """
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        full, _ = self.record_theta(theta, 0)
+        mech = full[:, : len(self.mech_names)].copy()
+        for p, g in self._index["groups"].items():
+            if p == "v0":
+                continue
+            j = self.mech_names.index(p)
+            if g["kind"] == "hierarchical":
+                mech[:, j] = theta[:, g["mu"]]
+            else:
+                mech[:, j] = np.exp(np.mean(np.log(theta[:, g["records"]]), axis=1))
+        sigma, phi = self._noise(full)
+        return mech, sigma, phi
+
+    def predict_theta(self, theta: np.ndarray) -> list[np.ndarray]:
+        """Noise-free outputs of every record, each shape (nb, N_r, n_out), m."""
+        return [self.predict_record(theta, r) for r in range(self.n_records)]
+
+    def noise_draws(self, theta: np.ndarray, rng=None) -> list[np.ndarray]:
+        """Residual draws from each record's noise model, each shape (nb, N_r, n_out)."""
+        rng = np.random.default_rng(rng)
+        out = []
+        for r, e in enumerate(self.experiments):
+            sigma, phi = self._noise(self.record_theta(theta, r)[0])
+            out.append(simulate_noise(sigma, phi, e.n_samples, rng))
+        return out
+
+    def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
+        """Moment estimates of the noise parameters (in ``names`` order of the noise)."""
+        starts = []
+        for r, single in enumerate(self._singles):
+            full, v0 = self.record_theta(theta[None], r)
+            mech = full[0, : len(self.mech_names)]
+            e = self.experiments[r]
+            res = e.y_m - self.predict_mech(mech[None], v0, e)[0]
+            starts.append(_noise_moments(res, self.noise))
+        if self.layout.noise_per_record:
+            return np.concatenate(starts)
+        # shared: pool the per-record moments (RMS of sigma, mean of phi)
+        s = np.array(starts)
+        n = self.n_outputs
+        sig = np.sqrt(np.mean(s[:, :n] ** 2, axis=0))
+        return sig if self.noise == "white" else np.r_[sig, np.mean(s[:, n:], axis=0)]
+
+
+def _positive(name: str) -> bool:
+    """Parameters sampled on a log scale when per record: the gain, masses, dampers and
+    positive extension levels (everything but the input offset)."""
+    return name != "v0"
+
+
+def _noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
+    if noise == "white":
+        return np.sqrt(np.mean(r**2, axis=0))
+    phi = np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0)
+    phi = np.clip(phi, -0.9999, 0.9999)
+    sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
+    return np.r_[sigma, phi]
+
+
+def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None = None
+                  ) -> PriorSet:
+    """Default priors of a :class:`RecordsLikelihood`'s parameters.
+
+    Shared parameters and per-record values get the single-record defaults
+    (``default_priors``); a population mean ``mu_p`` the default of ``p``; a spread
+    ``tau_p`` a half-normal prior of scale :data:`TAU_SCALE`, truncated at 1 (relative) or
+    1 V; the input offset :data:`V0_PRIOR`.  Noise parameters per record copy the shared
+    defaults.
+
+    Parameters
+    ----------
+    lik : RecordsLikelihood
+    overrides : mapping of str to prior, optional
+        Replacements by name in ``lik.names``.
+
+    Returns
+    -------
+    PriorSet
+    """
+    base = default_priors(lik.model, noise=lik.noise, n_outputs=lik.n_outputs,
+                          extension=lik.extension)
+    table = dict(zip(base.names, zip(base.priors, base.transforms, strict=True), strict=True))
+    table["v0"] = (V0_PRIOR, "identity")
+    priors, trs = [], []
+    for nm in lik.names:
+        m = re.fullmatch(r"(mu|tau)_(.+)", nm)
+        base_name = nm.split("[", 1)[0]
+        if m and m.group(2) in lik.layout.per_record and base_name == nm:
+            p = m.group(2)
+            if m.group(1) == "mu":
+                pr, tr = table[p]
+            else:
+                scale = TAU_SCALE["v0"] if p == "v0" else TAU_SCALE["log"]
+                if p != "v0" and table[p][1] != "log":
+                    raise ConfigError(
+                        f"hierarchical {p}: a population needs a parameter sampled on a log "
+                        f"scale (positive); declare {p} independent instead")
+                pr, tr = Normal(0.0, scale, lo=0.0, hi=1.0), "log"
+        else:
+            pr, tr = table[base_name]
+        priors.append(pr)
+        trs.append(tr)
+    ps = PriorSet(lik.names, tuple(priors), tuple(trs))
+    return ps.replace(overrides) if overrides else ps
+
+
+def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
+    """A starting point of the full parameter vector from a joint single-record estimate.
+
+    Shared parameters come from ``theta_mech`` (e.g. a least-squares fit of all records
+    with shared parameters).  For the linear model each record's ``g_v`` and ``v0`` are
+    then the least-squares solution of ``y = g a + h b`` with the unit-gain simulations
+    ``a = S(v)``, ``b = S(1)`` and ``h = g v0`` (closed form, all outputs pooled); other
+    per-record values start at the shared estimate.  Population means and spreads start
+    at the mean and spread of the per-record values (spreads at least 1 % or 5 mV).
+    Noise parameters are moment estimates of the residuals.
+
+    Parameters
+    ----------
+    lik : RecordsLikelihood
+    theta_mech : ndarray, shape (n_mech,)
+
+    Returns
+    -------
+    ndarray, shape (P,)
+    """
+    theta_mech = np.asarray(theta_mech, dtype=float)
+    ix = lik._index
+    R = lik.n_records
+    values = {p: np.full(R, theta_mech[lik.mech_names.index(p)]) if p != "v0" else np.zeros(R)
+              for p in lik.layout.per_record}
+    if lik.extension is None and ("g_v" in values or "v0" in values):
+        unit = theta_mech.copy()
+        unit[0] = 1.0
+        for r, e in enumerate(lik.experiments):
+            a = simulate_linear(lik.model, unit, e.v_volt, e.dt).ravel()
+            cols = [a]
+            if "v0" in values:
+                cols.append(simulate_linear(lik.model, unit, np.ones(e.n_samples), e.dt).ravel())
+            coef = np.linalg.lstsq(np.column_stack(cols), e.y_m.ravel(), rcond=None)[0]
+            g = coef[0] if coef[0] > 0 else theta_mech[0]
+            if "g_v" in values:
+                values["g_v"][r] = g
+            if "v0" in values:
+                values["v0"][r] = float(np.clip(coef[1] / g, -0.5, 0.5))
+    out = np.empty(lik.n_params)
+    out[ix["shared_pos"]] = theta_mech[ix["shared"]]
+    for p, g in ix["groups"].items():
+        x = values[p]
+        out[g["records"]] = x
+        if g["kind"] == "hierarchical":
+            if p == "v0":
+                out[g["mu"]], out[g["tau"]] = np.mean(x), max(np.std(x), 0.005)
+            else:
+                out[g["mu"]] = np.exp(np.mean(np.log(x)))
+                out[g["tau"]] = max(np.std(np.log(x)), 0.01)
+    n_noise = len(lik.names) - ix["noise"][0][0]
+    out[len(out) - n_noise:] = lik.residual_noise_start(out)
+    return out
+
+
+def as_records(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:
+    if isinstance(experiments, Experiment):
+        return (experiments,)
+    return tuple(experiments)

@@ -1,0 +1,142 @@
+"""Several records of one rig: shared, per-record and hierarchical parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from bayesmodal._errors import ConfigError, DataError
+from bayesmodal.data import Experiment
+from bayesmodal.inference.likelihood import Likelihood
+from bayesmodal.inference.records import (
+    DEFAULT_LAYOUT,
+    RecordLayout,
+    RecordsLikelihood,
+    record_priors,
+    records_start,
+)
+from bayesmodal.inference.sampling import LogPosterior
+from bayesmodal.simulate import simulate_linear
+from bayesmodal.system import LinearModel, Rig
+
+EPS = np.finfo(float).eps
+MODEL = LinearModel(Rig(), "free")
+THETA = np.array([5.5, 1.5, 1.45, 1.15, 3.0, 2.0, 1.5, 0.5, 0.5])
+TRUTH = [(5.5, 0.01), (6.0, -0.02), (5.0, 0.0)]  # (g_v, v0) per record
+DT = 0.005
+
+
+def _records(noise_m=1e-5, n=1500, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * DT
+    out = []
+    for k, (g, v0) in enumerate(TRUTH):
+        v = 3.0 * ((t % 2) < 0.05) if k == 0 else 0.5 * np.sin(t * (1 + k))
+        th = THETA.copy()
+        th[0] = g
+        y = simulate_linear(MODEL, th, v + v0, DT)
+        out.append(Experiment(t, v, y + noise_m * rng.standard_normal(y.shape), name=f"r{k}"))
+    return out
+
+
+@pytest.fixture(scope="module")
+def records():
+    return _records()
+
+
+def test_no_per_record_parameter_is_the_single_record_likelihood(records):
+    lik = RecordsLikelihood(MODEL, records, "ar1", layout=RecordLayout({}))
+    single = Likelihood(MODEL, records, "ar1")
+    assert lik.names == single.names
+    x = np.r_[THETA, 1e-5, 2e-5, 3e-5, 0.5, 0.6, 0.7][None]
+    assert lik(x)[0] == single(x)[0]
+
+
+def test_names_follow_the_layout(records):
+    lik = RecordsLikelihood(MODEL, records, "white",
+                            layout=RecordLayout({"g_v": "independent", "m1": "hierarchical"},
+                                                noise_per_record=True))
+    assert lik.names[:7] == ("m2", "m3", "c1", "c2", "c3", "c12", "c23")
+    assert lik.names[7:10] == ("g_v[r0]", "g_v[r1]", "g_v[r2]")
+    assert lik.names[10:12] == ("mu_m1", "tau_m1")
+    assert lik.names[-3:] == ("sigma_1[r2]", "sigma_2[r2]", "sigma_3[r2]")
+
+
+def test_input_offset_by_superposition_equals_simulating_the_offset_input(records):
+    lik = RecordsLikelihood(MODEL, records, "ar1")
+    centre = records_start(lik, THETA)
+    for r, e in enumerate(records):
+        full, v0 = lik.record_theta(centre[None], r)
+        direct = simulate_linear(MODEL, full[0, :9], e.v_volt + v0[0], DT)
+        # the same exact recursions, regrouped: rounding grows at most with the length
+        tol = e.n_samples * EPS * np.max(np.abs(direct))
+        assert np.max(np.abs(lik.predict_record(centre[None], r)[0] - direct)) <= tol
+        assert v0[0] != 0.0 or TRUTH[r][1] == 0.0
+
+
+def test_start_solves_gains_and_offsets_in_closed_form():
+    exact = _records(noise_m=0.0)
+    lik = RecordsLikelihood(MODEL, exact, "white")
+    c = dict(zip(lik.names, records_start(lik, THETA), strict=True))
+    for k, (g, v0) in enumerate(TRUTH):
+        # a least-squares solve of an exactly consistent system: error ~ cond * eps
+        A = np.column_stack([simulate_linear(MODEL, np.r_[1.0, THETA[1:]], exact[k].v_volt,
+                                             DT).ravel(),
+                             simulate_linear(MODEL, np.r_[1.0, THETA[1:]],
+                                             np.ones(exact[k].n_samples), DT).ravel()])
+        tol = np.linalg.cond(A) * exact[k].n_samples * EPS
+        assert c[f"g_v[r{k}]"] == pytest.approx(g, rel=tol)
+        assert c[f"v0[r{k}]"] == pytest.approx(v0, abs=tol)
+    assert c["mu_g_v"] == pytest.approx(np.exp(np.mean(np.log([g for g, _ in TRUTH]))))
+
+
+def test_pointwise_terms_sum_to_the_total(records):
+    lik = RecordsLikelihood(MODEL, records, "ar1")
+    c = records_start(lik, THETA)
+    x = np.stack([c, c * np.r_[np.full(lik.n_params - 6, 1.001), np.ones(6)]])
+    total = lik(x)
+    parts = sum(p.sum(axis=(1, 2)) for p in lik.pointwise(x))
+    n = lik.n_data
+    np.testing.assert_allclose(parts, total, rtol=n * 1e3 * EPS)  # 3 digits lost: see ar1
+    assert lik.record_loglik(x).shape == (2, 3)
+
+
+def test_population_density_matches_scipy(records):
+    lik = RecordsLikelihood(MODEL, records, "white")
+    c = records_start(lik, THETA)
+    d = dict(zip(lik.names, c, strict=True))
+    gs = [d[f"g_v[r{k}]"] for k in range(3)]
+    v0s = [d[f"v0[r{k}]"] for k in range(3)]
+    ref = np.sum(stats.lognorm.logpdf(gs, s=d["tau_g_v"], scale=d["mu_g_v"]))
+    ref += np.sum(stats.norm.logpdf(v0s, d["mu_v0"], d["tau_v0"]))
+    assert lik.log_population(c[None])[0] == pytest.approx(ref, rel=1e3 * EPS)
+    # the posterior adds it to the independent priors
+    priors = record_priors(lik)
+    lp = LogPosterior(lik, priors)(priors.to_sampling(c)[None])
+    expect = (priors.log_prior_z(priors.to_sampling(c)) + ref + lik(c[None])[0])
+    assert lp[0, 0] == pytest.approx(expect, rel=1e3 * EPS)
+    # negative control: a spread that excludes the records lowers the density
+    bad = c.copy()
+    bad[lik.names.index("tau_g_v")] = 1e-3
+    assert lik.log_population(bad[None])[0] < ref
+
+
+def test_bad_layouts_name_the_fix(records):
+    with pytest.raises(ConfigError, match="not a model parameter"):
+        RecordsLikelihood(MODEL, records, "white", layout=RecordLayout({"k9": "independent"}))
+    with pytest.raises(ConfigError, match="kind must be one of"):
+        RecordLayout({"g_v": "pooled"})
+    same = [records[0], records[0]]
+    with pytest.raises(DataError, match="distinct"):
+        RecordsLikelihood(MODEL, same, "white")
+    lik = RecordsLikelihood(MODEL, records, "white", layout=RecordLayout({"c12": "hierarchical"}))
+    with pytest.raises(ConfigError, match="declare c12 independent"):
+        record_priors(lik)
+    with pytest.raises(ConfigError, match="input_offset"):
+        RecordsLikelihood(MODEL, records, "white", extension="motor_lag", layout=DEFAULT_LAYOUT)
+
+
+def test_layout_round_trips_through_a_dict():
+    lay = RecordLayout({"g_v": "hierarchical", "v0": "independent"}, noise_per_record=True)
+    assert RecordLayout.from_dict(lay.to_dict()) == lay
