@@ -21,6 +21,16 @@ problem in a file is collected and reported at once, each naming the file and th
 
     [likelihood]
     noise = "ar1"               # or "white"
+    temperature = 1.0           # optional: generalised posterior L^(1/T)
+
+    [records]                   # optional: several records, one physical system
+    per_record = { g_v = "hierarchical", v0 = "hierarchical" }   # or "independent"
+    noise_per_record = false
+
+    [crossval]                  # optional: leave-one-record-out check of the run
+    enabled = true
+    draws = 200                 # posterior draws per held-out prediction
+    steps = 4000                # sampler steps per fold (default [sampler] steps)
 
     [sampler]
     walkers = 32
@@ -72,7 +82,9 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "rig": {"springs_n_m": list},
     "model": {"damping": str, "extensions": list},
     "priors": {},  # free keys, checked against parameter names later
-    "likelihood": {"noise": str},
+    "likelihood": {"noise": str, "temperature": (int, float)},
+    "records": {"per_record": dict, "noise_per_record": bool},
+    "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
                 "moves": str, "restart": int},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
@@ -120,6 +132,42 @@ class RunConfig:
     evidence: bool = False
     evidence_nlive: int = 250
     evidence_dlogz: float = 0.5
+    per_record: dict[str, str] = field(default_factory=dict)
+    noise_per_record: bool = False
+    temperature: float = 1.0
+    crossval: bool = False
+    crossval_draws: int = 200
+    crossval_walkers: int | None = None
+    crossval_steps: int | None = None
+
+    #: Fields left out of the hash at their defaults (configs written before them keep
+    #: their hashes).
+    _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "temperature": 1.0,
+                     "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
+                     "crossval_steps": None}
+
+    @property
+    def layout(self):
+        """The per-record layout (``RecordLayout``), or None for shared parameters."""
+        if not self.per_record and not self.noise_per_record:
+            return None
+        from .inference.records import RecordLayout
+
+        return RecordLayout(dict(self.per_record), self.noise_per_record)
+
+    def crossval_spec(self):
+        """The ``CrossvalSpec`` of this configuration (model, noise, layout, sampler)."""
+        from .inference.crossval import CrossvalSpec
+        from .inference.records import RecordLayout
+
+        return CrossvalSpec(
+            damping=self.damping, noise=self.noise,
+            extension=self.extensions[0] if self.extensions else None,
+            layout=self.layout or RecordLayout({}),
+            n_walkers=self.crossval_walkers or self.walkers,
+            n_steps=self.crossval_steps or self.steps, burn=None if self.crossval_steps
+            else self.burn, n_predictive=self.crossval_draws, seed=self.seed,
+            temperature=self.temperature, springs_n_m=self.springs_n_m)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -134,6 +182,9 @@ class RunConfig:
             d.pop(k)
         if d["restart"] is None:  # keeps the hashes of configs written before the key
             d.pop("restart")
+        for k, default in self._NEW_DEFAULTS.items():
+            if d[k] == default:
+                d.pop(k)
         # where the data live does not change the result; their content is hashed separately
         d["data_files"] = [Path(f).name for f in self.data_files]
         d["heldout_files"] = [Path(f).name for f in self.heldout_files]
@@ -270,6 +321,31 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             err("model.extensions", f"unknown extension {e!r}; known: {list(known)}")
     kw["extensions"] = tuple(str(e) for e in exts)
 
+    temp = values.get(("likelihood", "temperature"))
+    if temp is not None:
+        if not temp > 0:
+            err("likelihood.temperature", f"must be > 0, got {temp!r}")
+        kw["temperature"] = float(temp)
+    per = values.get(("records", "per_record"))
+    if per is not None:
+        for pname, kind in per.items():
+            if kind not in ("independent", "hierarchical"):
+                err(f"records.per_record.{pname}", "must be 'independent' or 'hierarchical', "
+                    f"got {kind!r}")
+        kw["per_record"] = {str(k): str(v) for k, v in per.items()}
+    if ("records", "noise_per_record") in values:
+        kw["noise_per_record"] = values[("records", "noise_per_record")]
+    if ("crossval", "enabled") in values:
+        kw["crossval"] = values[("crossval", "enabled")]
+    for key, lo in (("draws", 2), ("walkers", 4), ("steps", 10)):
+        v = values.get(("crossval", key))
+        if v is not None:
+            if v < lo:
+                err(f"crossval.{key}", f"must be >= {lo}, got {v}")
+            kw[f"crossval_{key}"] = v
+    if kw.get("crossval") and len(files) < 2:
+        err("crossval.enabled", "leave-one-record-out needs at least two [data.files]")
+
     noise = values.get(("likelihood", "noise"), "ar1")
     if noise not in NOISE_MODELS:
         err("likelihood.noise", f"must be one of {NOISE_MODELS}, got {noise!r}")
@@ -363,7 +439,9 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             if scale == "log" and lo <= 0:
                 err(key, f"a log-uniform prior needs lo > 0, got {lo}")
             priors[_noise_alias(pname)] = PriorOverride(float(lo), float(hi), str(scale))
-        _check_prior_names(priors, kw, err)
+        if not kw.get("per_record") and not kw.get("noise_per_record"):
+            # several records rename parameters (g_v[rec], mu_g_v): the runner checks them
+            _check_prior_names(priors, kw, err)
     kw["priors"] = priors
 
     if errors:

@@ -17,7 +17,7 @@ from .._errors import ConfigError, DataError, ModelError
 
 #: Sub-command modules, in help order.
 COMMANDS = ("report", "lsq", "static", "modal", "bench", "sample", "compare", "ema",
-            "diagnose", "run", "batch", "rerun")
+            "diagnose", "crossval", "run", "batch", "rerun")
 
 
 class CLIError(Exception):

@@ -57,6 +57,7 @@ __all__ = [
     "RecordsLikelihood",
     "record_priors",
     "records_start",
+    "parse_layout",
     "PER_RECORD_KINDS",
     "TAU_SCALE",
     "DEFAULT_LAYOUT",
@@ -459,7 +460,7 @@ class RecordsLikelihood:
     def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
         """Moment estimates of the noise parameters (in ``names`` order of the noise)."""
         starts = []
-        for r, single in enumerate(self._singles):
+        for r in range(self.n_records):
             full, v0 = self.record_theta(theta[None], r)
             mech = full[0, : len(self.mech_names)]
             e = self.experiments[r]
@@ -589,6 +590,27 @@ def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
     n_noise = len(lik.names) - ix["noise"][0][0]
     out[len(out) - n_noise:] = lik.residual_noise_start(out)
     return out
+
+
+def parse_layout(text: str, *, noise_per_record: bool = False) -> RecordLayout:
+    """A :class:`RecordLayout` from ``"g_v=hierarchical,v0=independent"`` (or ``"none"``).
+
+    Examples
+    --------
+    >>> parse_layout("g_v=hierarchical").per_record
+    {'g_v': 'hierarchical'}
+    """
+    text = str(text).strip()
+    if text in ("", "none", "shared"):
+        return RecordLayout({}, noise_per_record)
+    per = {}
+    for item in text.split(","):
+        name, sep, kind = item.partition("=")
+        if not sep or not name.strip():
+            raise ConfigError(
+                f"per-record item {item!r}: write NAME=KIND, e.g. g_v=hierarchical,v0=independent")
+        per[name.strip()] = kind.strip()
+    return RecordLayout(per, noise_per_record)
 
 
 def as_records(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:

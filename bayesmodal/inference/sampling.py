@@ -72,8 +72,11 @@ class LogPosterior:
 
     likelihood: Likelihood
     priors: PriorSet
+    temperature: float = 1.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.temperature) and self.temperature > 0):
+            raise ConfigError(f"temperature must be finite and > 0, got {self.temperature}")
         if self.priors.names != self.likelihood.names:
             raise ConfigError(
                 f"prior names {self.priors.names} do not match likelihood names "
@@ -91,7 +94,8 @@ class LogPosterior:
             population = getattr(self.likelihood, "log_population", None)
             if population is not None:  # hierarchical per-record parameters
                 lp[ok] = lp[ok] + population(th)
-        post = np.where(np.isfinite(ll) & np.isfinite(lp), lp + ll, -np.inf)
+        # a generalised (tempered) posterior weighs the likelihood by 1 / temperature
+        post = np.where(np.isfinite(ll) & np.isfinite(lp), lp + ll / self.temperature, -np.inf)
         return np.column_stack([post, ll])
 
 
@@ -481,6 +485,7 @@ def sample_posterior(
     extension=None,
     restart: int | None = None,
     layout=None,
+    temperature: float = 1.0,
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -549,6 +554,11 @@ def sample_posterior(
         ``RecordsLikelihood`` and the default priors ``record_priors``.  The walkers start
         from the joint least-squares fit with per-record gains and offsets solved in
         closed form (``records_start``).  None (default): every parameter is shared.
+    temperature : float
+        Sample the generalised posterior ``p(theta) L(theta)^(1/T)``: ``T > 1`` widens
+        the posterior of a misspecified model (calibrated by leave-one-record-out
+        coverage, ``bayesmodal.inference.crossval``); 1 (default) is Bayes' rule.  The
+        stored log-likelihood is the untempered one.
 
     Returns
     -------
@@ -583,7 +593,7 @@ def sample_posterior(
             from .records import record_priors
 
             priors = record_priors(lik)
-    log_post = LogPosterior(lik, priors)
+    log_post = LogPosterior(lik, priors, float(temperature))
     n_par = priors.n_params
     n_walkers = int(n_walkers)
     n_steps = int(n_steps)
@@ -655,6 +665,7 @@ def sample_posterior(
         "refine": bool(refine),
         **({} if restart is None else {"restart": restart}),
         **({} if layout is None else {"layout": lik.layout.to_dict()}),
+        **({} if temperature == 1.0 else {"temperature": float(temperature)}),
     }
     # the hash identifies the target and ensemble; a resumed run may extend n_steps
     chash = config_hash(config)

@@ -28,6 +28,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
+from ..metrics import fit_percent
 from ..system import LinearModel, Rig
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
@@ -183,8 +184,17 @@ def prepare_run(config: RunConfig) -> PreparedRun:
             raise ConfigError(
                 f"{src}: [model.damping] the {extension} extension is built on free "
                 f"damping, got {cfg.damping!r}")
-    base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts,
-                          extension=extension)
+    layout = cfg.layout
+    if layout is None:
+        base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts,
+                              extension=extension)
+    else:
+        from ..inference.records import RecordsLikelihood, record_priors
+
+        try:
+            base = record_priors(RecordsLikelihood(model, exps, cfg.noise, extension, layout))
+        except ValueError as exc:
+            raise ConfigError(f"{src}: [records] {exc}") from exc
     overrides = {}
     for name, ov in cfg.priors.items():
         if name not in base.names:
@@ -310,7 +320,7 @@ class _Stages:
         self.bar.close()
 
 
-_STAGES = ("sampling", "posterior", "outputs", "cross-checks", "report")
+_STAGES = ("sampling", "posterior", "outputs", "cross-checks", "crossval", "report")
 
 
 def _posterior_median(summary: dict, names) -> np.ndarray:
@@ -346,10 +356,12 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
     if cfg.ema:
         work += [("lsce", e) for e in prep.experiments]
     res_checks, lsce = [], []
+    record_theta = _record_medians(run, idata)
     for kind, e in tqdm(work, desc="cross-checks", unit="check", disable=not progress,
                         leave=False):
         if kind == "residuals":
-            res_checks.append(residual_check(e, model, theta_med, extension=ext))
+            th = record_theta.get(e.name, theta_med)
+            res_checks.append(residual_check(e, model, th, extension=ext))
         else:
             chk = lsce_check(e, model.n_carts)
             if chk.error:
@@ -370,11 +382,28 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
     return out
 
 
+def _record_medians(run, idata) -> dict:
+    """Several records: each record's own model parameters (posterior medians, its own
+    g_v), so that its residual diagnostics see its gain.  The input offset v0 is not a
+    model parameter of the single-record diagnostics and is left out."""
+    lik = run.likelihood
+    if not hasattr(lik, "record_theta"):
+        return {}
+    from ..inference import posterior_matrix
+
+    draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
+    n_mech = len(lik.mech_names)
+    return {e.name: np.median(lik.record_theta(draws, r)[0][:, :n_mech], axis=0)
+            for r, e in enumerate(lik.experiments)}
+
+
 def _heldout(prep: PreparedRun, idata) -> dict | None:
     if not prep.heldout:
         return None
     from ..inference import likelihood_from_idata, posterior_matrix, predictive_check
 
+    if idata.posterior.attrs.get("record_layout_json"):
+        return _heldout_new_records(prep, idata)
     lik = likelihood_from_idata(idata, prep.heldout)
     draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
     ps = predictive_check(lik, draws)
@@ -383,6 +412,32 @@ def _heldout(prep: PreparedRun, idata) -> dict | None:
             "fit_percent_median": np.asarray(ps.fit_percent_median).tolist(),
             "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
             "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist()}
+
+
+def _heldout_new_records(prep: PreparedRun, idata) -> dict:
+    """Held-out records of a several-record run, each predicted as a new record (gain and
+    offset drawn from their populations): fit percents, band coverage and lpd."""
+    from ..inference import likelihood_from_idata, posterior_matrix
+    from ..inference.predictive import predict_new_record, score_samples
+
+    lik = likelihood_from_idata(idata)
+    draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
+    rng = np.random.default_rng(prep.config.seed)
+    draws = draws[rng.choice(draws.shape[0], min(200, draws.shape[0]), replace=False)]
+    scores, fits = [], []
+    for e in prep.heldout:
+        y_hat, y_pred, ll = predict_new_record(lik, draws, e, rng=rng)
+        scores.append(score_samples(e.name, e.y_m, y_pred, ll))
+        fits.append([fit_percent(e.y_m, yh) for yh in y_hat])
+    fits = np.array(fits)  # (n_exp, S, n_out)
+    q = np.quantile(fits, [0.5, 0.05, 0.95], axis=1)
+    n_obs = sum(e.n_samples * e.n_outputs for e in prep.heldout)
+    lpd = float(sum(s.lpd for s in scores))
+    return {"experiments": [e.name for e in prep.heldout], "lpd": lpd,
+            "lpd_per_obs": lpd / n_obs, "mean_log_lik": None,
+            "fit_percent_median": q[0].tolist(), "fit_percent_lo": q[1].tolist(),
+            "fit_percent_hi": q[2].tolist(), "scores": [s.to_dict() for s in scores],
+            "predicted_as": "new records (per-record parameters drawn from the population)"}
 
 
 def _evidence(prep: PreparedRun, run) -> dict | None:
@@ -434,6 +489,22 @@ def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
     return {ext.name: out}
 
 
+def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool) -> dict:
+    """Leave-one-record-out check of the configuration, written to ``crossval/``."""
+    from ..inference.crossval import crossval
+    from .crossval import write_crossval
+
+    def say(line: str) -> None:
+        log.info("crossval: %s", line)
+
+    res = crossval(list(prep.experiments), prep.config.crossval_spec(), joint=False,
+                   progress=say)
+    write_crossval(res, folder.path / "crossval", plots=prep.config.plots)
+    d = res.to_dict()
+    return {"records": d["records"], "total": d["total"], "own_lsq": d["own_lsq"],
+            "spec": d["spec"], "wall_time_s": d["wall_time_s"]}
+
+
 def _config_text(cfg: RunConfig) -> str:
     p = Path(cfg.source)
     if p.is_file():
@@ -449,7 +520,8 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
     from .report import write_report
 
     cfg = prep.config
-    stages = _Stages(_STAGES, progress, cfg.name)
+    stages = _Stages(tuple(st for st in _STAGES if cfg.crossval or st != "crossval"),
+                     progress, cfg.name)
     try:
         with stages.stage("sampling"):
             backend = AtomicCheckpoint(folder.checkpoint_path, every_s=cfg.checkpoint_every_s)
@@ -460,7 +532,8 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                 list(prep.experiments), prep.model, noise=cfg.noise, priors=prep.priors,
                 n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
                 moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
-                warn=False, extension=prep.extension, restart=cfg.restart)
+                warn=False, extension=prep.extension, restart=cfg.restart,
+                layout=cfg.layout, temperature=cfg.temperature)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
@@ -478,6 +551,9 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             ext = _extensions(prep, run, summary)
             if ext:
                 summary["extensions"] = ext
+        if cfg.crossval:
+            with stages.stage("crossval"):
+                summary["crossval"] = _crossval(prep, folder, progress)
         diag = summary["diagnostics"]
         detail = _verdict_detail(diag)
         summary["convergence"] = {

@@ -1,0 +1,345 @@
+"""Leave-one-record-out validation: sample on the other records, predict the one left out.
+
+A credible interval is only as good as its check on data it was not fitted to.  For each
+record ``r`` of a set, the posterior is sampled on the other records (same model, noise
+model and per-record layout), and record ``r`` is predicted as a new record
+(``bayesmodal.inference.predictive``): fit percent of the predictive median, coverage of
+the 50 % and 90 % bands, band width relative to the record's spread, CRPS and the log
+predictive density.  The sum of the held-out log predictive densities, with its standard
+error over records (``sqrt(R) * sd(lpd_r)``, as for PSIS-LOO's pointwise terms), is the
+criterion that answers "which model predicts the next experiment".
+
+The folds (and the joint run on all records, for the per-record estimates next to the
+joint posterior) are independent: they run in parallel on local processes, or as tasks of
+a Dask cluster (``scheduler``), as ``bayesmodal batch`` does.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from ..data import Experiment
+from .predictive import PredictiveScores, predict_new_record, score_samples
+from .records import DEFAULT_LAYOUT, RecordLayout
+
+__all__ = ["CrossvalSpec", "FoldResult", "CrossvalResult", "crossval", "run_fold"]
+
+
+@dataclass(frozen=True)
+class CrossvalSpec:
+    """Everything that defines a leave-one-record-out study (one object, no long kwargs).
+
+    Parameters
+    ----------
+    damping : {"free", "proportional"}
+    noise : {"ar1", "white"}
+    extension : str, optional
+        A model extension name.
+    layout : RecordLayout
+        Per-record parameters (default :data:`~.records.DEFAULT_LAYOUT`).
+    n_walkers, n_steps, burn : int
+        Ensemble size, steps per walker, burn-in (default ``n_steps // 2``).
+    n_predictive : int
+        Posterior draws used to predict each held-out record.
+    seed : int
+    temperature : float
+        Likelihood tempering ``L^(1/T)`` (1: the plain posterior).
+    springs_n_m : tuple of float, optional
+        The rig's springs (default: the ECP 210's).
+    """
+
+    damping: str = "free"
+    noise: str = "ar1"
+    extension: str | None = None
+    layout: RecordLayout = DEFAULT_LAYOUT
+    n_walkers: int = 48
+    n_steps: int = 4000
+    burn: int | None = None
+    n_predictive: int = 200
+    seed: int = 1
+    temperature: float = 1.0
+    springs_n_m: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.n_predictive < 2:
+            raise ConfigError(f"n_predictive must be >= 2 draws, got {self.n_predictive}")
+        if not (np.isfinite(self.temperature) and self.temperature > 0):
+            raise ConfigError(f"temperature must be finite and > 0, got {self.temperature}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["layout"] = self.layout.to_dict()
+        return d
+
+
+@dataclass(frozen=True)
+class FoldResult:
+    """One fold: the posterior on the training records and the held-out scores.
+
+    ``scores`` is None for the joint run on all records.  ``estimates`` holds posterior
+    medians and 90 % intervals of ``g_v`` (the held-out record's population draw or the
+    record's own value), ``omega_rad_s`` and ``zeta``.
+    """
+
+    heldout: str | None
+    training: tuple[str, ...]
+    scores: PredictiveScores | None
+    estimates: dict
+    max_rhat: float
+    min_ess: float
+    converged: bool
+    elapsed_s: float
+    evaluations_per_s: float
+    band: dict = field(default_factory=dict, repr=False)
+
+    def to_dict(self) -> dict:
+        d = {k: getattr(self, k) for k in ("heldout", "training", "estimates", "max_rhat",
+                                            "min_ess", "converged", "elapsed_s",
+                                            "evaluations_per_s")}
+        d["training"] = list(self.training)
+        if self.scores is not None:
+            d.update(self.scores.to_dict())
+        return d
+
+
+@dataclass(frozen=True)
+class CrossvalResult:
+    """A leave-one-record-out study.
+
+    Attributes
+    ----------
+    spec : CrossvalSpec
+    folds : tuple of FoldResult
+        One per held-out record, in the records' order.
+    joint : FoldResult or None
+        The posterior on all records.
+    own : dict
+        Each record's own least-squares estimates (``g_v``, ``omega_rad_s``, ``zeta``).
+    total_lpd, total_lpd_se : float
+        Summed held-out log predictive density and its standard error over records.
+    wall_time_s : float
+    """
+
+    spec: CrossvalSpec
+    folds: tuple[FoldResult, ...]
+    joint: FoldResult | None
+    own: dict
+    total_lpd: float
+    total_lpd_se: float
+    wall_time_s: float
+
+    def to_dict(self) -> dict:
+        return {"spec": self.spec.to_dict(),
+                "records": [f.to_dict() for f in self.folds],
+                "joint": None if self.joint is None else self.joint.to_dict(),
+                "own_lsq": self.own,
+                "total": {"lpd": self.total_lpd, "lpd_se": self.total_lpd_se,
+                          "n_records": len(self.folds)},
+                "wall_time_s": self.wall_time_s}
+
+    def table(self) -> str:
+        """Plain-text table: one row per held-out record and output."""
+        rows = ["record                   cart  fit %   cov50  cov90  width90  crps    lpd"]
+        for f in self.folds:
+            s = f.scores
+            for j in range(s.fit_percent.size):
+                lpd = f"{s.lpd:.0f} +- {s.lpd_se:.1f}" if j == 0 else ""
+                rows.append(f"{s.name[:24]:<24} {j + 1:>4}  {s.fit_percent[j]:5.1f}  "
+                            f"{s.coverage_50[j]:5.2f}  {s.coverage_90[j]:5.2f}  "
+                            f"{s.width_90[j]:6.2f}  {s.crps[j]:5.3f}  {lpd}")
+        rows.append(f"total held-out lpd: {self.total_lpd:.0f} +- {self.total_lpd_se:.0f} nats "
+                    f"over {len(self.folds)} records")
+        return "\n".join(rows)
+
+
+def _model(spec: CrossvalSpec):
+    from ..system import LinearModel, Rig
+
+    rig = Rig() if spec.springs_n_m is None else Rig(tuple(spec.springs_n_m))
+    return LinearModel(rig, spec.damping)
+
+
+def _estimates(run, lik, draws: np.ndarray, key: str | None, rng) -> dict:
+    """Posterior g_v, omega and zeta: medians and 90 % intervals."""
+    from .predictive import new_record_parameters
+    from .propagate import propagate_modes
+
+    mech = lik.split(draws)[0] if key is None else new_record_parameters(lik, draws, rng)[0]
+    if key is not None and key != "population":
+        j = lik.names.index(f"g_v[{key}]")
+        g = draws[:, j]
+    else:
+        g = mech[:, 0]
+    model = lik.model
+    ms = propagate_modes(model, lik.split(draws)[0][:, : model.n_params], methods=("eig",))
+
+    def iv(x):
+        lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95], axis=0)
+        return {"median": np.atleast_1d(med).tolist(), "lo": np.atleast_1d(lo).tolist(),
+                "hi": np.atleast_1d(hi).tolist()}
+
+    return {"g_v": iv(g), "omega_rad_s": iv(ms.omega_rad_s), "zeta": iv(ms.zeta)}
+
+
+def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int | None,
+             progress: bool = False) -> FoldResult:
+    """Sample on all records but ``heldout`` and score the held-out record.
+
+    With ``heldout=None`` the posterior is sampled on all records (the joint run); its
+    ``estimates`` then hold each record's ``g_v`` under keys ``g_v[name]``.
+    """
+    from .records import RecordsLikelihood, record_priors
+    from .sampling import sample_posterior
+
+    exps = list(experiments)
+    train = [e for i, e in enumerate(exps) if i != heldout]
+    model = _model(spec)
+    seed = spec.seed + (0 if heldout is None else 1000 * (heldout + 1))
+    lik = RecordsLikelihood(model, tuple(train), spec.noise, spec.extension, spec.layout)
+    priors = record_priors(lik)
+    burn = spec.n_steps // 2 if spec.burn is None else spec.burn
+    run = sample_posterior(train, model, noise=spec.noise, extension=spec.extension,
+                           layout=spec.layout, priors=priors, n_walkers=spec.n_walkers,
+                           n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
+                           progress=progress, temperature=spec.temperature)
+    rng = np.random.default_rng(seed + 7)
+    flat = run.flat_draws
+    take = rng.choice(flat.shape[0], size=min(spec.n_predictive, flat.shape[0]),
+                      replace=False)
+    draws = flat[take]
+    d = run.diagnostics
+    common = dict(max_rhat=float(d.max_rhat), min_ess=float(d.min_ess),
+                  converged=bool(d.converged), elapsed_s=float(run.elapsed_s),
+                  evaluations_per_s=float(run.evaluations_per_s))
+    if heldout is None:
+        est = _estimates(run, run.likelihood, draws, None, rng)
+        for k in run.likelihood.record_keys if hasattr(run.likelihood, "record_keys") else ():
+            if f"g_v[{k}]" in run.names:
+                x = draws[:, run.names.index(f"g_v[{k}]")]
+                lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95])
+                est[f"g_v[{k}]"] = {"median": [med], "lo": [lo], "hi": [hi]}
+        return FoldResult(None, tuple(e.name for e in train), None, est, **common)
+    target = exps[heldout]
+    y_hat, y_pred, ll = predict_new_record(run.likelihood, draws, target, rng=rng)
+    scores = score_samples(target.name, target.y_m, y_pred, ll)
+    q = np.quantile(y_pred, [0.05, 0.5, 0.95], axis=0)
+    band = {"t_s": target.t_s, "y": target.y_m, "q05": q[0], "q50": q[1], "q95": q[2]}
+    est = _estimates(run, run.likelihood, draws, "population", rng)
+    return FoldResult(target.name, tuple(e.name for e in train), scores, est, band=band,
+                      **common)
+
+
+def _own_lsq(spec: CrossvalSpec, exps: Sequence[Experiment]) -> dict:
+    """Each record's own least-squares estimates of g_v, omega and zeta."""
+    from ..fit import fit_lsq
+    from .propagate import propagate_modes
+
+    model = _model(spec)
+    out = {}
+    for e in exps:
+        fit = fit_lsq([e], model)
+        ms = propagate_modes(model, fit.theta[None], methods=("eig",))
+        out[e.name] = {"g_v": float(fit.theta[0]),
+                       "omega_rad_s": ms.omega_rad_s[0].tolist(), "zeta": ms.zeta[0].tolist(),
+                       "fit_percent": np.asarray(fit.fit_percent).ravel().tolist()}
+    return out
+
+
+def _call(args):
+    spec, exps, heldout = args
+    return run_fold(spec, exps, heldout)
+
+
+def crossval(experiments: Sequence[Experiment], spec: CrossvalSpec | None = None, *,
+             workers: int | None = None, scheduler: str | None = None, joint: bool = True,
+             progress=None) -> CrossvalResult:
+    """Leave-one-record-out validation of a model on several records.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        At least two records with distinct names.
+    spec : CrossvalSpec, optional
+        Model, noise, per-record layout and sampler settings.
+    workers : int, optional
+        Local processes (default: the number of CPUs, at most the number of folds).
+    scheduler : str, optional
+        Address of a Dask distributed scheduler; the folds become its tasks.
+    joint : bool
+        Also sample all records together (for the per-record estimates).
+    progress : callable, optional
+        Called with a line of text when a fold finishes.
+
+    Returns
+    -------
+    CrossvalResult
+
+    Examples
+    --------
+    >>> # res = crossval([imp, steps, fast, slow], CrossvalSpec(n_steps=3000), workers=2)
+    >>> # print(res.table())
+    """
+    spec = CrossvalSpec() if spec is None else spec
+    exps = list(experiments)
+    if len(exps) < 2:
+        raise DataError(f"leave-one-record-out needs at least 2 records, got {len(exps)}; "
+                        "give more DATA files")
+    names = [e.name for e in exps]
+    if len(set(names)) != len(names):
+        raise DataError(f"record names must be distinct, got {names}")
+    t0 = time.perf_counter()
+    tasks = [(spec, exps, i) for i in range(len(exps))] + ([(spec, exps, None)] if joint else [])
+    results = _map(tasks, workers, scheduler, progress)
+    folds = tuple(results[: len(exps)])
+    lpd = np.array([f.scores.lpd for f in folds])
+    total = float(np.sum(lpd))
+    se = float(np.sqrt(len(lpd)) * np.std(lpd, ddof=1)) if len(lpd) > 1 else float("nan")
+    return CrossvalResult(spec, folds, results[len(exps)] if joint else None,
+                          _own_lsq(spec, exps), total, se, time.perf_counter() - t0)
+
+
+def _map(tasks, workers, scheduler, progress) -> list:
+    say = progress or (lambda line: None)
+    out = [None] * len(tasks)
+
+    def label(i):
+        h = tasks[i][2]
+        return "joint (all records)" if h is None else f"held out {tasks[i][1][h].name}"
+
+    if scheduler:
+        try:
+            from distributed import Client
+        except ImportError as exc:
+            raise ConfigError("--scheduler needs dask[distributed]: pip install "
+                              "'bayesmodal[dask]'") from exc
+        with Client(scheduler, set_as_default=False) as client:
+            futs = [client.submit(_call, t, pure=False) for t in tasks]
+            for i, f in enumerate(futs):
+                out[i] = f.result()
+                say(f"fold {label(i)} done")
+        return out
+    n = workers or os.cpu_count() or 1
+    n = max(1, min(int(n), len(tasks)))
+    if n == 1:
+        for i, t in enumerate(tasks):
+            out[i] = _call(t)
+            say(f"fold {label(i)} done ({i + 1}/{len(tasks)})")
+        return out
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+        futs = {pool.submit(_call, t): i for i, t in enumerate(tasks)}
+        from concurrent.futures import as_completed
+
+        for k, fut in enumerate(as_completed(futs)):
+            i = futs[fut]
+            out[i] = fut.result()
+            say(f"fold {label(i)} done ({k + 1}/{len(tasks)})")
+    return out
