@@ -10,6 +10,14 @@ See docs/noise_models.md.
 
 from .arp import ARpNoise, OrderChoice, burg, choose_order, levinson_table, pacf_to_ar
 from .base import AR1Noise, NoiseModel, WhiteNoise
+from .kalman import (
+    ProcessNoise,
+    kalman_loglik,
+    kalman_pointwise,
+    simulate_process_noise,
+    steady_state_filter,
+)
 
 __all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "ARpNoise", "OrderChoice", "burg",
-           "choose_order", "levinson_table", "pacf_to_ar"]
+           "choose_order", "levinson_table", "pacf_to_ar", "ProcessNoise", "kalman_loglik",
+           "kalman_pointwise", "simulate_process_noise", "steady_state_filter"]
