@@ -169,6 +169,14 @@ def test_choose_order_picks_nothing_on_white_noise():
     assert too_high <= stats.binom.ppf(1 - 1e-3, 3 * n_seeds, 0.05)
 
 
+def test_choose_order_warns_when_the_cap_is_chosen():
+    model = ARpNoise((3,))
+    r = model.simulate(model.join(np.ones((1, 1)), np.array([[[0.9, -0.5, 0.35]]])), 1500,
+                       rng=3)[0]
+    with pytest.warns(UserWarning, match="largest order max_p = 2"):
+        assert choose_order(r, max_p=2).orders == (2,)
+
+
 def test_burg_reflection_coefficients_bounded_and_power_decreases():
     r = np.cumsum(np.random.default_rng(0).normal(size=(500, 2)), axis=0)  # near unit root
     kappa, power = burg(r, 5)
