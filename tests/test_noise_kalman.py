@@ -9,7 +9,7 @@ from scipy.integrate import quad_vec
 from scipy.linalg import expm, solve_discrete_are
 from scipy.signal import cont2discrete
 
-from bayesmodal._errors import DataError
+from bayesmodal._errors import ConfigError, DataError
 from bayesmodal.inference.likelihood import white_terms
 from bayesmodal.inference.noise.kalman import (
     ProcessNoise,
@@ -148,6 +148,27 @@ def test_steady_state_filter_is_the_dense_gaussian_with_x0_from_p_and_tv_filter_
         assert abs(tv0 - ref0) <= 100 * cond0 * EPS * max(1.0, abs(ref0))
 
 
+@pytest.mark.parametrize("n", [40, 1600])
+def test_initial_rest_is_the_exact_filter_from_p0_zero(n):
+    """The Woodbury correction equals the time-varying filter from rest (and, for small N,
+    the dense Gaussian with x_0 = 0); long records exercise the truncated adjoint sum."""
+    th, q, sig = _batch(3, seed=12)
+    q[2] = 0.0  # P = 0: nothing to correct
+    v = _input(n)
+    sysd = discretize_process_noise(MODEL, th, q, DT)
+    y = simulate_process_noise(MODEL, th[:1], q[:1], sig[:1], v, DT, rng=13)[0]
+    got = kalman_loglik(MODEL, th, q, sig, v, y, DT, initial="rest")
+    steady = kalman_loglik(MODEL, th, q, sig, v, y, DT)
+    pw = kalman_pointwise(MODEL, th, q, sig, v, y, DT)
+    for b in range(3):
+        tv = _tv_filter(sysd, b, sig[b], v, y, np.zeros((6, 6)))
+        assert abs(got[b] - tv) <= 8 * n * EPS * np.abs(pw[b]).sum()
+        if n <= 40:
+            ref, cond = _dense_loglik(sysd, b, sig[b], v, y, np.zeros((6, 6)))
+            assert abs(got[b] - ref) <= 100 * cond * EPS * max(1.0, abs(ref))
+    assert got[2] == steady[2]
+
+
 def test_start_from_rest_differs_by_a_constant_that_does_not_grow_with_n():
     """Exact (P0 = 0) minus steady-state likelihood settles once the filter converges."""
     th, q, sig = _batch(1, seed=4)
@@ -240,4 +261,6 @@ def test_bad_inputs():
         kalman_loglik(MODEL, th, q[:, :2], sig, np.zeros(5), np.zeros((5, 3)), DT)
     with pytest.raises(DataError, match="to match v"):
         kalman_loglik(MODEL, th, q, sig, np.zeros(5), np.zeros((4, 3)), DT)
+    with pytest.raises(ConfigError, match="initial must be one of"):
+        kalman_loglik(MODEL, th, q, sig, np.zeros(5), np.zeros((5, 3)), DT, initial="zero")
     assert ProcessNoise().priors(3).names == ProcessNoise().names(3)

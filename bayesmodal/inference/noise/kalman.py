@@ -23,11 +23,22 @@ across walkers in a compiled kernel (lane index innermost).
 
 Initial state.  ``xhat_0 = 0`` (the rig starts at rest; the simulation starts from rest)
 with covariance ``P_{0|-1} = P``: then the time-varying filter keeps ``P_k = P`` for every
-``k`` and the steady-state filter *is* the exact likelihood of that model.  It assumes
-an initial state ``x_0 ~ N(0, P)`` rather than exactly at rest (``P_{0|-1} = 0``); the two
-likelihoods differ only while the time-varying covariance converges to ``P`` (a few
-closed-loop time constants), by an amount that does not grow with the record length
-(tested: ``tests/test_noise_kalman.py``).
+``k`` and the steady-state filter *is* the exact likelihood of that model
+(``initial="steady"``, the default).  It assumes an initial state ``x_0 ~ N(0, P)``
+rather than exactly at rest; the two likelihoods differ only while the time-varying
+covariance converges to ``P`` (a few closed-loop time constants), by an amount that does
+not grow with the record length (tested).  ``initial="rest"`` gives the exact likelihood
+with ``x_0 = 0`` (the time-varying filter from ``P_{0|-1} = 0``) without a time-varying
+filter: writing the record as ``y = m + O x_0 + eta``, the steady-state covariance is
+``Sigma_ss = Sigma_rest + O P O'``, and with ``M = O' Sigma_ss^-1 O`` and
+``b = O' Sigma_ss^-1 (y - m)`` (Woodbury, Sylvester)
+
+    log p_rest(y) = log p_ss(y) - 1/2 log det(I - P M) - 1/2 b' P (I - M P)^-1 b.
+
+The filter supplies both: ``Sigma_ss^-1/2 O`` has rows ``L^-1 C Phi^k`` with
+``Phi = Ad - Ad K C`` the filter's error dynamics, so ``M`` is a Stein sum (summed by
+doubling) and ``b = sum_k Phi'^k C' L^-T u_k`` an adjoint pass over the standardised
+innovations, truncated where ``Phi^k`` has decayed below 1e-18.
 
 DARE solver.  A batched structure-preserving doubling algorithm (SDA; Chu, Fan and Lin
 2005) on the dual (control-form) equation ``X = A' X (I + G X)^-1 A + H`` with
@@ -60,9 +71,10 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.linalg import solve_discrete_are
 
-from ..._errors import DataError, ModelError
+from ..._errors import ConfigError, DataError, ModelError
 from ..._kernels import _compile, padded_width
 from ..priors import LogUniform, PriorSet
 from .base import HALF_LOG_2PI, SIGMA_PRIOR
@@ -84,6 +96,9 @@ __all__ = [
 Q_PRIOR = LogUniform(1e-14, 1e-2)
 
 _SDA_MAX_IT = 80
+
+#: Initial-state assumptions of the filter (see the module docstring).
+INITIAL_STATES = ("steady", "rest")
 
 
 @dataclass(frozen=True)
@@ -327,29 +342,100 @@ def _kalman_kernel(n_states: int, n_out: int, width: int, store: bool):
     return _compile(lines, f"kalman s={s} o={n} w={w} store={store}")
 
 
-def _filter(Ad, Bd, AK, Linv, v, y, store):
-    """Run the generated kernel over chunks of lanes; returns SS (nb,) and U (N, n, nb)."""
+def _filter(Ad, Bd, AK, Linv, v, y, n_store):
+    """Run the generated kernels over chunks of lanes.
+
+    Returns ``SS`` (nb,) and the standardised innovations ``U`` (n_store, n, nb) of the
+    first ``n_store`` samples (the kernel that stores them runs only that far; the state
+    carries over to the kernel that does not).
+    """
     nb, s, _ = Ad.shape
     n = Linv.shape[1]
+    N = v.size
+    n_store = int(min(max(n_store, 0), N))
     width = padded_width(nb)
     n_chunks = -(-nb // width)
     rows = np.concatenate([Ad.reshape(nb, s * s), Bd, AK.reshape(nb, s * n),
                            Linv.reshape(nb, n * n)], axis=1)
-    kernel = _kalman_kernel(s, n, width, bool(store))
     yf = np.ascontiguousarray(y).ravel()
     ss = np.empty(n_chunks * width)
-    U = np.empty((n_chunks, v.size, n, width)) if store else np.empty((1, 1, 1, 1))
+    U = np.empty((n_chunks, n_store, n, width))
+    dummy = np.empty(1)
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         real = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
         P = np.ascontiguousarray(rows[real].T).ravel()
         X = np.zeros(s * width)
         acc = np.zeros(width)
-        kernel(P, v, yf, X, acc, U[c].reshape(-1) if store else U.reshape(-1))
+        if n_store:
+            _kalman_kernel(s, n, width, True)(P, v[:n_store], yf[: n_store * n], X, acc,
+                                              U[c].reshape(-1))
+        if n_store < N:
+            _kalman_kernel(s, n, width, False)(P, v[n_store:], yf[n_store * n :], X, acc,
+                                               dummy)
         ss[c * width : (c + 1) * width] = acc
-    if store:
-        U = np.moveaxis(U, 0, 2).reshape(v.size, n, n_chunks * width)[:, :, :nb]
+    U = np.moveaxis(U, 0, 2).reshape(n_store, n, n_chunks * width)[:, :, :nb]
     return ss[:nb], U
+
+
+@njit(cache=False, nogil=True, boundscheck=False)
+def _adjoint_sum(PhiT, LinvT, U):  # pragma: no cover - compiled
+    # g = sum_k (Phi')^k C' L^-T u_k by Horner from the last stored sample backwards;
+    # PhiT (s, s, nb) = Phi', LinvT (n, n, nb) = L^-T, U (K, n, nb)
+    s = PhiT.shape[0]
+    nb = PhiT.shape[2]
+    n = LinvT.shape[0]
+    g = np.zeros((s, nb))
+    h = np.empty((s, nb))
+    for k in range(U.shape[0] - 1, -1, -1):
+        for i in range(s):
+            for b in range(nb):
+                h[i, b] = 0.0
+            for m in range(s):
+                for b in range(nb):
+                    h[i, b] += PhiT[i, m, b] * g[m, b]
+        for i in range(n):
+            for j in range(n):
+                for b in range(nb):
+                    h[i, b] += LinvT[i, j, b] * U[k, j, b]
+        for i in range(s):
+            for b in range(nb):
+                g[i, b] = h[i, b]
+    return g
+
+
+def _rest_correction(Ad, AK, Linv, P, N):
+    """Pieces of the correction from x_0 ~ N(0, P) to x_0 = 0 (rest).
+
+    With ``Phi = Ad - Ad K C`` (the filter's error dynamics) the whitened innovations of
+    the free response from ``x_0`` are ``Z x_0`` with rows ``L^-1 C Phi^k``, so
+    ``M = Z' Z = sum_{k<N} Phi'^k C' S^-1 C Phi^k``, summed by doubling
+    (``sum_{k < 2^(j+1)} = X_j + A_j' X_j A_j``, ``A_j = Phi^(2^j)``) and combined over the
+    binary digits of N.  Returns ``M`` (nb, s, s), ``Phi`` and ``K``, the number of
+    samples after which ``Phi^K`` is below 1e-18 (later innovations do not move ``b``).
+    """
+    nb, s, _ = Ad.shape
+    n = Linv.shape[1]
+    Phi = Ad.copy()
+    Phi[:, :, :n] -= AK
+    X = np.zeros((nb, s, s))
+    X[:, :n, :n] = np.swapaxes(Linv, 1, 2) @ Linv  # C' S^-1 C
+    A = Phi.copy()
+    total = np.zeros((nb, s, s))
+    power = np.broadcast_to(np.eye(s), (nb, s, s)).copy()
+    j, K = 0, N
+    while (1 << j) <= N:
+        if N >> j & 1:  # digit j of N: add the block of 2^j terms at the current offset
+            total += np.swapaxes(power, 1, 2) @ X @ power
+            power = A @ power
+        if np.max(np.abs(A)) < 1e-18:
+            K = min(N, 1 << j)
+            # the rest of the sum is below rounding: every further block is ~ A' X A
+            break
+        X = X + np.swapaxes(A, 1, 2) @ X @ A
+        A = A @ A
+        j += 1
+    return total, Phi, K
 
 
 def _check(model, theta_mech, q, sigma, v, y, dt):
@@ -378,13 +464,16 @@ def _check(model, theta_mech, q, sigma, v, y, dt):
     return theta_mech, q, sigma, v, y, ok
 
 
-def _run(model, theta_mech, q, sigma, v, y, dt, store):
+def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady"):
+    if initial not in INITIAL_STATES:
+        raise ConfigError(f"initial must be one of {INITIAL_STATES}, got {initial!r}")
     theta_mech, q, sigma, v, y, ok = _check(model, theta_mech, q, sigma, v, y, dt)
     nb, n = q.shape
     ss = np.full(nb, np.nan)
     logdet = np.full(nb, np.nan)
     U = None
     logL = np.full((nb, n), np.nan)
+    corr = np.zeros(nb)
     if np.any(ok):
         sysd = discretize_process_noise(model, theta_mech[ok], q[ok], dt)
         filt = steady_state_filter(sysd, sigma[ok])
@@ -395,15 +484,35 @@ def _run(model, theta_mech, q, sigma, v, y, dt, store):
                 L = np.full_like(filt.S, np.nan)
             Linv = np.linalg.inv(np.where(np.isfinite(L), L, 1.0))
         AK = sysd.Ad @ filt.gain
-        ss[ok], U = _filter(sysd.Ad, sysd.Bd, AK, Linv, v, y, store)
+        n_store = v.size
+        if initial == "rest":
+            M, Phi, n_store = _rest_correction(sysd.Ad, AK, Linv, filt.P, v.size)
+        ss_ok, U = _filter(sysd.Ad, sysd.Bd, AK, Linv, v, y, v.size if store else n_store)
         d = np.log(np.diagonal(L, axis1=1, axis2=2))
+        if initial == "rest":
+            # Woodbury and Sylvester: Sigma_rest = Sigma_ss - O P O', b = O' Sigma_ss^-1 r
+            g = _adjoint_sum(_lane(np.swapaxes(Phi, 1, 2)), _lane(np.swapaxes(Linv, 1, 2)),
+                             np.ascontiguousarray(U[:n_store]))
+            b = g.T
+            eye = np.eye(M.shape[1])
+            with np.errstate(all="ignore"):
+                sign, ld = np.linalg.slogdet(eye - filt.P @ M)
+                z = np.linalg.solve(eye - M @ filt.P, b[:, :, None])[:, :, 0]
+                quad = np.einsum("bi,bij,bj->b", b, filt.P, z)
+            corr[ok] = -0.5 * np.where(sign > 0, ld, np.nan) - 0.5 * quad
+        ss[ok] = ss_ok
         logL[ok] = d
         logdet[ok] = d.sum(axis=1)
-    return ok, ss, logdet, logL, U
+    return ok, ss, logdet, logL, U, corr
+
+
+def _lane(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(np.moveaxis(a, 0, -1))
 
 
 def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarray,
-                  v: np.ndarray, y: np.ndarray, dt: float) -> np.ndarray:
+                  v: np.ndarray, y: np.ndarray, dt: float, *,
+                  initial: str = "steady") -> np.ndarray:
     """Log-likelihood of one record under the process-noise model, for a batch.
 
     Parameters
@@ -421,6 +530,11 @@ def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarra
         Measured positions, m.
     dt : float
         Sample interval, s.
+    initial : {"steady", "rest"}
+        Initial state ``N(0, P)`` (steady-state covariance; the steady-state filter is
+        then exact) or exactly at rest (``x_0 = 0``, the exact time-varying filter from
+        ``P_0 = 0``), computed as the steady-state value plus a rank-``2n`` correction
+        (module docstring); "rest" costs about one more pass over the filter's transient.
 
     Returns
     -------
@@ -437,10 +551,11 @@ def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarra
     >>> kalman_loglik(model, th, [[1e-5] * 3], [[1e-5] * 3], v, y[0], 0.005).shape
     (1,)
     """
-    ok, ss, logdet, _, _ = _run(model, theta_mech, q, sigma, v, y, dt, store=False)
+    ok, ss, logdet, _, _, corr = _run(model, theta_mech, q, sigma, v, y, dt, store=False,
+                                      initial=initial)
     N, n = np.shape(y)
     with np.errstate(invalid="ignore"):
-        total = -N * (n * HALF_LOG_2PI + logdet) - 0.5 * ss
+        total = -N * (n * HALF_LOG_2PI + logdet) - 0.5 * ss + corr
     return np.where(ok & np.isfinite(total), total, -np.inf)
 
 
@@ -451,7 +566,7 @@ def kalman_pointwise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.nda
     Term ``(k, j)`` is ``log p(y_kj | y_k,<j, y_<k)``: the standardised innovation
     ``u = L^-1 eps_k`` with ``S = L L'``.  Same parameters as :func:`kalman_loglik`.
     """
-    ok, _, _, logL, U = _run(model, theta_mech, q, sigma, v, y, dt, store=True)
+    ok, _, _, logL, U, _ = _run(model, theta_mech, q, sigma, v, y, dt, store=True)
     nb = ok.size
     N, n = np.shape(y)
     out = np.full((nb, N, n), -np.inf)
