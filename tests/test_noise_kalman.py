@@ -264,3 +264,23 @@ def test_bad_inputs():
     with pytest.raises(ConfigError, match="initial must be one of"):
         kalman_loglik(MODEL, th, q, sig, np.zeros(5), np.zeros((5, 3)), DT, initial="zero")
     assert ProcessNoise().priors(3).names == ProcessNoise().names(3)
+
+
+def test_known_q_is_recovered_within_its_standard_error():
+    """Profile of log q (common scale of all three carts) on simulated data: the maximum is
+    within 4 standard errors (from the curvature of the log-likelihood) of the truth, and
+    the white output-error limit (q -> 0) is far below (negative control)."""
+    th, q, sig = _batch(1, seed=14)
+    n = 4000
+    v = _input(n)
+    y = simulate_process_noise(MODEL, th, q, sig, v, DT, rng=15)[0]
+    log_c = np.linspace(-1.0, 1.0, 41)
+    c = np.exp(log_c)[:, None]
+    ll = kalman_loglik(MODEL, np.repeat(th, 41, 0), q * c, np.repeat(sig, 41, 0), v, y, DT)
+    k = int(np.argmax(ll))
+    assert 2 <= k <= 38, "maximum on the grid edge"
+    a, b, _ = np.polyfit(log_c[k - 2 : k + 3], ll[k - 2 : k + 3], 2)
+    peak, se = -b / (2 * a), 1 / np.sqrt(-2 * a)
+    assert abs(peak) < 4 * se
+    ll0 = kalman_loglik(MODEL, th, 0 * q, sig, v, y, DT)[0]
+    assert ll.max() - ll0 > 100
