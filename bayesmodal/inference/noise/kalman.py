@@ -71,7 +71,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.linalg import solve_discrete_are
 
 from ..._errors import ConfigError, DataError, ModelError
@@ -378,30 +377,49 @@ def _filter(Ad, Bd, AK, Linv, v, y, n_store):
     return ss[:nb], U
 
 
-@njit(cache=False, nogil=True, boundscheck=False)
-def _adjoint_sum(PhiT, LinvT, U):  # pragma: no cover - compiled
-    # g = sum_k (Phi')^k C' L^-T u_k by Horner from the last stored sample backwards;
-    # PhiT (s, s, nb) = Phi', LinvT (n, n, nb) = L^-T, U (K, n, nb)
-    s = PhiT.shape[0]
-    nb = PhiT.shape[2]
-    n = LinvT.shape[0]
-    g = np.zeros((s, nb))
-    h = np.empty((s, nb))
-    for k in range(U.shape[0] - 1, -1, -1):
-        for i in range(s):
-            for b in range(nb):
-                h[i, b] = 0.0
-            for m in range(s):
-                for b in range(nb):
-                    h[i, b] += PhiT[i, m, b] * g[m, b]
-        for i in range(n):
-            for j in range(n):
-                for b in range(nb):
-                    h[i, b] += LinvT[i, j, b] * U[k, j, b]
-        for i in range(s):
-            for b in range(nb):
-                g[i, b] = h[i, b]
-    return g
+@functools.lru_cache(maxsize=16)
+def _adjoint_kernel(n_states: int, n_out: int, width: int):
+    """Compiled ``kernel(Q, U, G)``: ``g = sum_k Phi'^k C' L^-T u_k`` by Horner, backwards.
+
+    Generated like :func:`_kalman_kernel`.  Flat float64 arrays, lane index innermost:
+    ``Q`` rows ``Phi'[i, m]`` (``i*s + m``) and ``L^-T[i, j]`` (``s*s + i*n_out + j``);
+    ``U`` (K, n_out, width) standardised innovations; ``G`` (s, width), zero on entry.
+    """
+    s, n, w = n_states, n_out, width
+    lines = [
+        "def kernel(Q, U, G):",
+        f"    for k in range(U.shape[0] // {n * w} - 1, -1, -1):",
+        f"        uo = k * {n * w}",
+        f"        for b in range({w}):",
+    ]
+    lines += [f"            g{i} = G[{i * w} + b]" for i in range(s)]
+    lines += [f"            u{j} = U[uo + {j * w} + b]" for j in range(n)]
+    for i in range(s):
+        terms = [f"Q[{(i * s + m) * w} + b] * g{m}" for m in range(s)]
+        if i < n:
+            terms += [f"Q[{(s * s + i * n + j) * w} + b] * u{j}" for j in range(n)]
+        lines.append(f"            G[{i * w} + b] = " + " + ".join(terms))
+    return _compile(lines, f"kalman adjoint s={s} o={n} w={w}")
+
+
+def _adjoint_sum(Phi, Linv, U):
+    """``b = sum_k Phi'^k C' L^-T u_k`` for each lane, shape (nb, s); U (K, n, nb)."""
+    nb, s, _ = Phi.shape
+    n = Linv.shape[1]
+    width = padded_width(nb)
+    rows = np.concatenate([np.swapaxes(Phi, 1, 2).reshape(nb, s * s),
+                           np.swapaxes(Linv, 1, 2).reshape(nb, n * n)], axis=1)
+    kernel = _adjoint_kernel(s, n, width)
+    out = np.empty((nb, s))
+    for c in range(-(-nb // width)):
+        lanes = np.arange(c * width, (c + 1) * width)
+        real = np.where(lanes < nb, lanes, nb - 1)
+        G = np.zeros(s * width)
+        kernel(np.ascontiguousarray(rows[real].T).ravel(),
+               np.ascontiguousarray(U[:, :, real]).ravel(), G)
+        keep = lanes < nb
+        out[lanes[keep]] = G.reshape(s, width).T[keep]
+    return out
 
 
 def _rest_correction(Ad, AK, Linv, P, N):
@@ -491,9 +509,7 @@ def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady"):
         d = np.log(np.diagonal(L, axis1=1, axis2=2))
         if initial == "rest":
             # Woodbury and Sylvester: Sigma_rest = Sigma_ss - O P O', b = O' Sigma_ss^-1 r
-            g = _adjoint_sum(_lane(np.swapaxes(Phi, 1, 2)), _lane(np.swapaxes(Linv, 1, 2)),
-                             np.ascontiguousarray(U[:n_store]))
-            b = g.T
+            b = _adjoint_sum(Phi, Linv, U[:n_store])
             eye = np.eye(M.shape[1])
             with np.errstate(all="ignore"):
                 sign, ld = np.linalg.slogdet(eye - filt.P @ M)
@@ -504,10 +520,6 @@ def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady"):
         logL[ok] = d
         logdet[ok] = d.sum(axis=1)
     return ok, ss, logdet, logL, U, corr
-
-
-def _lane(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(np.moveaxis(a, 0, -1))
 
 
 def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarray,
