@@ -221,6 +221,11 @@ def test_pointwise_sums_to_total_and_lanes_are_independent():
     one = np.array([kalman_loglik(MODEL, th[b : b + 1], q[b : b + 1], sig[b : b + 1], v, y,
                                   DT)[0] for b in range(5)])
     assert np.all(np.abs(one - tot) <= bound)
+    # a wild walker (a 10 mg cart: |A dt| ~ 1e3) in the batch leaves the others unchanged
+    wild = th[:1].copy()
+    wild[0, 1] = 1e-5
+    mixed = kalman_loglik(MODEL, np.r_[th[:1], wild], q[:2], sig[:2], v, y, DT)
+    assert abs(mixed[0] - one[0]) <= bound[0]
     # more lanes than one compiled kernel width (64): chunks give the same numbers
     rep = np.arange(70) % 5
     many = kalman_pointwise(MODEL, th[rep], q[rep], sig[rep], v, y, DT)
