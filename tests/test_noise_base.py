@@ -92,6 +92,15 @@ def test_names_and_priors_match_the_default_priors(noise, model):
     assert ps.priors[-k:] == mine.priors and ps.transforms[-k:] == mine.transforms
 
 
+def test_arp_priors_use_the_shared_classes_and_transforms():
+    ps = ARpNoise((2, 1, 3)).priors(3)
+    assert ps.names[:3] == ("sigma_1", "sigma_2", "sigma_3") and len(ps.names) == 9
+    assert set(ps.transforms[3:]) == {"tanh"} and set(ps.transforms[:3]) == {"log"}
+    lin = default_priors(LinearModel(Rig(), "proportional"), noise="ar1")
+    assert ps.priors[0] == lin.priors[lin.index("sigma_1")]
+    assert ps.priors[3] == lin.priors[lin.index("phi_1")]
+
+
 def test_ar1_start_recovers_phi_and_sigma_within_standard_errors():
     rng = np.random.default_rng(7)
     n = 20000

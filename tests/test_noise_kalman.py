@@ -169,6 +169,21 @@ def test_initial_rest_is_the_exact_filter_from_p0_zero(n):
     assert got[2] == steady[2]
 
 
+def test_free_damping_model_matches_the_dense_gaussian_too():
+    model = LinearModel(Rig(), "free")
+    th = np.array([[6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001]])
+    q, sig = np.array([[3e-6, 1e-6, 5e-7]]), np.array([[1e-5, 2e-5, 1.5e-5]])
+    n = 30
+    v = _input(n)
+    y = simulate_process_noise(model, th, q, sig, v, DT, rng=16)[0]
+    sysd = discretize_process_noise(model, th, q, DT)
+    P = steady_state_filter(sysd, sig).P
+    for initial, P0 in (("steady", P[0]), ("rest", np.zeros((6, 6)))):
+        ref, cond = _dense_loglik(sysd, 0, sig[0], v, y, P0)
+        got = kalman_loglik(model, th, q, sig, v, y, DT, initial=initial)[0]
+        assert abs(got - ref) <= 100 * cond * EPS * max(1.0, abs(ref))
+
+
 def test_start_from_rest_differs_by_a_constant_that_does_not_grow_with_n():
     """Exact (P0 = 0) minus steady-state likelihood settles once the filter converges."""
     th, q, sig = _batch(1, seed=4)

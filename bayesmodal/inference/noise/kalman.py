@@ -585,7 +585,9 @@ def kalman_pointwise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.nda
     """Pointwise terms, shape (nb, N, n_carts), summing to :func:`kalman_loglik`.
 
     Term ``(k, j)`` is ``log p(y_kj | y_k,<j, y_<k)``: the standardised innovation
-    ``u = L^-1 eps_k`` with ``S = L L'``.  Same parameters as :func:`kalman_loglik`.
+    ``u = L^-1 eps_k`` with ``S = L L'``.  Same parameters as :func:`kalman_loglik`; the
+    terms are those of the steady-state start (``initial="steady"``; the exact start from
+    rest changes only a transient, as a correction that is not split per sample).
     """
     ok, _, _, logL, U, _ = _run(model, theta_mech, q, sigma, v, y, dt, store=True)
     nb = ok.size
