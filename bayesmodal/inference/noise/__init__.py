@@ -1,0 +1,23 @@
+"""Noise and discrepancy models of the residual, as standalone array-level modules.
+
+- :mod:`.base`: the :class:`NoiseModel` protocol, with white and AR(1) noise;
+- :mod:`.arp`: AR(p) per output, exact stationary likelihood, order chosen by BIC;
+- :mod:`.kalman`: process noise (a random force on each cart) through the steady-state
+  Kalman filter of the linear model.
+
+See docs/noise_models.md.
+"""
+
+from .arp import ARpNoise, OrderChoice, burg, choose_order, levinson_table, pacf_to_ar
+from .base import AR1Noise, NoiseModel, WhiteNoise
+from .kalman import (
+    ProcessNoise,
+    kalman_loglik,
+    kalman_pointwise,
+    simulate_process_noise,
+    steady_state_filter,
+)
+
+__all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "ARpNoise", "OrderChoice", "burg",
+           "choose_order", "levinson_table", "pacf_to_ar", "ProcessNoise", "kalman_loglik",
+           "kalman_pointwise", "simulate_process_noise", "steady_state_filter"]
