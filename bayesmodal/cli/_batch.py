@@ -21,7 +21,7 @@ def register(sub) -> None:
                    help="local worker processes (default: CPUs, at most the number of runs)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, e.g. tcp://127.0.0.1:8786 (needs the "
-                        "'dask' extra)")
+                        "'dask' extra; default: local processes)")
     p.add_argument("--out-root", default="runs", metavar="DIR",
                    help="folder of the run folders (default runs)")
     g = p.add_mutually_exclusive_group()

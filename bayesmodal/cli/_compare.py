@@ -27,14 +27,16 @@ def register(sub) -> None:
                    help="data files to fit (.mat/.txt ECP in counts, .csv in SI), or two or "
                         "more finished run folders")
     p.add_argument("--runs", nargs=2, metavar=("DIR_A", "DIR_B"), default=None,
-                   help="two finished `bayesmodal sample` folders instead of DATA")
+                   help="two finished `bayesmodal sample` folders instead of DATA "
+                        "(default: none)")
     p.add_argument("--test", nargs="+", default=None, metavar="TEST",
-                   help="held-out data files for the predictive check (e.g. data_steps.mat)")
+                   help="held-out data files for the predictive check (e.g. data_steps.mat; "
+                        "default: none)")
     p.add_argument("--m-per-count", type=float, default=ECP_M_PER_COUNT,
                    help="metres per encoder count for ECP files (default %(default).6g)")
     add_sampler_args(p)
-    p.add_argument("--nlive", type=int, default=250, help="dynesty live points (default 250)")
-    p.add_argument("--dlogz", type=float, default=0.5, help="dynesty stopping dlogz (0.5)")
+    p.add_argument("--nlive", type=int, default=250, help="dynesty live points")
+    p.add_argument("--dlogz", type=float, default=0.5, help="dynesty stopping criterion dlogz")
     p.add_argument("--no-evidence", action="store_true",
                    help="skip nested sampling (the slow part: minutes per model)")
     p.add_argument("--out", default="runs/compare", metavar="DIR",

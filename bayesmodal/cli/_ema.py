@@ -26,7 +26,8 @@ def register(sub) -> None:
                    help="frequency band, rad/s (default: around the FRF peaks)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", default=None,
-                   help="write the FRF, Nyquist and stabilisation figures (PNG) into DIR")
+                   help="write the FRF, Nyquist and stabilisation figures (PNG) into DIR "
+                   "(default: no plots)")
     p.set_defaults(func=run)
 
 

@@ -8,9 +8,18 @@ from ._common import add_data_args, load_args, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("lsq", help="least-squares fit of the linear model")
+    p = sub.add_parser(
+        "lsq",
+        help="least-squares fit of the linear model",
+        description="Output-error least-squares fit of the linear rig model (motor volts to "
+        "cart positions) to DATA, with standard errors, fit percent per cart and the "
+        "modal summary (natural frequencies, damping ratios, mode shapes) of the fit "
+        "(report Tables 3-6).",
+    )
     add_data_args(p, many=True)
-    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+                   help="damping model: free (c1, c2, c3, c12, c23 each fitted) or "
+                   "proportional (C = ca M + cb K)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.set_defaults(func=run)
 

@@ -32,10 +32,13 @@ def register(sub) -> None:
     p.add_argument("--params", default="", metavar="NAME=VALUE,...",
                    help="parameters to change from the report's values, "
                    "e.g. m1=1.57,ca=1.6,cb=8e-5")
-    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+                   help="damping model: free (c1, c2, c3, c12, c23) or proportional "
+                   "(C = ca M + cb K)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", type=Path,
-                   help="write rayleigh_contour.png, bode_force.png, mode_shapes.png here")
+                   help="write rayleigh_contour.png, bode_force.png, mode_shapes.png here "
+                   "(default: no plots)")
     p.set_defaults(func=run)
 
 

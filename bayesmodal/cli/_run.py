@@ -18,7 +18,8 @@ def register(sub) -> None:
                     "one continues with --resume.",
     )
     p.add_argument("config", metavar="CONFIG", help="TOML run configuration")
-    p.add_argument("--out", default=None, metavar="DIR", help="run folder")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="run folder (default: OUT_ROOT/<outputs.dir or config name>)")
     p.add_argument("--out-root", default="runs", metavar="DIR",
                    help="folder holding run folders when --out is not given (default runs)")
     g = p.add_mutually_exclusive_group()

@@ -34,16 +34,18 @@ def register(sub) -> None:
 
 def add_sampler_args(p) -> None:
     """Options shared by ``sample`` and ``compare``."""
-    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+                   help="damping model: free (c1, c2, c3, c12, c23) or proportional "
+                   "(C = ca M + cb K)")
     p.add_argument("--noise", choices=["ar1", "white"], default="ar1",
                    help="residual model (default ar1: AR(1) Gaussian per output)")
-    p.add_argument("--walkers", type=int, default=32, help="ensemble size (default 32)")
-    p.add_argument("--steps", type=int, default=5000, help="steps per walker (default 5000)")
+    p.add_argument("--walkers", type=int, default=32, help="ensemble size")
+    p.add_argument("--steps", type=int, default=5000, help="steps per walker")
     p.add_argument("--burn", type=int, default=None,
                    help="burn-in steps to discard (default steps/5)")
     p.add_argument("--thin", type=int, default=None,
                    help="keep every N-th step (default: about 1000 retained draws)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=int, default=1, help="random seed")
 
 
 def sample_to_dir(exps, args, damping: str, out: Path):
