@@ -28,7 +28,9 @@ def register(sub) -> None:
     g.add_argument("--resume", action="store_true", help="continue interrupted runs")
     g.add_argument("--force", action="store_true", help="start every run over")
     p.add_argument("--json", action="store_true", help="print batch.json to stdout")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no text output")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress and no table; each failed run still gets one line "
+                   "on stderr")
     p.set_defaults(func=run)
 
 
@@ -47,4 +49,8 @@ def run(args) -> int:
     elif not args.quiet:
         print(res.table())
         sys.stdout.flush()
+    if args.quiet:  # quiet drops progress, never errors
+        for it in res.items:
+            if it.state != "finished":
+                print(f"bayesmodal batch: failed: {it.config}: {it.error}", file=sys.stderr)
     return 1 if res.n_failed else 0
