@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import traceback
 import warnings
@@ -90,6 +91,9 @@ def main(argv: list[str] | None = None) -> int:
         with warnings.catch_warnings():  # restores showwarning on exit
             warnings.showwarning = _warning_line(args.command)
             return int(args.func(args) or 0)
+    except BrokenPipeError:  # e.g. `bayesmodal modal | head`: the reader has gone
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - no flush at exit onto the pipe
+        return 0
     except KeyboardInterrupt:
         print("bayesmodal: interrupted", file=sys.stderr)
         return 130
