@@ -56,9 +56,12 @@ def run(args) -> int:
     if args.runs:
         if args.data:
             raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both")
+        from ..runs.compare import check_distinct_runs
+
+        loaded = [load_idata(Path(d) / "posterior.nc") for d in args.runs]
+        check_distinct_runs(args.runs, loaded)
         idatas = {}
-        for d in args.runs:
-            idt = load_idata(Path(d) / "posterior.nc")
+        for d, idt in zip(args.runs, loaded, strict=True):
             label = idt.posterior.attrs["damping"]
             idatas[label if label not in idatas else f"{label}:{d}"] = idt
     else:
