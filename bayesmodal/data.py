@@ -467,8 +467,9 @@ def load_experiment(
         exp = _load_csv(path, name)
     peak = float(np.max(np.abs(exp.y_m)))
     if peak > _MAX_PLAUSIBLE_M:
-        hint = ("are the outputs in encoder counts instead of metres?" if kind == "csv" else
-                f"is m_per_count = {m_per_count:.6g} m per count right?")
+        hint = ("are the outputs in mm or encoder counts instead of metres? (mm: divide "
+                f"by 1000; counts: multiply by {ECP_M_PER_COUNT:.6g} m per count)"
+                if kind == "csv" else f"is m_per_count = {m_per_count:.6g} m per count right?")
         warnings.warn(
             f"{path}: displacements up to {peak:.3g} m are implausible for the rig (the "
             f"carts move a few cm at most); {hint}",
