@@ -12,7 +12,7 @@ import sys
 import time
 from typing import TextIO
 
-__all__ = ["progress_bar"]
+__all__ = ["announce", "progress_bar"]
 
 
 class _Silent:
@@ -106,3 +106,21 @@ def progress_bar(total: int, *, desc: str, unit: str = "step", enabled: bool = T
 
         return tqdm(total=total, desc=desc, unit=unit, file=file, leave=leave)
     return _Lines(total, desc, unit, file)
+
+
+def announce(text: str, *, enabled: bool = True, file: TextIO | None = None) -> None:
+    """Write one progress line (the start of a stage) when ``enabled``.
+
+    Parameters
+    ----------
+    text : str
+        The line, without newline.
+    enabled : bool
+        False writes nothing.
+    file : text stream, optional
+        Default ``sys.stderr`` at call time.
+    """
+    if enabled:
+        file = sys.stderr if file is None else file
+        file.write(text + "\n")
+        file.flush()
