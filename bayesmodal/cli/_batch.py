@@ -40,7 +40,8 @@ def run(args) -> int:
     from ._common import print_json
 
     if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+        raise ConfigError(f"--workers must be >= 1, got {args.workers} (leave it out to use "
+                          "one process per CPU)")
     res = run_batch(args.configs, out_root=args.out_root, workers=args.workers,
                     scheduler=args.scheduler, resume=args.resume, force=args.force,
                     progress=not args.quiet)

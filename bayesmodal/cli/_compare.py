@@ -55,7 +55,8 @@ def run(args) -> int:
         return _run_dirs(args, out)
     if args.runs:
         if args.data:
-            raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both")
+            raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both (drop the "
+                              "data files to compare the two runs)")
         from ..runs.compare import check_distinct_runs
 
         loaded = [load_idata(Path(d) / "posterior.nc") for d in args.runs]
@@ -66,7 +67,8 @@ def run(args) -> int:
             idatas[label if label not in idatas else f"{label}:{d}"] = idt
     else:
         if not args.data:
-            raise ConfigError("no DATA files and no --runs given")
+            raise ConfigError("no DATA files and no --runs given: give data files to fit "
+                              "both damping models, or two or more finished run folders")
         exps = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.data]
         idatas = {}
         for damping in ("free", "proportional"):

@@ -62,14 +62,15 @@ def parse_params(text: str, damping: str, springs=None) -> tuple[dict[str, float
                 f"bad parameter {item!r}: expected NAME=VALUE with NAME one of "
                 f"{', '.join(known)} (--damping {damping})"
             )
+        default = springs[ks[name]] if name in ks else params[name]
         try:
             x = float(value)
         except ValueError:
-            raise ConfigError(f"parameter {name} is not a number: {value!r}") from None
+            raise ConfigError(f"parameter {name} is not a number: {value!r} (write e.g. "
+                              f"{name}={default:g})") from None
         # gain, masses and springs must be positive; damping coefficients may vanish
         positive = name == "g_v" or name[0] in "mk"
         if not (np.isfinite(x) and (x > 0 if positive else x >= 0)):
-            default = springs[ks[name]] if name in ks else params[name]
             raise ConfigError(f"parameter {name} = {value.strip()} is impossible: it must be "
                               f"finite and {'>' if positive else '>='} 0 {param_unit(name)} "
                               f"(the default is {name}={default:g})")

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from .._errors import DataError
+from .._format import param_unit, sig
 from ._common import add_data_args, load_args, print_json
 
 
@@ -57,7 +58,8 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     for e in exps:  # checked before the output folder is made
         if e.n_outputs != model.n_carts:
             raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
-                            f"{model.n_carts} carts")
+                            f"{model.n_carts} carts; give a record with one position column "
+                            f"per cart (x1..x{model.n_carts})")
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "chain.h5"
@@ -86,12 +88,14 @@ def _print_text(summary: dict, out: Path) -> None:
     print(f"damping: {summary['damping']}, noise: {summary['noise']}  -> {out}")
     print(f"{'parameter':>10s} {'median':>12s}   90 % interval")
     for nm, d in summary["parameters"].items():
-        print(f"{nm:>10s} {d['median']:12.6g}   [{d['lo']:.6g}, {d['hi']:.6g}]")
-    for key in ("omega_rad_s", "zeta"):
+        print(f"{nm:>10s} {sig(d['median'], 5):>12s}   [{sig(d['lo'], 5)}, {sig(d['hi'], 5)}] "
+              f"{param_unit(nm)}".rstrip())
+    for key, label in (("omega_rad_s", "natural frequencies (rad/s)"),
+                       ("zeta", "damping ratios")):
         d = summary[key]
-        cells = ", ".join(f"{m:.5g} [{lo:.5g}, {hi:.5g}]"
+        cells = ", ".join(f"{sig(m, 5)} [{sig(lo, 5)}, {sig(hi, 5)}]"
                           for m, lo, hi in zip(d["median"], d["lo"], d["hi"], strict=True))
-        print(f"{key}: {cells}")
+        print(f"{label}: {cells}")
     dg = summary["diagnostics"]
     perf = summary["performance"]
     print(f"diagnostics: max R-hat {dg['max_rhat']:.3f}, min ESS {dg['min_ess']:.0f}, "
