@@ -69,7 +69,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path, PurePosixPath
 
 from ._errors import ConfigError
-from .data import ECP_M_PER_COUNT, data_root
+from .data import ECP_M_PER_COUNT, in_data_root
 from .system import DAMPING_MODELS, ECP210_SPRINGS_N_M
 
 __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
@@ -200,9 +200,7 @@ def _type_name(t) -> str:
 def _resolve_data(path_text: str, base: Path) -> Path | None:
     p = Path(path_text).expanduser()
     candidates = [p] if p.is_absolute() else [base / p]
-    root = data_root()
-    if root is not None and not p.is_absolute():
-        candidates.append(root / p)
+    candidates += in_data_root(p)
     for c in candidates:
         if c.is_file():
             return c.resolve()

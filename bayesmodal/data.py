@@ -29,6 +29,7 @@ __all__ = [
     "MAX_FILE_BYTES",
     "data_root",
     "find_data",
+    "in_data_root",
     "file_sha256",
     "save_csv",
     "check_identifiable",
@@ -174,7 +175,9 @@ def data_root() -> Path | None:
     """Folder of the shared measured data, or None if absent.
 
     Looks at ``$BAYESMODAL_DATA`` first, then ``../shared/data`` beside the repository root
-    (the checkout that holds this package).
+    (the checkout that holds this package).  ``$BAYESMODAL_DATA`` may name the parent of
+    the data set folders (``.../data``) or one data set folder itself
+    (``.../data/ecp210-3dof``); :func:`find_data` accepts both.
     """
     env = os.environ.get("BAYESMODAL_DATA")
     if env:
@@ -185,13 +188,26 @@ def data_root() -> Path | None:
     return p if p.is_dir() else None
 
 
+def in_data_root(name: str | os.PathLike, root: Path | None = None) -> list[Path]:
+    """Where ``name`` (relative, e.g. ``"ecp210-3dof/data_steps.mat"``) may be in a root.
+
+    ``root / name``, and, for a root that is the data set folder itself (``$BAYESMODAL_DATA
+    = .../ecp210-3dof``), ``root / name`` without its first folder.  Default root:
+    :func:`data_root`; no root gives an empty list.
+    """
+    root = data_root() if root is None else Path(root)
+    rel = Path(name)
+    if root is None or rel.is_absolute():
+        return []
+    out = [root / rel]
+    if len(rel.parts) > 1 and rel.parts[0] == root.name:
+        out.append(root.joinpath(*rel.parts[1:]))
+    return out
+
+
 def find_data(name: str) -> Path | None:
     """Path of a measured file such as ``"ecp210-3dof/data_impulses.mat"``, or None."""
-    root = data_root()
-    if root is None:
-        return None
-    p = root / name
-    return p if p.is_file() else None
+    return next((p for p in in_data_root(name) if p.is_file()), None)
 
 
 def _check_size(path: Path, max_bytes: int | None) -> None:
@@ -451,8 +467,9 @@ def load_experiment(
         exp = _load_csv(path, name)
     peak = float(np.max(np.abs(exp.y_m)))
     if peak > _MAX_PLAUSIBLE_M:
-        hint = ("are the outputs in encoder counts instead of metres?" if kind == "csv" else
-                f"is m_per_count = {m_per_count:.6g} m per count right?")
+        hint = ("are the outputs in mm or encoder counts instead of metres? (mm: divide "
+                f"by 1000; counts: multiply by {ECP_M_PER_COUNT:.6g} m per count)"
+                if kind == "csv" else f"is m_per_count = {m_per_count:.6g} m per count right?")
         warnings.warn(
             f"{path}: displacements up to {peak:.3g} m are implausible for the rig (the "
             f"carts move a few cm at most); {hint}",

@@ -204,6 +204,8 @@ def default_data_dir() -> Path | None:
     if root is None:
         return None
     p = root / "ecp210-3dof"
+    if not p.is_dir() and root.name == "ecp210-3dof":
+        p = root  # $BAYESMODAL_DATA names the data set folder itself
     return p if p.is_dir() else None
 
 

@@ -272,8 +272,14 @@ INPUTS = [
              entries=CLI),
     BadInput("counts_csv", "CSV outputs in encoder counts, not metres",
              _csv("counts.csv", lambda t, v, y: (t, v, y / (0.0706 / 16000))),
-             "implausible for the rig .* are the outputs in encoder counts instead of metres",
+             "implausible for the rig .* are the outputs in mm or encoder counts instead of "
+             "metres",
              entries=("load_experiment", "lsq", "ema"), warn=True),
+    BadInput("mm_csv", "CSV outputs in mm, not metres",
+             _csv("mm.csv", lambda t, v, y: (t, v, 1e3 * y)),
+             r"implausible for the rig .* are the outputs in mm or encoder counts instead of "
+             r"metres\? \(mm: divide by 1000",
+             entries=("load_experiment",), warn=True),
     BadInput("mat_struct", "`.mat` holding one struct `data`",
              _write("struct.mat", _mat_bytes(data={"t": np.arange(5.0), "x": np.zeros(5)})),
              r"missing column\(s\) \['t', 'v', 'x1'\].*found data \(struct\)"),

@@ -60,3 +60,17 @@ def test_console_script_exit_code(tmp_path):
     assert r.returncode == 2
     assert "no such file" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_console_script_usage_error_is_one_line():
+    r = subprocess.run([sys.executable, "-m", "bayesmodal", "lsq", "--damping", "viscous",
+                        "x.csv"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("bayesmodal lsq: error: argument --damping: invalid choice")
+    assert "viscous" in lines[0] and lines[0].endswith("(see bayesmodal lsq --help)")
+    # negative control: --help is not an error and prints the usage block
+    r = subprocess.run([sys.executable, "-m", "bayesmodal", "lsq", "--help"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.startswith("usage: bayesmodal lsq")

@@ -1,6 +1,7 @@
 """``bayesmodal lsq`` and ``bayesmodal static`` through the CLI entry point on measured data."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -99,3 +100,43 @@ def test_static_cli_error_is_one_line(capsys):
     assert main(["static", path]) == 2
     err = capsys.readouterr().err
     assert "no settled on-plateau" in err and len(err.strip().splitlines()) == 1
+
+
+SYNTHETIC = Path(__file__).resolve().parents[1] / "data" / "synthetic_impulses.csv"
+
+
+@pytest.fixture(scope="module")
+def lsq_synthetic_text_and_json():
+    import contextlib
+    import io
+
+    outs = []
+    for extra in ([], ["--json"]):
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            assert main(["lsq", str(SYNTHETIC), *extra]) == 0
+        outs.append(buf.getvalue())
+    return outs[0], json.loads(outs[1])
+
+
+def test_lsq_text_has_units_and_only_supported_digits(lsq_synthetic_text_and_json):
+    text, js = lsq_synthetic_text_and_json
+    units = {"g_v": "N/V", **{n: "kg" for n in ("m1", "m2", "m3")},
+             **{n: "N s/m" for n in ("c1", "c2", "c3", "c12", "c23")}}
+    lines = {ln.split("=")[0].strip(): ln for ln in text.splitlines() if " = " in ln}
+    assert set(lines) == set(js["parameters"])
+    for name, value in js["parameters"].items():
+        line, se = lines[name], js["stderr"][name]
+        assert line.endswith(units[name]), line
+        shown = line.split("=", 1)[1].split("+-")[0].strip()
+        if shown.endswith("(at bound)"):
+            assert abs(value) <= np.sqrt(np.finfo(float).eps) * se
+        else:
+            # the value shows the decimals of the error's second significant digit
+            dec = max(0, 1 - int(np.floor(np.log10(se))))
+            assert abs(float(shown) - value) <= 0.5 * 10.0**-dec * (1 + 1e-9)
+            assert "e-" not in shown
+    assert "fit percent, synthetic_impulses:" in text and " %" in text
+    assert "[" not in text  # no raw Python lists
+    assert f"natural frequencies: {js['omega_rad_s'][0]:.4g}" in text
+    assert "rad/s" in text and "mm" in text

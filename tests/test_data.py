@@ -149,3 +149,41 @@ def test_experiment_validation_direct():
     assert e.y_m.shape == (5, 1)
     with pytest.raises(ValueError):
         e.y_m[0, 0] = 1.0  # read-only
+
+
+# ---------------------------------------------------------------- data root
+@pytest.fixture
+def data_tree(tmp_path):
+    """``tmp/data/ecp210-3dof/rec.csv`` and a config folder elsewhere."""
+    ds = tmp_path / "data" / "ecp210-3dof"
+    ds.mkdir(parents=True)
+    (ds / "rec.csv").write_text("t,v,x1,x2,x3\n0,0,0,0,0\n0.01,1,0,0,0\n0.02,0,0,0,0\n")
+    (tmp_path / "cfg").mkdir()
+    return tmp_path
+
+
+@pytest.mark.parametrize("env", ["data", "data/ecp210-3dof"])
+def test_data_root_may_be_the_parent_or_the_data_set_folder(data_tree, monkeypatch, env):
+    from bayesmodal.config import parse_config
+    from bayesmodal.data import find_data
+
+    monkeypatch.setenv("BAYESMODAL_DATA", str(data_tree / env))
+    expected = data_tree / "data" / "ecp210-3dof" / "rec.csv"
+    assert find_data("ecp210-3dof/rec.csv") == expected
+    cfg = parse_config({"data": {"files": ["ecp210-3dof/rec.csv"]}}, base=data_tree / "cfg")
+    assert cfg.data_files == (str(expected.resolve()),)
+    from bayesmodal.reproduce import default_data_dir  # `bayesmodal report`'s folder
+
+    assert default_data_dir() == data_tree / "data" / "ecp210-3dof"
+
+
+def test_data_root_elsewhere_finds_nothing(data_tree, monkeypatch):
+    # negative control: a root that holds neither the data set nor its files
+    from bayesmodal import ConfigError
+    from bayesmodal.config import parse_config
+    from bayesmodal.data import find_data
+
+    monkeypatch.setenv("BAYESMODAL_DATA", str(data_tree / "cfg"))
+    assert find_data("ecp210-3dof/rec.csv") is None
+    with pytest.raises(ConfigError, match="file not found"):
+        parse_config({"data": {"files": ["ecp210-3dof/rec.csv"]}}, base=data_tree / "cfg")

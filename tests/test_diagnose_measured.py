@@ -32,6 +32,12 @@ def test_impulses_name_coulomb_friction(four):
     # friction takes over part of the apparent viscous damping of the driven cart
     assert d.linear_parameters["c1"]["after"] < d.linear_parameters["c1"]["before"]
     assert np.mean(d.gain["fit_percent_after"]) > np.mean(d.gain["fit_percent_before"]) + 5
+    # friction explains part of the misfit only: residual diagnostics still beyond their
+    # threshold make the diagnosis "not explained" (docs/diagnose.md, "Still unexplained")
+    rest = [t.name for t in d.tests_after if t.exceeded]
+    assert d.explained == (not rest)
+    if rest:
+        assert not d.explained and any(", ".join(sorted(rest)) in n for n in d.notes)
 
 
 @pytest.mark.slow
@@ -83,7 +89,9 @@ def test_posterior_intervals_and_elpd_on_a_hidden_delay():
     d = diagnose(h.experiment, posterior=True, n_null=19, rng=1,
                  posterior_options={"n_steps": 300})
     assert d.cause == fast.cause == "input_delay"  # the decision ignores the sampler
-    assert d.interval_method == "posterior"
+    # short chains may fail the convergence checks: then the intervals say so
+    unconverged = any("not converged" in n for n in d.notes)
+    assert d.interval_method == ("posterior_unconverged" if unconverged else "posterior")
     iv = d.parameters["delay_s"]
     # short chains understate the width: allow 3 half-widths plus 0.1 ms
     half = 0.5 * (iv.hi - iv.lo)

@@ -75,3 +75,52 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
     assert main(["compare", "--no-evidence", "--out", str(tmp_path)]) == 2
     assert "no DATA" in capsys.readouterr().err
+
+
+def _idata(config_hash, data="[\"ab\"]"):
+    import arviz as az
+
+    idt = az.from_dict(posterior={"x": np.zeros((1, 4))})
+    idt.posterior.attrs.update(config_hash=config_hash, data_sha256=data)
+    return idt
+
+
+def test_check_distinct_runs(tmp_path):
+    from bayesmodal import ConfigError
+    from bayesmodal.runs.compare import check_distinct_runs
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    with pytest.raises(ConfigError, match="the same folder"):
+        check_distinct_runs([a, tmp_path / "x" / ".." / "a"], [_idata("h1"), _idata("h2")])
+    with pytest.raises(ConfigError, match="same sampler configuration and seed"):
+        check_distinct_runs([a, b], [_idata("h1"), _idata("h1")])
+    # negative controls: another configuration, or the same one on other data
+    check_distinct_runs([a, b], [_idata("h1"), _idata("h2")])
+    check_distinct_runs([a, b], [_idata("h1"), _idata("h1", "[\"cd\"]")])
+
+
+@pytest.mark.slow
+def test_compare_refuses_the_same_run_twice(csv_path, tmp_path, capsys):
+    import shutil
+
+    runs = {}
+    for seed in ("4", "5"):
+        d = tmp_path / f"seed{seed}"
+        args = [a if a != "4" else seed for a in ARGS]
+        assert main(["sample", str(csv_path), "--out", str(d), "--no-plots", *args]) == 0
+        runs[seed] = str(d)
+    copy = tmp_path / "copy"
+    shutil.copytree(runs["4"], copy)
+    capsys.readouterr()
+    for argv in (["--runs", runs["4"], runs["4"]], [runs["4"], runs["4"]],
+                 [runs["4"], str(tmp_path / "seed4" / ".." / "seed4")], [runs["4"], str(copy)],
+                 ["--runs", runs["4"], str(copy)]):
+        assert main(["compare", *argv, "--no-evidence", "--out", str(tmp_path / "c")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("bayesmodal compare: error: "), err
+        assert "comparing a run with itself" in err[0]
+    # negative control: two runs of the same model with different seeds are distinct
+    assert main(["compare", "--runs", runs["4"], runs["5"], "--no-evidence", "--quiet",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert main(["compare", runs["4"], runs["5"], "--quiet",
+                 "--out", str(tmp_path / "c2")]) == 0

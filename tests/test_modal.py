@@ -569,7 +569,7 @@ def test_cli_modal_text_and_plots(capsys, tmp_path):
     assert main(["modal", "--params", "c12=5", "--plots", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "matrix iteration" in out and "Rayleigh quotient" in out
-    assert "c12=5" in out
+    assert "c12 = 5 N s/m" in out
     for name in ("rayleigh_contour.png", "bode_force.png", "mode_shapes.png"):
         assert (tmp_path / name).stat().st_size > 1000
 
@@ -578,4 +578,4 @@ def test_cli_modal_bad_params(capsys):
     assert main(["modal", "--params", "m9=1"]) == 2
     assert "bad parameter" in capsys.readouterr().err
     assert main(["modal", "--params", "m1=-1"]) == 2
-    assert "impossible parameters" in capsys.readouterr().err
+    assert "parameter m1 = -1 is impossible" in capsys.readouterr().err

@@ -150,3 +150,25 @@ def test_batch_scheduler_without_dask_or_bad_workers_is_a_clear_error(configs, c
     _, paths = configs
     assert main(["batch", str(paths[0]), "--workers", "0"]) == 2
     assert "--workers must be >= 1" in capsys.readouterr().err
+
+
+def test_batch_quiet_still_names_every_failed_config(configs, tmp_path, capsys):
+    root, paths = configs
+    missing = root / "no_data.toml"
+    missing.write_text(paths[0].read_text().replace('"rec.csv"', '"absent.csv"'))
+    capsys.readouterr()
+    rc = main(["batch", str(paths[3]), str(missing), "--workers", "1",
+               "--out-root", str(tmp_path), "--quiet"])
+    assert rc == 1
+    cap = capsys.readouterr()
+    assert cap.out == ""  # no table, no progress
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 2, cap.err
+    assert lines[0].startswith(f"bayesmodal batch: failed: {paths[3]}: ConfigError:")
+    assert "[sampler.walkers] must be int" in lines[0]
+    assert lines[1].startswith(f"bayesmodal batch: failed: {missing}:")
+    assert "absent.csv" in lines[1]
+    # negative control: without --quiet the errors are in the table on stdout instead
+    rc = main(["batch", str(paths[3]), "--workers", "1", "--out-root", str(tmp_path)])
+    cap = capsys.readouterr()
+    assert rc == 1 and "error: ConfigError:" in cap.out and "failed:" not in cap.err

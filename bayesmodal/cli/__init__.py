@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import traceback
 import warnings
@@ -24,10 +25,44 @@ class CLIError(Exception):
     """An error to show the user as one line, exit code 2."""
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """States every option's default: ``(default: X)`` unless the help already says it.
+
+    Flags (``store_true``...) and options whose default is None (their help says in words
+    what happens without them) get nothing appended.
+    """
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or action.default is None or action.nargs == 0
+                or action.default is argparse.SUPPRESS):
+            return text
+        return super()._get_help_string(action)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose usage errors are one line on stderr, exit code 2."""
+
+    def error(self, message: str):
+        """Print ``PROG: error: MESSAGE (see PROG --help)`` and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """As ``argparse``, but unknown arguments are blamed on the sub-command given."""
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            command = getattr(ns, "command", None)
+            prog = f"{self.prog} {command}" if command else self.prog
+            self.exit(2, f"{prog}: error: unrecognized arguments: {' '.join(extra)} "
+                      f"(see {prog} --help)\n")
+        return ns
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="bayesmodal",
         description="Bayesian identification of vibrating mass-spring-damper rigs.",
+        formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bayesmodal {__version__}")
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on error")
@@ -40,6 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # command not built yet
             raise
         mod.register(sub)
+    for p in sub.choices.values():  # every sub-command states its options' defaults
+        p.formatter_class = HelpFormatter
     return parser
 
 
@@ -54,6 +91,9 @@ def main(argv: list[str] | None = None) -> int:
         with warnings.catch_warnings():  # restores showwarning on exit
             warnings.showwarning = _warning_line(args.command)
             return int(args.func(args) or 0)
+    except BrokenPipeError:  # e.g. `bayesmodal modal | head`: the reader has gone
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - no flush at exit onto the pipe
+        return 0
     except KeyboardInterrupt:
         print("bayesmodal: interrupted", file=sys.stderr)
         return 130

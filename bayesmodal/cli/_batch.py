@@ -21,14 +21,16 @@ def register(sub) -> None:
                    help="local worker processes (default: CPUs, at most the number of runs)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, e.g. tcp://127.0.0.1:8786 (needs the "
-                        "'dask' extra)")
+                        "'dask' extra; default: local processes)")
     p.add_argument("--out-root", default="runs", metavar="DIR",
                    help="folder of the run folders (default runs)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue interrupted runs")
     g.add_argument("--force", action="store_true", help="start every run over")
     p.add_argument("--json", action="store_true", help="print batch.json to stdout")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no text output")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress and no table; each failed run still gets one line "
+                   "on stderr")
     p.set_defaults(func=run)
 
 
@@ -38,7 +40,8 @@ def run(args) -> int:
     from ._common import print_json
 
     if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+        raise ConfigError(f"--workers must be >= 1, got {args.workers} (leave it out to use "
+                          "one process per CPU)")
     res = run_batch(args.configs, out_root=args.out_root, workers=args.workers,
                     scheduler=args.scheduler, resume=args.resume, force=args.force,
                     progress=not args.quiet)
@@ -47,4 +50,8 @@ def run(args) -> int:
     elif not args.quiet:
         print(res.table())
         sys.stdout.flush()
+    if args.quiet:  # quiet drops progress, never errors
+        for it in res.items:
+            if it.state != "finished":
+                print(f"bayesmodal batch: failed: {it.config}: {it.error}", file=sys.stderr)
     return 1 if res.n_failed else 0

@@ -7,10 +7,19 @@ from ._common import print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("bench", help="speed benchmarks (simulator vs scipy lsim, extensions)")
-    p.add_argument("--samples", type=int, default=8000, help="record length N")
-    p.add_argument("--batch", type=int, default=64, help="parameter sets per call")
-    p.add_argument("--quick", action="store_true", help="shorter timings")
+    p = sub.add_parser(
+        "bench",
+        help="speed benchmarks (simulator vs scipy lsim, extensions)",
+        description="Time the batched linear simulator against scipy.signal.lsim and each "
+        "model-extension simulator against the linear one, as ratios measured in the "
+        "same run.",
+    )
+    p.add_argument("--samples", type=int, default=8000, metavar="N",
+                   help="record length, samples")
+    p.add_argument("--batch", type=int, default=64, metavar="N",
+                   help="parameter sets per simulator call")
+    p.add_argument("--quick", action="store_true",
+                   help="fewer timing rounds (faster, noisier)")
     p.add_argument("--no-extensions", action="store_true",
                    help="skip the model-extension simulators")
     p.add_argument("--json", action="store_true", help="print a JSON object")

@@ -27,14 +27,16 @@ def register(sub) -> None:
                    help="data files to fit (.mat/.txt ECP in counts, .csv in SI), or two or "
                         "more finished run folders")
     p.add_argument("--runs", nargs=2, metavar=("DIR_A", "DIR_B"), default=None,
-                   help="two finished `bayesmodal sample` folders instead of DATA")
+                   help="two finished `bayesmodal sample` folders instead of DATA "
+                        "(default: none)")
     p.add_argument("--test", nargs="+", default=None, metavar="TEST",
-                   help="held-out data files for the predictive check (e.g. data_steps.mat)")
+                   help="held-out data files for the predictive check (e.g. data_steps.mat; "
+                        "default: none)")
     p.add_argument("--m-per-count", type=float, default=ECP_M_PER_COUNT,
                    help="metres per encoder count for ECP files (default %(default).6g)")
     add_sampler_args(p)
-    p.add_argument("--nlive", type=int, default=250, help="dynesty live points (default 250)")
-    p.add_argument("--dlogz", type=float, default=0.5, help="dynesty stopping dlogz (0.5)")
+    p.add_argument("--nlive", type=int, default=250, help="dynesty live points")
+    p.add_argument("--dlogz", type=float, default=0.5, help="dynesty stopping criterion dlogz")
     p.add_argument("--no-evidence", action="store_true",
                    help="skip nested sampling (the slow part: minutes per model)")
     p.add_argument("--out", default="runs/compare", metavar="DIR",
@@ -53,15 +55,20 @@ def run(args) -> int:
         return _run_dirs(args, out)
     if args.runs:
         if args.data:
-            raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both")
+            raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both (drop the "
+                              "data files to compare the two runs)")
+        from ..runs.compare import check_distinct_runs
+
+        loaded = [load_idata(Path(d) / "posterior.nc") for d in args.runs]
+        check_distinct_runs(args.runs, loaded)
         idatas = {}
-        for d in args.runs:
-            idt = load_idata(Path(d) / "posterior.nc")
+        for d, idt in zip(args.runs, loaded, strict=True):
             label = idt.posterior.attrs["damping"]
             idatas[label if label not in idatas else f"{label}:{d}"] = idt
     else:
         if not args.data:
-            raise ConfigError("no DATA files and no --runs given")
+            raise ConfigError("no DATA files and no --runs given: give data files to fit "
+                              "both damping models, or two or more finished run folders")
         exps = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.data]
         idatas = {}
         for damping in ("free", "proportional"):

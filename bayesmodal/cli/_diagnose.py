@@ -2,16 +2,27 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
+from .._format import sig
 from ._common import add_data_args, load_args, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("diagnose", help="diagnose the linear model's misfit and name the cause")
+    p = sub.add_parser(
+        "diagnose",
+        help="diagnose the linear model's misfit and name the cause",
+        description="Fit the linear model to the training experiment, test its residuals "
+        "against simulated null data sets, fit the catalogued model extensions (friction, "
+        "backlash, cubic springs, input effects) and report the cause, its parameters "
+        "with intervals, and the gain in fit on training and held-out DATA.  Takes "
+        "minutes; progress goes to stderr.",
+    )
     add_data_args(p, many=True)
     p.add_argument("--json", action="store_true", help="print a JSON object")
-    p.add_argument("--plots", metavar="DIR", help="write the diagnostics' plots to DIR")
+    p.add_argument("--plots", metavar="DIR",
+                   help="write the diagnostics' plots to DIR (default: no plots)")
     p.add_argument("--seed", type=int, default=0, help="seed of the null simulations and "
                    "the sampler (default %(default)s)")
     p.add_argument("--no-posterior", action="store_true",
@@ -25,6 +36,7 @@ def register(sub) -> None:
                    "of its start grid; the cheapest wins (default %(default)s)")
     p.add_argument("--train", type=int, default=0, metavar="K",
                    help="index of the training experiment among DATA (default %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
 
@@ -32,9 +44,12 @@ def _report(d) -> str:
     lines = [f"discrepancy: {'yes' if d.discrepancy else 'no'} "
              f"(T = {d.statistic:.1f}, threshold {d.threshold:.1f}, p = {d.p_value:.3f})",
              f"cause: {d.cause}" + (f" at {d.location_label}" if d.location_label else "")]
+    lines.append(f"explained: {'yes' if d.explained else 'no'}")
+    label = {"posterior": "90 % credible interval",
+             "posterior_unconverged": "90 % interval of UNCONVERGED chains",
+             "laplace": "90 % Laplace interval"}.get(d.interval_method, d.interval_method)
     for name, iv in d.parameters.items():
-        lines.append(f"  {name} = {iv.median:.4g}  [{iv.lo:.4g}, {iv.hi:.4g}] "
-                     f"({d.interval_method})")
+        lines.append(f"  {name} = {sig(iv.median)}  [{sig(iv.lo)}, {sig(iv.hi)}] ({label})")
     g = d.gain
     for key in ("fit_percent_before", "fit_percent_after", "heldout_fit_percent_before",
                 "heldout_fit_percent_after"):
@@ -67,7 +82,7 @@ def run(args) -> int:
     exps = load_args(args)
     d = diagnose(exps, train=args.train, n_null=args.null, posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
-                 n_starts=args.starts)
+                 n_starts=args.starts, progress=not args.quiet)
     if args.plots:
         from ..diagnose.plots import write_plots
 
@@ -76,4 +91,25 @@ def run(args) -> int:
         print_json(d.as_dict())
     else:
         print(_report(d))
+    sys.stdout.flush()
+    for line in caveats(d):
+        print(f"bayesmodal diagnose: warning: {line}", file=sys.stderr)
     return 0
+
+
+def caveats(d) -> list[str]:
+    """One-line warnings about what the diagnosis does not settle (empty when all is well)."""
+    out = []
+    if d.discrepancy and not d.explained:
+        rest = sorted({t.name for t in d.tests_after if t.exceeded})
+        if d.cause != "none" and rest:
+            out.append(f"{d.cause} explains part of the misfit; still beyond threshold: "
+                       f"{', '.join(rest)} (explained: false; see the notes)")
+        else:
+            out.append("discrepancy not explained by any catalogued extension "
+                       "(explained: false)")
+    if d.interval_method == "posterior_unconverged":
+        out.append("the posterior chains did not converge: the intervals are labelled "
+                   "posterior_unconverged; run longer chains with --steps N (or "
+                   "--no-posterior for Laplace intervals)")
+    return out

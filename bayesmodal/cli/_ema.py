@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 from .._errors import DataError
 from ..ema import METHODS, identify
 from ._common import add_data_args, load_args, print_json
@@ -12,7 +14,8 @@ def register(sub) -> None:
         "ema",
         help="experimental modal analysis (LSCE, circle fit, multi-mode fit, tfest)",
         description="Modal parameters from the FRF of motor volts to cart positions (m/V); "
-        "mode shapes normalised to cart 1.",
+        "mode shapes normalised to cart 1.  Exit code 1 (and a one-line message) when no "
+        "mode is identified.",
     )
     add_data_args(p)
     p.add_argument("--method", choices=METHODS, default="lsce",
@@ -26,7 +29,8 @@ def register(sub) -> None:
                    help="frequency band, rad/s (default: around the FRF peaks)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", default=None,
-                   help="write the FRF, Nyquist and stabilisation figures (PNG) into DIR")
+                   help="write the FRF, Nyquist and stabilisation figures (PNG) into DIR "
+                   "(default: no plots)")
     p.set_defaults(func=run)
 
 
@@ -52,10 +56,10 @@ def run(args) -> int:
     summary["data"] = exp.name
     if files:
         summary["plots"] = [str(f) for f in files]
+    est = res.estimate
     if args.json:
         print_json(summary)
-        return 0
-    est = res.estimate
+        return _none_identified(exp, est)
     print(f"{exp.name}: {args.method}, band {res.band[0]:.4g}..{res.band[1]:.4g} rad/s, "
           f"FRF in {res.frf.units}")
     print(" mode  omega (rad/s)   zeta     identified  shape (cart 1 = 1)")
@@ -67,4 +71,15 @@ def run(args) -> int:
         print(f"  note: {note}")
     for f in files:
         print(f"  wrote {f}")
-    return 0
+    return _none_identified(exp, est)
+
+
+def _none_identified(exp, est) -> int:
+    """Exit code: 1, with a one-line message naming the fix, when no mode was identified."""
+    if est.n_modes and any(est.identified):
+        return 0
+    sys.stdout.flush()
+    print(f"bayesmodal ema: error: no mode identified in {exp.name} (a record without "
+          "resonant response, e.g. slow steps?); use an impulse or sine-sweep record, or "
+          "set --band LO HI around the FRF peaks (rad/s)", file=sys.stderr)
+    return 1

@@ -2,15 +2,27 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+from .._format import estimate, param_unit, percent, values
 from ..fit import fit_lsq
 from ..system import LinearModel, Rig
 from ._common import add_data_args, load_args, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("lsq", help="least-squares fit of the linear model")
+    p = sub.add_parser(
+        "lsq",
+        help="least-squares fit of the linear model",
+        description="Output-error least-squares fit of the linear rig model (motor volts to "
+        "cart positions) to DATA, with standard errors, fit percent per cart and the "
+        "modal summary (natural frequencies, damping ratios, mode shapes) of the fit "
+        "(report Tables 3-6).",
+    )
     add_data_args(p, many=True)
-    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+                   help="damping model: free (c1, c2, c3, c12, c23 each fitted) or "
+                   "proportional (C = ca M + cb K)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.set_defaults(func=run)
 
@@ -42,11 +54,24 @@ def run(args) -> int:
     if args.json:
         print_json(summary)
     else:
-        print(f"damping: {summary['damping']}")
-        for k, v in summary["parameters"].items():
-            print(f"  {k:>4s} = {v:.6g} +- {summary['stderr'][k]:.2g}")
-        print("fit percent:", summary["fit_percent"])
-        for key in ("omega_rad_s", "zeta"):
-            if key in summary:
-                print(f"{key}:", [round(x, 5) for x in summary[key]])
+        print(format_lsq(summary, res, [e.name for e in exps]))
     return 0
+
+
+def format_lsq(summary: dict, res, names: list[str]) -> str:
+    """Text of ``bayesmodal lsq``: estimates with units and standard errors."""
+    lines = [f"damping: {summary['damping']}",
+             "parameters (estimate +- standard error; white-noise Gauss-Newton errors, "
+             "optimistic for correlated residuals):"]
+    for k, v in summary["parameters"].items():
+        # every parameter is >= 0: damping coefficients may end on that bound
+        lines.append(f"  {k:>4s} = " + estimate(v, summary["stderr"][k], unit=param_unit(k),
+                                                lower=0.0))
+    for name, row in zip(names, np.atleast_2d(res.fit_percent), strict=True):
+        lines.append(f"fit percent, {name}: {percent(row)} (carts 1..{len(row)})")
+    lines.append(f"RMS residual: {values(1e3 * np.asarray(res.sigma_m), unit='mm', digits=3)}")
+    if "omega_rad_s" in summary:
+        lines.append(f"natural frequencies: {values(summary['omega_rad_s'], unit='rad/s')}")
+    if "zeta" in summary:
+        lines.append(f"damping ratios: {values(summary['zeta'], digits=3)}")
+    return "\n".join(lines)

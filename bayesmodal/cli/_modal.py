@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ConfigError
+from .._format import param_unit, sig
 from ..modal import ConvergenceError, modal_report, rayleigh_modes, transfer_function
 from ..system import LinearModel, Rig
 from ._common import print_json
@@ -27,42 +28,68 @@ def register(sub) -> None:
         description="Eigenproblem, Rayleigh quotient and matrix iteration (report section 3), "
         "modal damping and transfer functions (section 4) for one parameter set.  "
         "Parameters not given default to the report's Table 3 (free) or Table 4 "
-        "(proportional).",
+        "(proportional); springs k1..k3 to the rig's (N/m).",
     )
     p.add_argument("--params", default="", metavar="NAME=VALUE,...",
                    help="parameters to change from the report's values, "
-                   "e.g. m1=1.57,ca=1.6,cb=8e-5")
-    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+                   "e.g. m1=1.57,ca=1.6,cb=8e-5; springs k1..k3 in N/m "
+                   "(default: the report's Table 3 or 4 and the rig's springs)")
+    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+                   help="damping model: free (c1, c2, c3, c12, c23) or proportional "
+                   "(C = ca M + cb K)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", type=Path,
-                   help="write rayleigh_contour.png, bode_force.png, mode_shapes.png here")
+                   help="write rayleigh_contour.png, bode_force.png, mode_shapes.png here "
+                   "(default: no plots)")
     p.set_defaults(func=run)
 
 
-def parse_params(text: str, damping: str) -> dict[str, float]:
-    """``"a=1,b=2"`` merged over the report's values for this damping model."""
+def parse_params(text: str, damping: str, springs=None) -> tuple[dict[str, float], list[float]]:
+    """``"a=1,k2=900"`` merged over the report's values and the rig's springs.
+
+    Returns the model parameters (``LinearModel.names``) and the springs k1..kn, N/m.
+    Each value is checked on its own, so that an error names the parameter.
+    """
     params = dict(REPORT_PARAMS[damping])
+    springs = list(Rig().springs_n_m if springs is None else springs)
+    ks = {f"k{i + 1}": i for i in range(len(springs))}
+    known = [*params, *ks]
     for item in filter(None, (s.strip() for s in text.split(","))):
         name, sep, value = item.partition("=")
         name = name.strip()
-        if not sep or name not in params:
+        if not sep or name not in known:
             raise ConfigError(
-                f"bad parameter {item!r}: expected NAME=VALUE with NAME in {list(params)}"
+                f"bad parameter {item!r}: expected NAME=VALUE with NAME one of "
+                f"{', '.join(known)} (--damping {damping})"
             )
+        default = springs[ks[name]] if name in ks else params[name]
         try:
-            params[name] = float(value)
+            x = float(value)
         except ValueError:
-            raise ConfigError(f"parameter {name} is not a number: {value!r}") from None
-    return params
+            raise ConfigError(f"parameter {name} is not a number: {value!r} (write e.g. "
+                              f"{name}={default:g})") from None
+        # gain, masses and springs must be positive; damping coefficients may vanish
+        positive = name == "g_v" or name[0] in "mk"
+        if not (np.isfinite(x) and (x > 0 if positive else x >= 0)):
+            raise ConfigError(f"parameter {name} = {value.strip()} is impossible: it must be "
+                              f"finite and {'>' if positive else '>='} 0 {param_unit(name)} "
+                              f"(the default is {name}={default:g})")
+        if name in ks:
+            springs[ks[name]] = x
+        else:
+            params[name] = x
+    return params, springs
 
 
 def run(args) -> int:
-    model = LinearModel(Rig(), args.damping)
-    theta = model.as_vector(parse_params(args.params, args.damping))
+    params, springs = parse_params(args.params, args.damping)
+    model = LinearModel(Rig(tuple(springs)), args.damping)
+    theta = model.as_vector(params)
     try:
         report = modal_report(model, theta)
     except ConvergenceError as exc:
         raise ConfigError(str(exc)) from None
+    report["springs_n_m"] = list(model.rig.springs_n_m)
     if args.plots is not None:
         report["plots"] = write_plots(model, theta, args.plots)
     if args.json:
@@ -108,7 +135,11 @@ def _row(label, values, fmt="{:>10.4f}"):
 
 def print_report(r: dict) -> None:
     print(f"damping: {r['damping']}")
-    print("parameters: " + ", ".join(f"{k}={v:.6g}" for k, v in r["parameters"].items()))
+    print("parameters: " + ", ".join(f"{k} = {sig(v)} {param_unit(k)}".rstrip()
+                                     for k, v in r["parameters"].items()))
+    if "springs_n_m" in r:
+        print("springs: " + ", ".join(f"k{i + 1} = {sig(k)} N/m"
+                                      for i, k in enumerate(r["springs_n_m"])))
     titles = {"eigen": "eigenproblem", "rayleigh": "Rayleigh quotient",
               "iteration": "matrix iteration"}
     for name, m in r["methods"].items():

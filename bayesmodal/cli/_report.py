@@ -20,7 +20,8 @@ def register(sub) -> None:
                    help="folder with data_impulses, data_steps (and the sine sweeps) as .mat "
                         "or .txt (default: $BAYESMODAL_DATA/ecp210-3dof or the shared folder)")
     p.add_argument("--out", metavar="DIR",
-                   help="write the figures, tables.txt and report.json into DIR")
+                   help="write the figures, tables.txt and report.json into DIR "
+                        "(default: nothing written)")
     p.add_argument("--json", action="store_true", help="print a JSON object, not tables")
     p.set_defaults(func=run)
 

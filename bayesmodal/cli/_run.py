@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from .._errors import ConfigError
+from .._format import sig
 
 
 def register(sub) -> None:
@@ -18,7 +19,8 @@ def register(sub) -> None:
                     "one continues with --resume.",
     )
     p.add_argument("config", metavar="CONFIG", help="TOML run configuration")
-    p.add_argument("--out", default=None, metavar="DIR", help="run folder")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="run folder (default: OUT_ROOT/<outputs.dir or config name>)")
     p.add_argument("--out-root", default="runs", metavar="DIR",
                    help="folder holding run folders when --out is not given (default runs)")
     g = p.add_mutually_exclusive_group()
@@ -50,7 +52,7 @@ def run(args) -> int:
         print(f"{cfg.name}: {s['convergence']['verdict']}")
         for key, label in (("omega_rad_s", "omega (rad/s)"), ("zeta", "zeta")):
             d = s[key]
-            cells = ", ".join(f"{m:.4g} [{lo:.4g}, {hi:.4g}]"
+            cells = ", ".join(f"{sig(m)} [{sig(lo)}, {sig(hi)}]"
                               for m, lo, hi in zip(d["median"], d["lo"], d["hi"], strict=True))
             print(f"  {label}: {cells}")
         report = res.out_dir / "report.html"

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from .._errors import DataError
+from .._format import param_unit, sig
 from ._common import add_data_args, load_args, print_json
 
 
@@ -34,16 +35,18 @@ def register(sub) -> None:
 
 def add_sampler_args(p) -> None:
     """Options shared by ``sample`` and ``compare``."""
-    p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+                   help="damping model: free (c1, c2, c3, c12, c23) or proportional "
+                   "(C = ca M + cb K)")
     p.add_argument("--noise", choices=["ar1", "white"], default="ar1",
                    help="residual model (default ar1: AR(1) Gaussian per output)")
-    p.add_argument("--walkers", type=int, default=32, help="ensemble size (default 32)")
-    p.add_argument("--steps", type=int, default=5000, help="steps per walker (default 5000)")
+    p.add_argument("--walkers", type=int, default=32, help="ensemble size")
+    p.add_argument("--steps", type=int, default=5000, help="steps per walker")
     p.add_argument("--burn", type=int, default=None,
                    help="burn-in steps to discard (default steps/5)")
     p.add_argument("--thin", type=int, default=None,
                    help="keep every N-th step (default: about 1000 retained draws)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=int, default=1, help="random seed")
 
 
 def sample_to_dir(exps, args, damping: str, out: Path):
@@ -55,7 +58,8 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     for e in exps:  # checked before the output folder is made
         if e.n_outputs != model.n_carts:
             raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
-                            f"{model.n_carts} carts")
+                            f"{model.n_carts} carts; give a record with one position column "
+                            f"per cart (x1..x{model.n_carts})")
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "chain.h5"
@@ -84,12 +88,14 @@ def _print_text(summary: dict, out: Path) -> None:
     print(f"damping: {summary['damping']}, noise: {summary['noise']}  -> {out}")
     print(f"{'parameter':>10s} {'median':>12s}   90 % interval")
     for nm, d in summary["parameters"].items():
-        print(f"{nm:>10s} {d['median']:12.6g}   [{d['lo']:.6g}, {d['hi']:.6g}]")
-    for key in ("omega_rad_s", "zeta"):
+        print(f"{nm:>10s} {sig(d['median'], 5):>12s}   [{sig(d['lo'], 5)}, {sig(d['hi'], 5)}] "
+              f"{param_unit(nm)}".rstrip())
+    for key, label in (("omega_rad_s", "natural frequencies (rad/s)"),
+                       ("zeta", "damping ratios")):
         d = summary[key]
-        cells = ", ".join(f"{m:.5g} [{lo:.5g}, {hi:.5g}]"
+        cells = ", ".join(f"{sig(m, 5)} [{sig(lo, 5)}, {sig(hi, 5)}]"
                           for m, lo, hi in zip(d["median"], d["lo"], d["hi"], strict=True))
-        print(f"{key}: {cells}")
+        print(f"{label}: {cells}")
     dg = summary["diagnostics"]
     perf = summary["performance"]
     print(f"diagnostics: max R-hat {dg['max_rhat']:.3f}, min ESS {dg['min_ess']:.0f}, "

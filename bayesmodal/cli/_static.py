@@ -9,10 +9,17 @@ from ._common import add_data_args, load_args, print_json
 
 
 def register(sub) -> None:
-    p = sub.add_parser("static", help="voltage-to-force gain and spring ratios from steps")
+    p = sub.add_parser(
+        "static",
+        help="voltage-to-force gain and spring ratios from steps",
+        description="Steady-state analysis of a step experiment (report Table 2): the "
+        "voltage-to-force gain g_v and the spring ratios from the settled plateaus, "
+        "referenced to zero and to the previous plateau.",
+    )
     add_data_args(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
-    p.add_argument("--plots", metavar="DIR", help="write the plateau-picking plot into DIR")
+    p.add_argument("--plots", metavar="DIR", help="write the plateau-picking plot into DIR "
+                   "(default: no plots)")
     p.set_defaults(func=run)
 
 

@@ -159,8 +159,10 @@ class Diagnosis:
         input effects and for ``"none"``.
     location_label : str or None
     explained : bool
-        An extension was accepted (False with ``discrepancy`` means: no catalogued
-        extension explains the misfit).
+        No discrepancy, or an extension was accepted and its residuals pass every
+        residual diagnostic.  False with ``discrepancy``: no catalogued extension was
+        accepted, or the accepted one leaves diagnostics beyond their threshold (listed in
+        ``notes``; ``cause`` names the extension that explains part of the misfit).
     statistic, threshold, p_value : float
         Workflow statistic ``T`` (max standardised score), its threshold and Monte Carlo
         p-value.
@@ -183,7 +185,9 @@ class Diagnosis:
         percents as medians over posterior draws with 90 % intervals (``*_lo``,
         ``*_hi``) and ``heldout_delta_lpd``.
     interval_method : str
-        ``"posterior"`` (emcee), ``"laplace"`` or ``"none"``.
+        ``"posterior"`` (emcee, converged chains), ``"posterior_unconverged"`` (emcee
+        chains that failed the convergence checks: the intervals are not a posterior
+        summary; ``notes`` say why), ``"laplace"`` or ``"none"``.
     experiments : tuple of str
     train : tuple of int
     n_null : int

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
+from .._progress import progress_bar
 from ..data import ECP_M_PER_COUNT, Experiment
 from ..diagnostics import RESIDUAL_DIAGNOSTICS, Diagnostic, linear_residuals
 from ..fit import fit_lsq
@@ -248,6 +249,7 @@ def calibrate_null(
     rng=None,
     names: Sequence[str] | None = None,
     refit_nfev: int = 20,
+    progress: bool = False,
 ) -> NullCalibration:
     """Simulate the fitted linear model with its noise, refit, run the diagnostics.
 
@@ -272,6 +274,8 @@ def calibrate_null(
         generated the null data, so it converges in a few steps; a refit stopped early
         leaves the null residuals slightly larger than converged ones, which errs towards
         fewer false positives.
+    progress : bool
+        Progress over the null data sets on stderr (``bayesmodal._progress``).
 
     Returns
     -------
@@ -304,6 +308,8 @@ def calibrate_null(
                              e.n_samples, rng)
         sims.append(quantise(y_pred[None] + eps, noise.quantum_m))
     raw = np.full((n_null, len(keys)), np.nan)
+    bar = progress_bar(n_null, desc="diagnose: null calibration", unit="data set",
+                       enabled=progress)
     for b in range(n_null):
         null_exps = [Experiment(e.t_s, e.v_volt, sims[i][b], name=f"{e.name} (null {b})")
                      for i, e in enumerate(experiments)]
@@ -319,6 +325,8 @@ def calibrate_null(
                                                        quantum_m=noise.quantum_m, names=names))
                  for e in null_exps]
         raw[b] = [stats[i][nm] for nm, i in keys]
+        bar.update(1)
+    bar.close()
     g = np.column_stack([_g(nm, raw[:, j]) for j, (nm, _) in enumerate(keys)])
     mean = np.empty(len(keys))
     sd = np.empty(len(keys))

@@ -19,6 +19,7 @@ import inspect
 
 import numpy as np
 
+from .._progress import announce
 from ._result import Interval
 
 __all__ = ["posterior_summary", "sampler_supports_extensions"]
@@ -67,7 +68,8 @@ def sampler_supports_extensions() -> bool:
     return "extension" in inspect.signature(sample_posterior).parameters
 
 
-def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
+def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=(),
+                      progress=False):
     """Credible intervals (90 %) and ELPD change, or None without sampler support.
 
     Parameters
@@ -86,13 +88,16 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
         ``restart``...); ``restart`` defaults to half the burn-in, ``None`` turns it off.
     heldout : sequence of Experiment
         Experiments not used in the fit, scored by both posteriors.
+    progress : bool
+        A line as each model's sampling starts, and the sampler's progress (stderr).
 
     Returns
     -------
     dict or None
         ``parameters`` {name: Interval}, ``delta_elpd``, ``delta_elpd_se``,
         ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``fits`` (see
-        ``_fits``), ``notes``.
+        ``_fits``), ``notes``, ``converged`` (both chains passed the convergence
+        checks of ``sample_posterior``).
     """
     if not sampler_supports_extensions():
         return None
@@ -115,6 +120,9 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
         kw["n_walkers"] += kw["n_walkers"] % 2
         burn = kw.setdefault("burn", int(kw["n_steps"]) // 5)
         kw.setdefault("restart", burn // 2 if burn >= 2 else None)
+        kw.setdefault("progress", progress)
+        announce(f"diagnose: posterior of the {label} model (emcee, {kw['n_walkers']} "
+                 f"walkers x {kw['n_steps']} steps)", enabled=progress)
         run = sample_posterior(exps, model, extension=extension, start=start,
                                rng=np.random.default_rng(rng.integers(2**63)), warn=False,
                                **kw)
@@ -139,4 +147,5 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=()):
         "elpd": change.as_dict(),
         "fits": _fits(runs, ext.name, model, exps, heldout, opts["noise"]),
         "notes": notes,
+        "converged": all(r.diagnostics.converged for r in runs.values()),
     }

@@ -30,6 +30,7 @@ import numpy as np
 from scipy import stats
 
 from .._errors import ConfigError, DataError, ModelError
+from .._progress import announce, progress_bar
 from ..data import Experiment
 from ..extensions import EXTENSIONS, Extension, fit_extension_lsq
 from ..fit import fit_lsq
@@ -136,6 +137,7 @@ def diagnose(
     posterior_options: dict | None = None,
     max_nfev: int = 40,
     n_starts: int = 3,
+    progress: bool = False,
 ) -> Diagnosis:
     """Diagnose the linear model's misfit, name the cause and measure the gain.
 
@@ -179,6 +181,9 @@ def diagnose(
         friction starts end 6 % apart in cost and 3 points apart in their prediction of
         the held-out steps), so one start makes the reported gain depend on which basin
         the nearest start happens to lie in.
+    progress : bool
+        Progress lines on stderr: each stage as it starts, and progress over the null
+        data sets, the candidate fits and the sampler steps (``bayesmodal._progress``).
 
     Returns
     -------
@@ -230,6 +235,7 @@ def diagnose(
     # 1. linear fit and its noise model
     # the optimisers probe wild parameter values on the way (overflowing exponentials of
     # unstable trial systems); those trials are rejected, so the warnings are noise
+    announce("diagnose: least-squares fit of the linear model", enabled=progress)
     with np.errstate(all="ignore"):
         linear = fit_lsq(train_exps, model)
     y_lin = [simulate_linear(model, linear.theta, e.v_volt, e.dt) for e in train_exps]
@@ -237,7 +243,7 @@ def diagnose(
 
     # 2. null calibration and the data's diagnostics
     cal = calibrate_null(train_exps, model, linear.theta, noise=noise, n_null=n_null,
-                         alpha=alpha, rng=rng)
+                         alpha=alpha, rng=rng, progress=progress)
     diags = [run_diagnostics(e, model, linear.theta, quantum_m=q) for e in train_exps]
     tests, t_max = _outcomes(cal, train_exps, diags)
     p_mc = cal.p_value(t_max)
@@ -286,6 +292,8 @@ def diagnose(
     fits = {}
     after_tests = {}
     peak_volt = max(float(np.max(np.abs(e.v_volt))) for e in train_exps)
+    bar = progress_bar(len(to_fit), desc="diagnose: candidate extensions", unit="fit",
+                       enabled=progress)
     for c in order:
         ext = EXTENSIONS[c]
         k = len(ext.specs(rig))
@@ -294,6 +302,8 @@ def diagnose(
                                          -np.inf, False, False, None, {},
                                          "not fitted: weak signature"))
             continue
+        bar.set_postfix_str(c)
+        bar.update(1)
         try:
             with np.errstate(all="ignore"):
                 ef = None
@@ -343,6 +353,7 @@ def diagnose(
             c, signature[c], True, g, lr, k, p, float(score), sig, passes, loc, ext_params,
             f"T after {tmax_after:.1f} (before {t_max:.1f}, threshold {cal.threshold:.1f})"
             + ("; residuals pass every diagnostic" if clean else "")))
+    bar.close()
     ranking = tuple(sorted(scored, key=lambda s: -s.score if np.isfinite(s.score) else np.inf))
     accepted = next((s for s in ranking if s.fitted and s.significant and s.passes), None)
 
@@ -360,7 +371,9 @@ def diagnose(
     ext = EXTENSIONS[c]
     ef, y_ext, pw, tmax_after, label = fits[c]
     t_after = after_tests[c]
-    if any(t.exceeded for t in t_after):
+    # explained only when the extended model's residuals pass every residual diagnostic
+    explained = not any(t.exceeded for t in t_after)
+    if not explained:
         rest = sorted({t.name for t in t_after if t.exceeded})
         notes.append(f"after {c}, still beyond threshold: {', '.join(rest)} "
                      "(misfit the catalogue does not explain)")
@@ -393,10 +406,11 @@ def diagnose(
 
         post = posterior_summary(exps=train_exps, ext=ext, rig=rig, fit=ef,
                                  linear=linear, rng=rng, options=posterior_options or {},
-                                 heldout=held_exps)
+                                 heldout=held_exps, progress=progress)
         if post is not None:
             parameters = post["parameters"]
-            method = "posterior"
+            # intervals of chains that did not converge are not a posterior summary
+            method = "posterior" if post["converged"] else "posterior_unconverged"
             for key in ("delta_elpd", "delta_elpd_se", "criterion"):
                 if post.get(key) is not None:
                     gain[key] = post[key]
@@ -422,7 +436,7 @@ def diagnose(
             parameters[n] = Interval(float(ef.theta[i]), lo, float(ef.theta[i] + zq * sd[i]))
     return Diagnosis(
         discrepancy=True, cause=c, location=accepted.location, location_label=label,
-        explained=True, tests_after=tuple(t_after), ranking=ranking, parameters=parameters,
+        explained=explained, tests_after=tuple(t_after), ranking=ranking, parameters=parameters,
         linear_parameters=linear_parameters, gain=gain, interval_method=method,
         notes=tuple(notes),
         detail={"calibration": cal, "linear": linear, "fits": fits, "extension_fit": ef},

@@ -34,6 +34,7 @@ import emcee
 import numpy as np
 
 from .._errors import ConfigError
+from .._progress import progress_bar
 from ..data import Experiment
 from ..fit import LSQResult, fit_lsq
 from ..system import LinearModel
@@ -448,6 +449,20 @@ def _open_backend(backend, n_walkers: int, n_params: int, chash: str):
     return backend, done
 
 
+def _advance(sampler, state, n_steps: int, progress: bool) -> None:
+    """``sampler.run_mcmc(state, n_steps)`` with the package's progress display.
+
+    The same ``sampler.sample`` iterations as ``run_mcmc`` (identical draws); ``state``
+    None continues from the backend's last sample, as ``run_mcmc(None, ...)`` does for a
+    sampler opened on a filled backend.
+    """
+    if state is None:
+        state = sampler.get_last_sample()
+    with progress_bar(n_steps, desc="sampling", unit="step", enabled=bool(progress)) as bar:
+        for _ in sampler.sample(state, iterations=n_steps):
+            bar.update(1)
+
+
 def _backend_attr(backend, key):
     if not isinstance(backend, emcee.backends.HDFBackend):
         return getattr(backend, "_bayesmodal_" + key, None)
@@ -516,7 +531,8 @@ def sample_posterior(
         this configuration, sampling resumes from the last one (the generator state is
         restored from the file) and only the missing steps are run.
     progress : bool
-        Show emcee's tqdm progress bar.
+        Show progress on stderr (a tqdm bar on a terminal, plain lines every 10 %
+        otherwise; see ``bayesmodal._progress``).
     start : LSQResult, ExtensionFit or ndarray, optional
         Least-squares estimate to start from (computed with ``fit_lsq``, or with
         ``fit_extension_lsq`` for an extension, if omitted).  An array has the model
@@ -696,18 +712,18 @@ def sample_posterior(
         state = emcee.State(z_init, random_state=mt.get_state())
         be.reset(n_walkers, n_par)
         _set_backend_attr(be, "bayesmodal_config_hash", chash)
-        sampler.run_mcmc(state, stop, progress=progress)
+        _advance(sampler, state, stop, progress)
         n_eval += n_walkers * (stop + 1)
         done = stop
     elif done < stop:
-        sampler.run_mcmc(None, stop - done, progress=progress)
+        _advance(sampler, None, stop - done, progress)
         n_eval += n_walkers * (stop - done)
         done = stop
     if done == restart:  # (restart < burn < n_steps)
         best = be.get_chain()[restart - 1, np.argmax(be.get_log_prob()[restart - 1])]
         z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
         state = emcee.State(z_init, random_state=be.random_state)
-        sampler.run_mcmc(state, n_steps - restart, progress=progress)
+        _advance(sampler, state, n_steps - restart, progress)
         n_eval += n_walkers * (n_steps - restart + 1)
     elapsed = time.perf_counter() - t0
 

@@ -163,9 +163,9 @@ def _plan(configs, out_root: Path) -> tuple[list, dict]:
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm.auto import tqdm
+    from .._progress import progress_bar
 
-    return tqdm(total=total, desc="runs", unit="run", disable=not enabled)
+    return progress_bar(total, desc="runs", unit="run", enabled=enabled)
 
 
 def run_batch(configs, *, out_root: str | os.PathLike = "runs", workers: int | None = None,
@@ -188,7 +188,8 @@ def run_batch(configs, *, out_root: str | os.PathLike = "runs", workers: int | N
     resume, force : bool
         Passed to every run (see :func:`~.runner.execute_run`).
     progress : bool
-        A tqdm bar over finished runs.
+        Progress over finished runs on stderr (a tqdm bar on a terminal, else plain
+        lines every 10 %).
 
     Returns
     -------

@@ -21,7 +21,7 @@ import numpy as np
 
 from .._errors import ConfigError
 
-__all__ = ["RunRow", "RunComparison", "compare_runs", "write_comparison"]
+__all__ = ["RunRow", "RunComparison", "check_distinct_runs", "compare_runs", "write_comparison"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,6 +156,37 @@ def _load_run(path: Path):
     return summary, idata
 
 
+def check_distinct_runs(paths, idatas) -> None:
+    """Refuse a run given twice: the same folder, or the same sampler configuration (its
+    hash, which includes the seed) on the same data, e.g. a copied folder.
+
+    Parameters
+    ----------
+    paths : sequence of path
+        The run folders.
+    idatas : sequence of arviz.InferenceData
+        Their posteriors (``posterior.attrs``: ``config_hash``, ``data_sha256``).
+
+    Raises
+    ------
+    ConfigError
+        Naming the two folders that hold the same run.
+    """
+    seen: dict = {}
+    for path, idt in zip(paths, idatas, strict=True):
+        attrs = idt.posterior.attrs
+        keys = [("folder", Path(path).resolve())]
+        if attrs.get("config_hash"):
+            keys.append(("run", attrs["config_hash"], attrs.get("data_sha256", "")))
+        for key in keys:
+            if key in seen:
+                how = "the same folder" if key[0] == "folder" else \
+                    "the same run (same sampler configuration and seed on the same data)"
+                raise ConfigError(f"{seen[key]} and {path} are {how}: comparing a run with "
+                                  "itself says nothing; give runs of different models")
+            seen[key] = path
+
+
 def compare_runs(run_dirs, *, test=None) -> RunComparison:
     """Model choice across finished run folders fitted to the same data.
 
@@ -174,7 +205,8 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
     Raises
     ------
     ConfigError
-        Fewer than two runs, an unfinished run, or runs fitted to different data.
+        Fewer than two runs, an unfinished run, the same run twice, or runs fitted to
+        different data.
     """
     from ..inference import (
         information_criteria,
@@ -189,6 +221,7 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
         raise ConfigError(f"compare needs at least two run folders, got {len(paths)}")
     labels = _labels(paths)
     loaded = [_load_run(p) for p in paths]
+    check_distinct_runs(paths, [idt for _, idt in loaded])
     shas = [tuple(json.loads(idt.posterior.attrs.get("data_sha256", "[]"))) for _, idt in loaded]
     if len(set(shas)) > 1:
         diff = ", ".join(f"{lab}: {list(s)[:1]}" for lab, s in zip(labels, shas, strict=True))

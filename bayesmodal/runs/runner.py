@@ -299,13 +299,13 @@ def _run_log(folder: RunFolder):
 
 
 class _Stages:
-    """A progress bar over the named stages of a run (tqdm; silent when disabled)."""
+    """Progress over the named stages of a run (``bayesmodal._progress``; silent when
+    disabled)."""
 
     def __init__(self, names, enabled: bool, title: str) -> None:
-        from tqdm.auto import tqdm
+        from .._progress import progress_bar
 
-        self.bar = tqdm(total=len(names), desc=title, unit="stage", disable=not enabled,
-                        leave=True)
+        self.bar = progress_bar(len(names), desc=title, unit="stage", enabled=enabled)
 
     @contextlib.contextmanager
     def stage(self, name: str):
@@ -337,8 +337,7 @@ def _verdict_detail(diag: dict) -> str:
 
 def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolder,
                   progress: bool) -> dict:
-    from tqdm.auto import tqdm
-
+    from .._progress import progress_bar
     from .crosscheck import lsce_check, residual_check
     from .plots import plot_residual_acf, plot_residuals
 
@@ -357,16 +356,18 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         work += [("lsce", e) for e in prep.experiments]
     res_checks, lsce = [], []
     record_theta = _record_medians(run, idata)
-    for kind, e in tqdm(work, desc="cross-checks", unit="check", disable=not progress,
-                        leave=False):
-        if kind == "residuals":
-            th = record_theta.get(e.name, theta_med)
-            res_checks.append(residual_check(e, model, th, extension=ext))
-        else:
-            chk = lsce_check(e, model.n_carts)
-            if chk.error:
-                log.warning("LSCE on %s: %s", e.name, chk.error)
-            lsce.append(chk)
+    with progress_bar(len(work), desc="cross-checks", unit="check", enabled=progress,
+                      leave=False) as bar:
+        for kind, e in work:
+            if kind == "residuals":
+                th = record_theta.get(e.name, theta_med)
+                res_checks.append(residual_check(e, model, th, extension=ext))
+            else:
+                chk = lsce_check(e, model.n_carts)
+                if chk.error:
+                    log.warning("LSCE on %s: %s", e.name, chk.error)
+                lsce.append(chk)
+            bar.update(1)
     omega_med = np.asarray(summary["omega_rad_s"]["median"], float)
     out["residuals"] = [c.as_dict() for c in res_checks]
     out["lsce"] = []
