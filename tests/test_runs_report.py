@@ -178,3 +178,17 @@ def test_summary_is_not_modified_by_the_verdict():
     before = copy.deepcopy(s)
     run_verdict(s)
     assert s == before
+
+
+def test_diagnostics_rows_say_pass_or_fail_with_their_test(tmp_path):
+    s = _summary(n_fail=1)
+    s["crosscheck"]["residuals"][0]["diagnostics"].append(
+        {"name": "decay_envelope", "detected": True, "p_value": None, "statistic": 0.451,
+         "threshold": 0.3, "suggests": ["coulomb_friction"], "location": None,
+         "summary": "free decay linear"})
+    page = _render(tmp_path, s)
+    assert "statistic 0.451 vs threshold 0.3" in page
+    assert page.count("<span class='bad'>fails</span>") == 2
+    assert page.count("<span class='ok'>passes</span>") == 7
+    # the white-noise limit of the lag-1 autocorrelation is explained with its value
+    assert "here the limit is &plusmn;0.020" in page

@@ -139,7 +139,8 @@ class ResidualCheck:
     rms_m : ndarray, shape (n_out,), m
     fit_percent : ndarray, shape (n_out,)
     diagnostics : tuple of dict
-        ``{"name", "detected", "p_value", "statistic", "suggests", "location", "summary"}``
+        ``{"name", "detected", "p_value", "statistic", "threshold", "suggests", "location",
+        "summary"}``
         of each ``bayesmodal.diagnostics.RESIDUAL_DIAGNOSTICS`` entry that applies (empty
         when the package is not available); ``{"name", "error"}`` for one that failed.
     """
@@ -206,7 +207,9 @@ def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray,
             continue
         out.append({"name": d.name, "detected": bool(d.detected),
                     "p_value": None if d.p_value is None else float(d.p_value),
-                    "statistic": float(d.statistic), "suggests": list(d.suggests),
+                    "statistic": float(d.statistic),
+                    "threshold": None if d.threshold is None else float(d.threshold),
+                    "suggests": list(d.suggests),
                     "location": d.location, "summary": d.summary})
     return tuple(out)
 

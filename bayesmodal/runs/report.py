@@ -258,10 +258,26 @@ def _section_parameters(s: dict, folder: Path) -> str:
                      _num(_sc(k, r["lsq"])) if r else "&ndash;",
                      _yes(r["inside"]) if r else "&ndash;"])
     pct = f"{100 * prob:.0f} %"
+    params = s["parameters"]
+    note = ""
+    if any(nm.startswith("phi") for nm in params):
+        # AR(1) noise: sigma is the innovation; the noise itself is much larger when phi ~ 1
+        sd = []
+        for nm in sorted(k for k in params if k.startswith("sigma")):
+            ph = params.get("phi" + nm[len("sigma"):], {}).get("median")
+            sg = params[nm].get("median")
+            if ph is not None and sg is not None and abs(ph) < 1:
+                sd.append(1e3 * sg / math.sqrt(1 - ph**2))
+        if sd:
+            note = ("<p class='muted'>Noise model AR(1): sigma is the standard deviation of "
+                    "the innovations, phi the correlation of successive noise samples; the "
+                    "noise itself has standard deviation sigma / &radic;(1 - phi&sup2;) = "
+                    + _e(", ".join(f"{v:.3f}" for v in sd))
+                    + " mm per output, to compare with the residual RMS below.</p>")
     return ("<h2 id='parameters'>Parameters</h2>"
             + _table(["parameter", "unit", "median", f"{pct} interval (equal-tailed)",
                       f"{pct} HDI", "least squares", "LSQ inside"], rows, left=(0, 1))
-            + _img(folder, "corner.png"))
+            + note + _img(folder, "corner.png"))
 
 
 def _section_modal(s: dict, folder: Path) -> str:
@@ -359,7 +375,7 @@ def _section_bode(folder: Path) -> str:
 
 def _verdict_word(d: dict) -> str:
     if d["detected"]:
-        return "<span class='bad'>fails: effect found</span>"
+        return "<span class='bad'>fails</span>"
     return "<span class='ok'>passes</span>"
 
 
@@ -413,7 +429,8 @@ def _section_residuals(s: dict, folder: Path) -> str:
                 "at the posterior median. A test fails when its p-value is below its "
                 "significance level (1 %, family-wise) or its statistic passes its "
                 "threshold.</p>"
-                + _table(["experiment", "check", "result", "test", "suggests", "summary"],
+                + _table(["experiment", "check", "result (fails: effect found)", "test",
+                          "suggests", "summary"],
                          diag_rows, left=(0, 1, 2, 3, 4, 5)))
     return out + _img(folder, "residuals.png") + _img(folder, "residual_acf.png")
 
