@@ -130,6 +130,13 @@ def test_plots_return_labelled_axes(idata):
     assert len(ax) == 6 and ax[-1].get_xlabel() == "time (s)" and "mm" in ax[0].get_ylabel()
     ax = plot_bode_bands(idata, n_draws=20)
     assert len(ax) == 3 and ax[-1].get_xlabel() == "frequency (Hz)"
+    # up to 0.8 of the Nyquist frequency (where the residual diagnostics look), the
+    # measured H1 of the fitted record drawn as dots, the bands as filled areas
+    dt = float(np.diff(idata.observed_data["t_s"].values[:2])[0])
+    assert ax[0].get_xlim()[1] == pytest.approx(0.8 * 0.5 / dt)
+    assert any(ln.get_marker() == "." for ln in ax[0].get_lines())
+    assert len(ax[0].collections) >= 3
+    assert len(ax[-1].get_xticklabels()) >= 5
     ms = posterior_modes(idata)
     ref = propagate_modes(LinearModel(Rig(), "proportional"), TRUTH[None], methods=("eig",))
     lsce = [("rec", np.asarray(ref.omega_rad_s).ravel(), np.asarray(ref.zeta).ravel())]

@@ -414,7 +414,8 @@ def plot_bode_bands(idata, *, omega_rad_s=None, prob: float = 0.9, input: str = 
         axes[0].annotate(f"mode {i + 1}\n{om / (2 * np.pi):.2f} Hz",
                          (om / (2 * np.pi), 1.0), xycoords=("data", "axes fraction"),
                          xytext=(3, -3), textcoords="offset points", va="top", fontsize=8,
-                         color="0.3")
+                         color="0.2", bbox={"facecolor": "white", "edgecolor": "none",
+                                            "alpha": 0.85, "pad": 1.0})
     # the magnitude axis spans what was measured, not the model's roll-off far below the
     # noise floor of the encoders
     meas_db = [20 * np.log10(np.maximum(np.abs(frf.H), 1e-300)).ravel() for _, frf in measured]

@@ -37,8 +37,9 @@ REPORT_IMAGES = {
                    "a least-squares value outside the panel is marked by an arrow at the "
                    "edge with its value."),
     "residuals.png": ("residuals", "Residuals at the posterior median."),
-    "residual_acf.png": ("residuals", "Autocorrelation of the residuals; white residuals "
-                         "stay inside the grey band."),
+    "residual_acf.png": ("residuals", "Autocorrelation of the residuals against the lag; "
+                         "residuals that are only measurement noise stay inside the grey "
+                         "white-noise limit at every lag but 0."),
 }
 
 _CSS = """
