@@ -244,3 +244,42 @@ def test_measured_impulses_show_friction_and_stick(impulses):
     assert d.detected and np.all(d.detail["fc_n"] > 0.05)
     assert stick_detection(res).detected
     assert decay_envelope(res).detected
+
+
+def test_detected_means_significant(friction):
+    # "effect found" only with a p-value below the diagnostic's own level: in particular
+    # amplitude_dependence reports the p of the damping test when dry friction decided
+    for name, fn in RESIDUAL_DIAGNOSTICS.items():
+        d = fn(friction)
+        if d.detected and d.p_value is not None:
+            assert d.p_value < d.detail.get("alpha", 0.01), (name, d.summary)
+    amp = amplitude_dependence(friction)
+    mode = next(m for m in amp.detail["modes"] if f"mode {m['mode']}" == amp.location)
+    # the damping change reads as a factor of the fitted end values, the same mode is named
+    ratio = mode["zeta_small_amplitude"] / mode["zeta_large_amplitude"]
+    assert ratio > 1.5
+    assert f"mode {mode['mode']} damping grows towards small amplitude x{ratio:.2g}" \
+        in amp.summary
+
+
+def test_lag_phrase_names_the_late_signal():
+    from bayesmodal.diagnostics import input_correlation as ic
+
+    assert ic.lag_phrase(-0.0049) == "prediction lags measurement by 4.9 ms"
+    assert ic.lag_phrase(0.008) == "measurement lags prediction by 8.0 ms"
+    assert ic.lag_phrase(0.0005, 0.00125).startswith("measurement and prediction aligned")
+
+
+def test_amplitude_dependence_reports_the_deciding_test_on_measured_data(impulses):
+    # on the rig, dry friction makes mode 2's damping grow at small amplitude while its
+    # frequency trend is not significant: the diagnostic fires for friction, so its p-value
+    # must be the damping test's, and it must name the mode whose damping it reports
+    # (parameters: a least-squares fit of the impulse record, free damping)
+    theta = np.array([6.2226, 1.5648, 1.4613, 1.1457, 2.921, 1.807, 2.006, 0.0, 0.0])
+    d = amplitude_dependence(linear_residuals(impulses, MODEL, theta))
+    assert d.detected and d.suggests == ("coulomb_friction",)
+    assert d.p_value < d.detail["alpha"]
+    named = int(d.location.split()[1])
+    mode = d.detail["modes"][named - 1]
+    assert mode["damping_p"] * len(d.detail["modes"]) == pytest.approx(d.p_value)
+    assert f"mode {named} damping grows" in d.summary

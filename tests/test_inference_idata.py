@@ -129,11 +129,23 @@ def test_plots_return_labelled_axes(idata):
     ax = plot_predictive(idata, t_range=(0, 2))
     assert len(ax) == 6 and ax[-1].get_xlabel() == "time (s)" and "mm" in ax[0].get_ylabel()
     ax = plot_bode_bands(idata, n_draws=20)
-    assert "rad/s" in ax[1].get_xlabel()
+    assert len(ax) == 3 and ax[-1].get_xlabel() == "frequency (Hz)"
+    # up to 0.8 of the Nyquist frequency (where the residual diagnostics look), the
+    # measured H1 of the fitted record drawn as dots, the bands as filled areas
+    dt = float(np.diff(idata.observed_data["t_s"].values[:2])[0])
+    assert ax[0].get_xlim()[1] == pytest.approx(0.8 * 0.5 / dt)
+    assert any(ln.get_marker() == "." for ln in ax[0].get_lines())
+    assert len(ax[0].collections) >= 3
+    assert len(ax[-1].get_xticklabels()) >= 5
     ms = posterior_modes(idata)
     ref = propagate_modes(LinearModel(Rig(), "proportional"), TRUTH[None], methods=("eig",))
-    ax = plot_modal_intervals(ms, reference=ref)
-    assert ax.shape == (2, 3) and ax[0, 0].get_ylabel() == "omega (rad/s)"
+    lsce = [("rec", np.asarray(ref.omega_rad_s).ravel(), np.asarray(ref.zeta).ravel())]
+    ax = plot_modal_intervals(ms, reference=ref, lsce=lsce)
+    assert ax.shape == (2, 3) and ax[0, 0].get_ylabel() == "natural frequency (Hz)"
+    # the legend sits outside the panels and names the LSCE values
+    legend = ax[0, 0].figure.legends[0]
+    assert "LSCE (rec)" in [t.get_text() for t in legend.get_texts()]
+    assert all(a.get_legend() is None for a in ax.ravel())
     plt.close("all")
 
 
@@ -145,4 +157,25 @@ def test_write_run_writes_every_file(idata, tmp_path):
     assert files == {"posterior.nc", "summary.json", "lsq_vs_posterior.md", "trace.png",
                      "corner.png", "predictive.png", "bode.png", "modal_intervals.png"}
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["damping"] == s["damping"]
+    plt.close("all")
+
+
+def test_corner_zooms_on_the_posterior_and_marks_far_references(idata):
+    import matplotlib.pyplot as plt
+
+    from bayesmodal.plots.posterior import plot_corner
+
+    g = idata.posterior["g_v"].values.ravel()
+    m1 = idata.posterior["m1"].values.ravel()
+    far = float(g.max() + 50 * g.std())  # a reference far outside the posterior
+    near = float(np.median(m1))
+    ax = plot_corner(idata, var_names=["g_v", "m1"], reference={"g_v": far, "m1": near})
+    lo, hi = ax[1, 0].get_xlim()
+    # the axes frame the draws (0.5-99.5 % quantiles, padded) and are not stretched to it
+    q_lo, q_hi = np.quantile(g, [0.005, 0.995])
+    assert lo <= q_lo and hi >= q_hi and hi < far
+    assert hi - lo < 2 * (q_hi - q_lo)
+    # its value is written on the diagonal; the reference inside is a line
+    assert any(f"LSQ {far:.4g}" == t.get_text() for t in ax[0, 0].texts)
+    assert any(np.allclose(ln.get_xdata(), near) for ln in ax[1, 1].get_lines())
     plt.close("all")

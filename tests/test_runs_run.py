@@ -18,6 +18,7 @@ import sys
 from html.parser import HTMLParser
 from importlib import metadata
 
+import matplotlib.image
 import numpy as np
 import pytest
 
@@ -26,6 +27,7 @@ from bayesmodal.cli import main
 from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, file_sha256, save_csv
 from bayesmodal.inference import load_idata, propagate_modes, save_idata, simulate_noise
+from bayesmodal.runs.verdict import run_verdict
 from bayesmodal.simulate import simulate_linear
 from bayesmodal.system import LinearModel, Rig
 
@@ -116,6 +118,11 @@ def test_summary_records_provenance(runs):
     assert s["convergence"]["converged"] is False  # 300 steps: honest verdict
     assert s["convergence"]["verdict"].startswith("NOT converged")
     assert s["heldout"]["experiments"] == ["held"]
+    rec = s["heldout"]["records"][0]
+    assert rec["name"] == "held" and len(rec["coverage_90"]) == 3
+    assert all(0.0 <= c <= 1.0 for c in rec["coverage_90"])
+    assert s["heldout"]["fitted_records"][0]["name"] == "fit"
+    assert np.isfinite(s["heldout"]["fitted_lpd_per_obs"])
     assert s["warnings"] == [] or all(isinstance(w, str) for w in s["warnings"])
 
 
@@ -209,9 +216,11 @@ def test_report_is_self_contained_and_escaped(runs):
     page = _Page()
     page.feed(text)
     assert page.scripts == 0
-    assert {"What was run", "Convergence", "Parameters", "Modal quantities",
+    assert {"What was run", "Sampler convergence", "Parameters", "Modal quantities",
             "Posterior predictive", "Bode diagram with credible bands",
-            "Residual diagnostics"} <= set(page.h2)
+            "Residual diagnostics", "Walker traces"} <= set(page.h2)
+    # the traces come after every table
+    assert text.index("<h2 id='traces'>") > text.rindex("</table>")
     assert page.tables >= 5
     assert len(page.imgs) == 7
     for img in page.imgs:
@@ -235,7 +244,9 @@ window.addEventListener('load', function () {
                 .map(function (i) { return i.alt; }),
     widths: imgs.map(function (i) { return i.naturalWidth; }),
     tables: document.querySelectorAll('table').length,
-    rows: document.querySelectorAll('tr').length
+    rows: document.querySelectorAll('tr').length,
+    verdict_bottom: document.getElementById('verdict').getBoundingClientRect().bottom,
+    answers_bottom: document.querySelector('table.answers').getBoundingClientRect().bottom
   });
   document.body.appendChild(out);
 });
@@ -259,7 +270,8 @@ def test_report_renders_in_headless_chromium(runs, tmp_path):
     page = tmp_path / "report_check.html"
     page.write_text(text.replace("</body>", CHECK_JS))
     flags = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-             f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000"]
+             f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
+             "--window-size=1280,900"]
     dom = subprocess.run([*flags, "--dump-dom", page.as_uri()], capture_output=True,
                          text=True, timeout=180)
     m = re.search(r'<pre id="bm-check">(.*?)</pre>', dom.stdout, re.S)
@@ -268,12 +280,24 @@ def test_report_renders_in_headless_chromium(runs, tmp_path):
     assert res["images"] == 7 and res["broken"] == [], res
     assert min(res["widths"]) > 100
     assert res["tables"] >= 5 and res["rows"] > 30
+    # the verdict and the three answers fit on the first screen (1280 x 900)
+    assert 0 < res["verdict_bottom"] < res["answers_bottom"] <= 900, res
+    verdict = run_verdict(_summary(out["free"][1])).sentence
+    assert html.escape(verdict, quote=True) in text
+    assert text.index(html.escape(verdict, quote=True)) < text.index("<h2")
     shot = tmp_path / "report.png"
-    subprocess.run([*flags, "--window-size=1200,2400", f"--screenshot={shot}",
+    subprocess.run([*flags, f"--screenshot={shot}",
                     (out["free"][1] / "report.html").as_uri()], capture_output=True,
                    timeout=180)
     assert shot.is_file() and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert shot.stat().st_size > 20_000  # a rendered page, not a blank one
+    img = matplotlib.image.imread(shot)
+    assert img.shape[:2] == (900, 1280)
+    # not blank: text covers part of the page, and the verdict box is tinted (red, amber
+    # or green, never white)
+    gray = img[..., :3].mean(axis=2)
+    assert 0.005 < np.mean(gray < 0.5) < 0.5
+    tint = np.ptp(img[..., :3], axis=2) > 0.03
+    assert np.mean(tint) > 0.01
 
 
 def test_compare_run_dirs_prefers_the_true_model(runs, tmp_path, capsys):

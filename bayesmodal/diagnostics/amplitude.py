@@ -56,6 +56,17 @@ def _wls_slope(x: np.ndarray, y: np.ndarray, var: np.ndarray) -> tuple[float, fl
     return float(coef[0] - slope * mx), float(slope), float(np.sqrt(cov[1, 1]) / sx)
 
 
+def _damping_growth(e: dict) -> str:
+    """Words for the damping change of one mode: a factor, with the two end values."""
+    z_big, z_small = e["zeta_large_amplitude"], e["zeta_small_amplitude"]
+    amps = np.asarray(e["amplitude_m"])
+    ends = (f"from zeta {z_big:.3g} at {1e3 * amps.max():.2g} mm to {z_small:.3g} at "
+            f"{1e3 * amps.min():.2g} mm amplitude")
+    if z_big > 0 and np.isfinite(z_small):
+        return f"x{z_small / z_big:.2g}, {ends}"
+    return ends
+
+
 def amplitude_dependence(
     res: LinearResiduals,
     *,
@@ -108,7 +119,11 @@ def amplitude_dependence(
         Bonferroni over the tested modes.  Detail: ``modes`` (list of dict per mode with
         ``omega_model`` rad/s, ``amplitude_m`` (windows,) peak cart displacement, ``omega``
         rad/s, ``zeta``, ``slope`` (rad/s per m^2), ``t``, ``p``, ``relative_change``,
-        ``damping_slope`` (zeta per 1/m), ``damping_t``).  Suggests ``cubic_stiffness``;
+        ``damping_slope`` (zeta per 1/m), ``damping_t``, ``damping_p``,
+        ``zeta_large_amplitude`` and ``zeta_small_amplitude`` (fitted damping ratio at the
+        largest and smallest amplitude)).  ``p_value`` is that of the test that decided:
+        the damping slope when only dry friction is detected, else the frequency slope.
+        Suggests ``cubic_stiffness``;
         damping rising at small amplitude adds ``coulomb_friction`` to the detail only.
     """
     dt = res.dt
@@ -176,15 +191,19 @@ def amplitude_dependence(
         entry = {"mode": m + 1, "omega_model": float(wd[m]), "amplitude_m": amps,
                  "omega": om, "zeta": ze, "slope": np.nan, "t": 0.0, "p": np.nan,
                  "relative_change": 0.0, "damping_slope": np.nan, "damping_t": 0.0,
-                 "damping_p": np.nan, "damping_relative_change": 0.0}
+                 "damping_p": np.nan, "damping_relative_change": 0.0,
+                 "zeta_large_amplitude": np.nan, "zeta_small_amplitude": np.nan}
         if amps.size >= min_windows and np.ptp(amps) > 0:
             c0, s, se = _wls_slope(amps**2, om, var_w)
             entry["slope"] = s
             entry["t"] = s / se if se > 0 else 0.0
             entry["p"] = float(2 * stats.t.sf(abs(entry["t"]), amps.size - 2))
             entry["relative_change"] = float(s * (amps.max() ** 2 - amps.min() ** 2) / c0)
-            _, ds_, dse = _wls_slope(1.0 / amps, ze, var_z)
+            dz0, ds_, dse = _wls_slope(1.0 / amps, ze, var_z)
             entry["damping_slope"] = ds_
+            # fitted damping ratio at the largest and the smallest amplitude
+            entry["zeta_large_amplitude"] = float(dz0 + ds_ / amps.max())
+            entry["zeta_small_amplitude"] = float(dz0 + ds_ / amps.min())
             entry["damping_t"] = ds_ / dse if dse > 0 else 0.0
             entry["damping_p"] = float(2 * stats.t.sf(abs(entry["damping_t"]), amps.size - 2))
             zeta_ref = np.sum(ze / var_z) / np.sum(1 / var_z)
@@ -214,25 +233,32 @@ def amplitude_dependence(
     stiff = bool(not friction_modes and p_fw < alpha
                  and abs(best["relative_change"]) > min_relative_change)
     detected = stiff or bool(friction_modes)
+    # the p-value reported is that of the test that decided: the frequency slope when a
+    # stiffness change is reported (or nothing is), the damping slope when dry friction is
+    p_damp = (min(1.0, min(e["damping_p"] for e in friction_modes) * n_t)
+              if friction_modes else None)
+    p_report = p_damp if (friction_modes and not stiff) else p_fw
     suggests = (("cubic_stiffness",) if stiff else ()) + (
         ("coulomb_friction",) if friction_modes else ())
     kind = "hardening" if best["slope"] > 0 else "softening"
     summary = (
         f"mode {best['mode']} frequency changes by {100 * best['relative_change']:+.2f} % over "
-        f"its amplitude range (t = {best['t']:.1f}, p = {p_fw:.2g})"
-        + (f": {kind} stiffness" if stiff else "")
+        f"its amplitude range (t = {best['t']:.1f}, p = {p_fw:.2g}"
+        + (f": {kind} stiffness)" if stiff else
+           f", {'significant' if p_fw < alpha else 'not significant'})")
     )
-    if friction_modes:
-        f = max(friction_modes, key=lambda e: e["damping_relative_change"])
-        summary += (f"; mode {f['mode']} damping grows by "
-                    f"{100 * f['damping_relative_change']:.0f} % towards small amplitude "
-                    "(dry friction)")
+    f = max(friction_modes, key=lambda e: e["damping_relative_change"]) if friction_modes \
+        else None
+    if f is not None:
+        summary += (f"; mode {f['mode']} damping grows towards small amplitude "
+                    + _damping_growth(f)
+                    + f" (p = {p_damp:.2g}): dry friction")
     location = f"mode {best['mode']}" if stiff else (
-        f"mode {friction_modes[0]['mode']}" if friction_modes else None)
+        f"mode {f['mode']}" if f is not None else None)
     return Diagnostic(
         name="amplitude_dependence",
         statistic=float(abs(best["t"])),
-        p_value=p_fw,
+        p_value=p_report,
         threshold=None,
         detected=detected,
         suggests=suggests,

@@ -22,7 +22,7 @@ from ._result import Diagnostic
 from ._stats import ar_filter, ar_select, bonferroni
 from .residuals import LinearResiduals
 
-__all__ = ["input_residual_correlation", "prediction_lag"]
+__all__ = ["input_residual_correlation", "prediction_lag", "lag_phrase"]
 
 
 def _xcorr(e: np.ndarray, w: np.ndarray, lags: np.ndarray) -> np.ndarray:
@@ -56,6 +56,22 @@ def prediction_lag(y: np.ndarray, y_pred: np.ndarray, dt: float, max_lag: int) -
     else:
         off = 0.0
     return float((lags[i] + off) * dt)
+
+
+def lag_phrase(lag_s: float, resolution_s: float = 0.0) -> str:
+    """Plain words for a :func:`prediction_lag`: which signal is late, by how much.
+
+    Examples
+    --------
+    >>> lag_phrase(-0.0049)
+    'prediction lags measurement by 4.9 ms'
+    >>> lag_phrase(0.003)
+    'measurement lags prediction by 3.0 ms'
+    """
+    if abs(lag_s) <= resolution_s:
+        return f"measurement and prediction aligned (within {resolution_s * 1e3:.1f} ms)"
+    late, early = ("measurement", "prediction") if lag_s > 0 else ("prediction", "measurement")
+    return f"{late} lags {early} by {abs(lag_s) * 1e3:.1f} ms"
 
 
 def input_residual_correlation(
@@ -122,7 +138,7 @@ def input_residual_correlation(
     summary = (
         f"input-residual correlation {'significant' if detected else 'not significant'}: "
         f"worst output {j + 1}, peak at lag {peak[j] * 1e3:.0f} ms, p = {p_fw:.2g}; "
-        f"measurement lags prediction by {plag[j] * 1e3:.1f} ms"
+        + lag_phrase(plag[j], 0.25 * dt)
     )
     return Diagnostic(
         name="input_correlation",

@@ -97,7 +97,8 @@ def stick_detection(
     offs = [abs(e[2]) / q for e in episodes[j]]
     summary = (
         f"stuck episodes per cart {counts.tolist()}"
-        + (f"; cart {j + 1} rests up to {max(offs):.0f} counts from equilibrium" if offs else "")
+        + (f"; cart {j + 1} rests up to {max(offs):.0f} counts "
+           f"({max(offs) * q * 1e3:.2f} mm) from equilibrium" if offs else "")
     )
     return Diagnostic(
         name="stick",

@@ -288,11 +288,15 @@ def write_run(idata, out_dir, *, prob: float = 0.9, plots: bool = True) -> dict:
     return summary
 
 
+#: Resolution of the run plots (dots per inch).
+PLOT_DPI = 160
+
+
 def _save(fig, path) -> None:
     import matplotlib.pyplot as plt
 
     tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    fig.savefig(tmp, dpi=PLOT_DPI, bbox_inches="tight")
     plt.close(fig)
     tmp.replace(path)
 
@@ -318,3 +322,30 @@ def _write_plots(idata, modal, out, prob) -> None:
     _save(plot_bode_bands(idata, prob=prob)[0].figure, out / "bode.png")
     _save(plot_modal_intervals(modal, reference=ref, prob=prob).flat[0].figure,
           out / "modal_intervals.png")
+
+
+def write_modal_plot(idata, out_dir, *, prob: float = 0.9, lsce=None,
+                     modal: ModalSamples | None = None) -> None:
+    """(Re)write ``modal_intervals.png`` of a run folder, with LSCE estimates when given.
+
+    Parameters
+    ----------
+    idata : InferenceData
+    out_dir : path
+    prob : float
+    lsce : sequence of (str, ndarray, ndarray), optional
+        Per record: name, matched natural frequencies (rad/s) and damping ratios of the
+        model-free LSCE estimate (see ``plot_modal_intervals``).
+    modal : ModalSamples, optional
+        Posterior modal samples (computed if omitted).
+    """
+    from pathlib import Path
+
+    from ..plots.posterior import plot_modal_intervals
+
+    model = model_from_idata(idata)
+    theta = lsq_theta(idata)
+    ref = None if theta is None else propagate_modes(model, theta[None], methods=("eig",))
+    modal = posterior_modes(idata) if modal is None else modal
+    _save(plot_modal_intervals(modal, reference=ref, lsce=lsce, prob=prob).flat[0].figure,
+          Path(out_dir) / "modal_intervals.png")

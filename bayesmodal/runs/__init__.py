@@ -10,7 +10,8 @@
   held-out fit) with :func:`~.plots.plot_run_intervals`.
 
 Folder mechanics (lock, status, atomic writes) are in :mod:`.folder`, the checkpoint
-backend in :mod:`.checkpoint`, the report in :mod:`.report`.
+backend in :mod:`.checkpoint`, the report in :mod:`.report`, its first-screen verdict in
+:mod:`.verdict`.
 """
 
 from .batch import BatchItem, BatchResult, run_batch, run_one
@@ -28,6 +29,7 @@ from .runner import (
     prepare_run,
     run_config,
 )
+from .verdict import RunVerdict, run_verdict
 
 __all__ = [
     "AtomicCheckpoint",
@@ -54,5 +56,7 @@ __all__ = [
     "recorded_config",
     "rerun_run",
     "run_config",
+    "run_verdict",
+    "RunVerdict",
     "write_report",
 ]

@@ -19,7 +19,8 @@ from ..data import Experiment
 from ..simulate import simulate_linear
 from ..system import LinearModel
 
-__all__ = ["LSCECheck", "lsce_check", "ResidualCheck", "residual_check", "sample_acf"]
+__all__ = ["LSCECheck", "lsce_check", "ResidualCheck", "residual_check", "sample_acf",
+           "predictive_coverage"]
 
 # what a cross-check may raise on data it cannot handle; anything else is a bug
 _EXPECTED = (ConfigError, DataError, ModelError, ValueError, np.linalg.LinAlgError)
@@ -138,7 +139,8 @@ class ResidualCheck:
     rms_m : ndarray, shape (n_out,), m
     fit_percent : ndarray, shape (n_out,)
     diagnostics : tuple of dict
-        ``{"name", "detected", "p_value", "statistic", "suggests", "location", "summary"}``
+        ``{"name", "detected", "p_value", "statistic", "threshold", "suggests", "location",
+        "summary"}``
         of each ``bayesmodal.diagnostics.RESIDUAL_DIAGNOSTICS`` entry that applies (empty
         when the package is not available); ``{"name", "error"}`` for one that failed.
     """
@@ -205,7 +207,9 @@ def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray,
             continue
         out.append({"name": d.name, "detected": bool(d.detected),
                     "p_value": None if d.p_value is None else float(d.p_value),
-                    "statistic": float(d.statistic), "suggests": list(d.suggests),
+                    "statistic": float(d.statistic),
+                    "threshold": None if d.threshold is None else float(d.threshold),
+                    "suggests": list(d.suggests),
                     "location": d.location, "summary": d.summary})
     return tuple(out)
 
@@ -257,3 +261,67 @@ def residual_check(experiment: Experiment, model: LinearModel, theta: np.ndarray
         diagnostics=(_diagnostics(experiment, model, theta, extension, y_hat) if diagnostics
                      else ()),
     )
+
+
+def predictive_coverage(likelihood, draws: np.ndarray, *, prob: float = 0.9,
+                        max_draws: int = 200, rng=None) -> list[dict]:
+    """How much of each record the posterior-predictive band covers.
+
+    For every draw the model output plus a draw of the fitted noise model (white or AR(1))
+    is a replicated measurement; the pointwise ``prob`` band of the replicates is compared
+    with the measured record.  On records the posterior was not fitted to, a coverage well
+    below ``prob`` means the intervals are too narrow for new data.
+
+    Parameters
+    ----------
+    likelihood : bayesmodal.inference.Likelihood
+        The run's model and noise model on the records to score.
+    draws : ndarray, shape (S, P)
+        Posterior draws in ``likelihood.names`` order.
+    prob : float
+        Band probability, in (0, 1).
+    max_draws : int
+        Evenly spaced subset of the draws used.
+    rng : numpy.random.Generator or int, optional
+        For the noise draws.
+
+    Returns
+    -------
+    list of dict
+        Per record: ``name``, ``coverage`` (n_out,) fraction of samples inside the band,
+        ``width_m`` (n_out,) mean band width, m, ``fit_percent`` (n_out,) fit of the
+        median noise-free prediction, ``n_draws``.
+
+    Examples
+    --------
+    >>> # predictive_coverage(likelihood_from_idata(idata, heldout), draws, rng=1)
+    """
+    from ..inference import simulate_noise
+    from ..metrics import fit_percent
+
+    if not 0.0 < prob < 1.0:
+        raise ConfigError(f"prob must be in (0, 1), got {prob}")
+    draws = np.asarray(draws, dtype=float)
+    if draws.ndim != 2 or draws.shape[1] != likelihood.n_params:
+        raise ConfigError(f"draws must have shape (S, {likelihood.n_params}), got "
+                          f"{draws.shape}")
+    rng = np.random.default_rng(rng)
+    idx = np.unique(np.linspace(0, draws.shape[0] - 1, min(max_draws, draws.shape[0]))
+                    .round().astype(int))
+    mech, sigma, phi = likelihood.split(draws[idx])
+    y_hat = likelihood.predict(mech)  # per record (S, N, n_out)
+    qa = [(1 - prob) / 2, (1 + prob) / 2]
+    out = []
+    for e, yh in zip(likelihood.experiments, y_hat, strict=True):
+        rep = yh + simulate_noise(sigma, phi, e.n_samples, rng)
+        lo, hi = np.quantile(rep, qa, axis=0)
+        inside = (e.y_m >= lo) & (e.y_m <= hi)
+        out.append({
+            "name": e.name,
+            "coverage": inside.mean(axis=0),
+            "width_m": (hi - lo).mean(axis=0),
+            "fit_percent": np.atleast_1d(np.asarray(
+                fit_percent(e.y_m, np.median(yh, axis=0)), float)),
+            "n_draws": int(idx.size),
+        })
+    return out

@@ -63,7 +63,8 @@ def plot_residual_acf(checks, *, axes=None):
         a = ax[0, c]
         for j in range(chk.acf.shape[1]):
             a.plot(chk.lag_s, chk.acf[:, j], lw=1.0, label=f"x{j + 1}")
-        a.axhspan(-chk.band, chk.band, color="0.8", label="95 % band (white)")
+        a.axhspan(-chk.band, chk.band, color="0.8",
+                  label=f"white-noise limit (95 %, +-{chk.band:.3f})")
         a.axhline(0.0, color="k", lw=0.5)
         a.set_xlabel("lag (s)")
         a.set_ylabel("autocorrelation (-)")

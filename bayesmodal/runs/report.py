@@ -18,6 +18,7 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from .folder import atomic_write_text
+from .verdict import COVERAGE_TOLERANCE, run_verdict
 
 __all__ = ["render_report", "write_report", "REPORT_IMAGES"]
 
@@ -26,14 +27,19 @@ REPORT_IMAGES = {
     "trace.png": ("convergence", "Trace of every walker (retained draws) and marginals."),
     "predictive.png": ("predictive", "Posterior predictive: measured positions, median "
                        "prediction and 90 % band of replicated measurements."),
-    "bode.png": ("bode", "Bode diagram of the posterior with 90 % credible bands."),
-    "modal_intervals.png": ("modal", "Posterior intervals of the modal quantities "
-                            "(least-squares values marked)."),
-    "corner.png": ("parameters", "Pairwise posterior marginals (least-squares estimate "
-                   "marked)."),
+    "bode.png": ("bode", "Bode diagram, motor voltage to cart positions: posterior median "
+                 "(line) and 90 % credible band (shaded) of the model, measured H1 estimate "
+                 "of the fitted record(s) (dots); the bottom panel gives the width of the band, "
+                 "which is thinner than the lines where it cannot be seen."),
+    "modal_intervals.png": ("modal", "Posterior intervals of the modal quantities with the "
+                            "least-squares and LSCE values."),
+    "corner.png": ("parameters", "Pairwise posterior marginals, zoomed on the posterior; "
+                   "a least-squares value outside the panel is marked by an arrow at the "
+                   "edge with its value."),
     "residuals.png": ("residuals", "Residuals at the posterior median."),
-    "residual_acf.png": ("residuals", "Autocorrelation of the residuals; white residuals "
-                         "stay inside the grey band."),
+    "residual_acf.png": ("residuals", "Autocorrelation of the residuals against the lag; "
+                         "residuals that are only measurement noise stay inside the grey "
+                         "white-noise limit at every lag but 0."),
 }
 
 _CSS = """
@@ -46,6 +52,9 @@ th{background:#f2f2f2}td.l,th.l{text-align:left}
 .ok{color:#11691b;font-weight:600}.bad{color:#a31515;font-weight:600}
 .verdict{padding:0.6em 1em;border-radius:6px;margin:0.6em 0}
 .verdict.ok{background:#e6f4e8}.verdict.bad{background:#fbe9e9}
+.verdict.unknown{background:#fff4d6}.unknown{color:#8a5a00;font-weight:600}
+.verdict.big{font-size:1.15em;border:1px solid #ccc}
+table.answers td{text-align:left;vertical-align:top}table.answers td.s{white-space:nowrap}
 pre{background:#f6f6f6;padding:0.8em;overflow-x:auto;font-size:0.85em}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:0.9em;color:#555}.muted{color:#666;font-size:0.9em}
@@ -106,11 +115,80 @@ def _yes(flag: bool) -> str:
 
 
 def _unit(name: str, rows: dict) -> str:
+    if name.startswith("sigma"):
+        return "mm"
     if name in rows:
         return rows[name]["unit"]
-    if name.startswith("sigma"):
-        return "m"
     return ""
+
+
+def _sc(k: float, x):
+    """``k * x`` for a number, None for a missing one."""
+    return None if x is None else k * float(x)
+
+
+def _scale(name: str) -> float:
+    """Factor from the stored unit (SI) to the unit shown (noise levels in mm, as the
+    residuals)."""
+    return 1e3 if name.startswith("sigma") else 1.0
+
+
+_STATUS = {"ok": ("ok", "yes"), "bad": ("bad", "no"), "unknown": ("unknown", "not tested")}
+
+
+def _answer_word(question: str, status: str) -> str:
+    cls, word = _STATUS[status]
+    if question.startswith("How far") and status != "unknown":
+        word = "as stated" if status == "ok" else "not as stated"
+    return f"<span class='{cls}'>{_e(word)}</span>"
+
+
+def _coverage_rows(records, role: str) -> list[list[str]]:
+    rows = []
+    for r in records:
+        cov = _flat(r.get("coverage_90", []))
+        width = _flat(r.get("width_90", []))
+        fit = _flat(r.get("fit_percent", []))
+        cells = []
+        for c in cov:
+            cls = "ok" if c >= 0.9 - COVERAGE_TOLERANCE else "bad"
+            cells.append(f"<span class='{cls}'>{100 * c:.0f}</span>")
+        rows.append([_e(r.get("name", "?")), _e(role), ", ".join(cells) or "&ndash;",
+                     _e(", ".join(f"{1e3 * w:.3f}" for w in width)) or "&ndash;",
+                     _e(", ".join(f"{f:.1f}" for f in fit)) or "&ndash;"])
+    return rows
+
+
+def _section_verdict(s: dict) -> str:
+    """The first screen: the overall sentence and the three questions."""
+    v = run_verdict(s)
+    cls = "ok" if v.ok else ("bad" if any(a.status == "bad" for a in v.answers)
+                             else "unknown")
+    rows = "".join(
+        f"<tr><td><b>{_e(a.question)}</b></td><td class='s'>"
+        f"{_answer_word(a.question, a.status)}</td><td>{_e(a.text)}</td></tr>"
+        for a in v.answers)
+    out = (f"<div id='verdict' class='verdict big {cls}'>{_e(v.sentence)}</div>"
+           f"<table class='answers'>{rows}</table>")
+    held = (s.get("heldout") or {})
+    rows = _coverage_rows(held.get("records") or [], "held out")
+    rows += _coverage_rows(held.get("fitted_records") or [], "fitted (in-sample)")
+    cv = s.get("crossval") or {}
+    cv_rows = _coverage_rows(cv.get("records") or [], "left out")
+    if rows:
+        out += ("<p class='muted'>Coverage: the share of the measured samples inside the "
+                "90 % posterior-predictive band (model output plus fitted noise); a band "
+                "that holds covers about 90 % of a record it was not fitted to.</p>"
+                + _table(["record", "role", "coverage of 90 % band (%, per output)",
+                          "band width (mm, per output)", "fit % (per output)"], rows,
+                         left=(0, 1)))
+    if cv_rows:
+        method = cv.get("method") or "each record left out of the fit in turn"
+        out += (f"<h3 id='crossval'>Leave-one-record-out ({_e(method)})</h3>"
+                + _table(["record", "role", "coverage of 90 % band (%, per output)",
+                          "band width (mm, per output)", "fit % (per output)"], cv_rows,
+                         left=(0, 1)))
+    return out
 
 
 def _section_run(s: dict, status: dict, config_text: str, timing: dict) -> str:
@@ -158,12 +236,14 @@ def _section_convergence(s: dict, folder: Path) -> str:
             [_e("post burn-in steps / max tau"), _num(d["n_over_tau"], ".1f")],
             [_e("mean acceptance"), _num(d["acceptance"], ".3f")]]
     tau = [[_e(k), _num(v, ".1f")] for k, v in d.get("tau", {}).items()]
-    return (f"<h2 id='convergence'>Convergence</h2><div class='verdict {cls}'>"
-            f"<b>{'Converged' if ok else 'Not converged'}</b>: {_e(verdict)}</div>"
+    return (f"<h2 id='convergence'>Sampler convergence</h2><p class='{cls}'>"
+            f"{'Sampler converged' if ok else 'Sampler NOT converged'}: {_e(verdict)}. "
+            "This is about the sampler only, not about the model (see the first screen)."
+            "</p>"
             + _table(["check", "value"], rows)
             + "<details><summary>Integrated autocorrelation time per parameter (steps)"
               "</summary>" + _table(["parameter", "tau"], tau) + "</details>"
-            + _img(folder, "trace.png"))
+            + "<p class='muted'>Walker traces: at the end of the report.</p>")
 
 
 def _section_parameters(s: dict, folder: Path) -> str:
@@ -172,14 +252,33 @@ def _section_parameters(s: dict, folder: Path) -> str:
     rows = []
     for nm, iv in s["parameters"].items():
         r = lsq.get(nm)
-        rows.append([_e(nm), _e(_unit(nm, lsq)), _num(iv["median"]),
-                     _interval(iv["lo"], iv["hi"]), _interval(iv["hdi_lo"], iv["hdi_hi"]),
-                     _num(r["lsq"]) if r else "&ndash;", _yes(r["inside"]) if r else "&ndash;"])
+        k = _scale(nm)
+        rows.append([_e(nm), _e(_unit(nm, lsq)), _num(_sc(k, iv["median"])),
+                     _interval(_sc(k, iv["lo"]), _sc(k, iv["hi"])),
+                     _interval(_sc(k, iv["hdi_lo"]), _sc(k, iv["hdi_hi"])),
+                     _num(_sc(k, r["lsq"])) if r else "&ndash;",
+                     _yes(r["inside"]) if r else "&ndash;"])
     pct = f"{100 * prob:.0f} %"
+    params = s["parameters"]
+    note = ""
+    if any(nm.startswith("phi") for nm in params):
+        # AR(1) noise: sigma is the innovation; the noise itself is much larger when phi ~ 1
+        sd = []
+        for nm in sorted(k for k in params if k.startswith("sigma")):
+            ph = params.get("phi" + nm[len("sigma"):], {}).get("median")
+            sg = params[nm].get("median")
+            if ph is not None and sg is not None and abs(ph) < 1:
+                sd.append(1e3 * sg / math.sqrt(1 - ph**2))
+        if sd:
+            note = ("<p class='muted'>Noise model AR(1): sigma is the standard deviation of "
+                    "the innovations, phi the correlation of successive noise samples; the "
+                    "noise itself has standard deviation sigma / &radic;(1 - phi&sup2;) = "
+                    + _e(", ".join(f"{v:.3f}" for v in sd))
+                    + " mm per output, to compare with the residual RMS below.</p>")
     return ("<h2 id='parameters'>Parameters</h2>"
             + _table(["parameter", "unit", "median", f"{pct} interval (equal-tailed)",
                       f"{pct} HDI", "least squares", "LSQ inside"], rows, left=(0, 1))
-            + _img(folder, "corner.png"))
+            + note + _img(folder, "corner.png"))
 
 
 def _section_modal(s: dict, folder: Path) -> str:
@@ -191,33 +290,39 @@ def _section_modal(s: dict, folder: Path) -> str:
     head += [f"LSCE {c['experiment']}" for c in lsce]
     rows = []
     n = len(s["omega_rad_s"]["median"])
+    hz = 1.0 / (2.0 * math.pi)
     for i in range(n):
-        for key, label, unit, col in (("omega_rad_s", "omega", "rad/s", "omega_matched"),
-                                      ("zeta", "zeta", "-", "zeta_matched"),
-                                      ("damped_rad_s", "omega_d", "rad/s", None)):
+        for key, label, name, unit, k, col in (
+                ("omega_rad_s", "omega", "f_n (natural)", "Hz", hz, "omega_matched"),
+                ("zeta", "zeta", "zeta (damping ratio)", "-", 1.0, "zeta_matched"),
+                ("damped_rad_s", "omega_d", "f_d (damped)", "Hz", hz, None)):
             iv = s[key]
             lo, hi = iv["lo"][i], iv["hi"][i]
             r = lsq.get(f"{label}_{i + 1}")
-            cells = [_e(i + 1), _e(label), _e(unit), _num(iv["median"][i]),
-                     _interval(lo, hi), _num(r["lsq"]) if r else "&ndash;"]
+            cells = [_e(i + 1), _e(name), _e(unit), _num(_sc(k, iv["median"][i])),
+                     _interval(_sc(k, lo), _sc(k, hi)),
+                     _num(_sc(k, r["lsq"])) if r else "&ndash;"]
+            if r:
+                cells[-1] = (f"<span class='{'ok' if r['inside'] else 'bad'}'>"
+                             f"{cells[-1]}</span>")
             for c in lsce:
                 if col is None:
                     cells.append("")
                     continue
                 v = c[col][i] if i < len(c[col]) else None
-                if v is None or not math.isfinite(float(v)):
+                if v is None or not math.isfinite(float(v)) or lo is None or hi is None:
                     cells.append("&ndash;")
                 else:
                     inside = lo <= float(v) <= hi
                     cls = "ok" if inside else "bad"
-                    cells.append(f"<span class='{cls}'>{_num(v)}</span>")
+                    cells.append(f"<span class='{cls}'>{_num(_sc(k, v))}</span>")
             rows.append(cells)
     notes = "".join(f"<li>LSCE on {_e(c['experiment'])}: {_e(_clip(c['error']))}</li>"
                     for c in lsce if c.get("error"))
-    text = ("<p class='muted'>LSCE (least-squares complex exponential, "
-            "<code>bayesmodal.ema</code>) uses only the measured input and outputs, not the "
-            "rig model; green: inside the posterior interval, red: outside.</p>"
-            if lsce else "")
+    text = ("<p class='muted'>Frequencies in Hz (f = omega / 2 pi). LSCE (least-squares "
+            "complex exponential, <code>bayesmodal.ema</code>) uses only the measured input "
+            "and outputs, not the rig model. Green: inside the posterior interval, red: "
+            "outside.</p>")
     return ("<h2 id='modal'>Modal quantities</h2>" + text
             + _table(head, rows, left=(1, 2))
             + (f"<ul>{notes}</ul>" if notes else "")
@@ -233,15 +338,28 @@ def _section_predictive(s: dict, folder: Path) -> str:
             ", ".join(f"{v:.2f}" for v in row) for row in fits)) + " % (per output).</p>"
     h = s.get("heldout")
     if h:
-        rows = [[_e(", ".join(h["experiments"])), _num(h["lpd"], ".1f"),
-                 _num(h["lpd_per_obs"], ".4f"),
+        ref = h.get("fitted_lpd_per_obs")
+        per = h["lpd_per_obs"]
+        rows = [[_e(", ".join(h["experiments"])), _num(per, ".3f"),
+                 _num(ref, ".3f") if ref is not None else "&ndash;",
                  _e(", ".join(f"{v:.1f}" for v in _flat(h["fit_percent_median"]))),
                  _e(", ".join(f"[{a:.1f}, {b:.1f}]" for a, b in
                               zip(_flat(h["fit_percent_lo"]), _flat(h["fit_percent_hi"]),
                                   strict=True)))]]
         out += ("<h3>Held-out records</h3>"
-                + _table(["records", "log predictive density", "per observation",
+                + _table(["records", "log predictive density per sample (nats)",
+                          "same on the fitted record(s) (in-sample)",
                           "fit % (median)", "fit % 90 % interval"], rows, left=(0,)))
+        text = (f"Log predictive density: {per:.3f} nats per sample and output "
+                f"({h['lpd']:.0f} nats in total). Positions are in m, so the value depends "
+                "on that unit; only differences mean something.")
+        if ref is not None and math.isfinite(float(ref)):
+            d = float(ref) - float(per)
+            text += (f" The fitted record scores {float(ref):.3f} nats per sample: the "
+                     f"held-out record is predicted {abs(d):.2f} nats per sample "
+                     f"{'worse' if d > 0 else 'better'}, a density ratio of "
+                     f"{math.exp(min(abs(d), 700)):.3g} per sample.")
+        out += f"<p class='muted'>{_e(text)}</p>"
     return out
 
 
@@ -256,16 +374,46 @@ def _section_bode(folder: Path) -> str:
     return "<h2 id='bode'>Bode diagram with credible bands</h2>" + _img(folder, "bode.png")
 
 
+def _verdict_word(d: dict) -> str:
+    if d["detected"]:
+        return "<span class='bad'>fails</span>"
+    return "<span class='ok'>passes</span>"
+
+
+def _test_cell(d: dict) -> str:
+    p = d.get("p_value")
+    if p is not None:
+        return f"p = {_num(p, '.2g')}"
+    thr = d.get("threshold")
+    if thr is not None:
+        return f"statistic {_num(d.get('statistic'), '.3g')} vs threshold {_num(thr, '.3g')}"
+    return f"statistic {_num(d.get('statistic'), '.3g')} (rule in summary)"
+
+
 def _section_residuals(s: dict, folder: Path) -> str:
     res = s.get("crosscheck", {}).get("residuals", [])
     rows = []
     for r in res:
-        rows.append([_e(r["experiment"]), _e(", ".join(f"{1e3 * v:.4f}" for v in r["rms_m"])),
+        rows.append([_e(r["experiment"]), _e(", ".join(f"{1e3 * v:.3f}" for v in r["rms_m"])),
                      _e(", ".join(f"{v:.2f}" for v in r["fit_percent"])),
                      _e(", ".join(f"{v:.3f}" for v in r["acf_lag1"])),
-                     _num(r["white_band"], ".3f")])
-    out = ("<h2 id='residuals'>Residual diagnostics</h2>"
-           + _table(["experiment", "RMS (mm)", "fit %", "lag-1 ACF", "white band"], rows))
+                     "&plusmn;" + _num(r["white_band"], ".3f")])
+    band = next((r["white_band"] for r in res if r.get("white_band") is not None), None)
+    lag1 = [abs(v) for r in res for v in r.get("acf_lag1", []) if v is not None]
+    expl = ("<p class='muted'>Residual = measured minus model output at the posterior median. "
+            "Lag-1 autocorrelation: correlation of each residual sample with the next one. "
+            "Residuals that are only measurement noise (white) give a value inside the "
+            "white-noise limit, the 95 % range of a white sequence of this length "
+            "(&plusmn;1.96/&radic;N)")
+    if band is not None and lag1:
+        expl += (f"; here the limit is &plusmn;{band:.3f} and the residuals reach "
+                 f"{max(lag1):.3f}")
+        if max(lag1) > band:
+            expl += (", so they are a slowly varying signal the model misses, not noise")
+    expl += ".</p>"
+    out = ("<h2 id='residuals'>Residual diagnostics</h2>" + expl
+           + _table(["experiment", "RMS (mm, per output)", "fit % (per output)",
+                     "lag-1 autocorrelation", "white-noise limit"], rows))
     diag_rows = []
     for r in res:
         for d in r.get("diagnostics", []):
@@ -273,15 +421,18 @@ def _section_residuals(s: dict, folder: Path) -> str:
                 diag_rows.append([_e(r["experiment"]), _e(d["name"]), "&ndash;", "&ndash;",
                                   "", _e(d["error"])])
                 continue
-            diag_rows.append([_e(r["experiment"]), _e(d["name"]),
-                              "<span class='bad'>yes</span>" if d["detected"] else "no",
-                              _num(d["p_value"], ".2g"), _e(", ".join(d["suggests"])),
+            diag_rows.append([_e(r["experiment"]), _e(d["name"].replace("_", " ")),
+                              _verdict_word(d), _test_cell(d),
+                              _e(", ".join(d["suggests"]).replace("_", " ")),
                               _e(d["summary"])])
     if diag_rows:
         out += ("<p class='muted'>Tests of <code>bayesmodal.diagnostics</code> on the residuals "
-                "at the posterior median.</p>"
-                + _table(["experiment", "diagnostic", "detected", "p", "suggests", "summary"],
-                         diag_rows, left=(0, 1, 4, 5)))
+                "at the posterior median. A test fails when its p-value is below its "
+                "significance level (1 %, family-wise) or its statistic passes its "
+                "threshold.</p>"
+                + _table(["experiment", "check", "result (fails: effect found)", "test",
+                          "suggests", "summary"],
+                         diag_rows, left=(0, 1, 2, 3, 4, 5)))
     return out + _img(folder, "residuals.png") + _img(folder, "residual_acf.png")
 
 
@@ -352,22 +503,25 @@ def render_report(run_dir: str | os.PathLike, *, state: str | None = None) -> st
         s.get("run", {}).get("config", {}), indent=2)
     name = s.get("run", {}).get("name", folder.name)
     nav = "".join(f"<a href='#{a}'>{_e(t)}</a>" for a, t in (
-        ("run", "run"), ("convergence", "convergence"), ("parameters", "parameters"),
-        ("modal", "modal"), ("predictive", "predictive"), ("bode", "Bode"),
-        ("residuals", "residuals")))
+        ("verdict", "verdict"), ("parameters", "parameters"), ("modal", "modal"),
+        ("residuals", "residuals"), ("predictive", "predictive"), ("bode", "Bode"),
+        ("convergence", "convergence"), ("run", "run"), ("traces", "traces")))
+    trace = _img(folder, "trace.png")
     body = "\n".join([
         f"<h1>bayesmodal run: {_e(name)}</h1>",
         f"<p class='muted'>{_e(s.get('damping'))} damping, {_e(s.get('noise'))} noise; "
         f"state {_e(status.get('state', '?'))}</p>",
+        _section_verdict(s),
         f"<nav>{nav}</nav>",
-        _section_run(s, status, config_text, timing),
-        _section_convergence(s, folder),
         _section_parameters(s, folder),
         _section_modal(s, folder),
+        _section_residuals(s, folder),
         _section_predictive(s, folder),
         _section_bode(folder),
-        _section_residuals(s, folder),
+        _section_convergence(s, folder),
+        _section_run(s, status, config_text, timing),
         _section_extras(s),
+        ("<h2 id='traces'>Walker traces</h2>" + trace) if trace else "",
     ])
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
             f"<title>bayesmodal run {_e(name)}</title><style>{_CSS}</style></head>"

@@ -377,9 +377,15 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         d.update({"omega_matched": om.tolist(), "zeta_matched": ze.tolist()})
         out["lsce"].append(d)
     if cfg.plots:
-        atomic_savefig(plot_residuals(res_checks).flat[0].figure, folder.path / "residuals.png")
+        if lsce:  # the modal-interval plot of write_run, now with the LSCE values
+            from ..inference.summary import write_modal_plot
+
+            write_modal_plot(idata, folder.path, lsce=[
+                (c.experiment, *c.matched(omega_med)) for c in lsce if not c.error])
+        atomic_savefig(plot_residuals(res_checks).flat[0].figure, folder.path / "residuals.png",
+                       dpi=160)
         atomic_savefig(plot_residual_acf(res_checks).flat[0].figure,
-                  folder.path / "residual_acf.png")
+                  folder.path / "residual_acf.png", dpi=160)
     return out
 
 
@@ -408,11 +414,26 @@ def _heldout(prep: PreparedRun, idata) -> dict | None:
     lik = likelihood_from_idata(idata, prep.heldout)
     draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
     ps = predictive_check(lik, draws)
+    # references for the held-out numbers: the same scores on the fitted records
+    fitted = predictive_check(likelihood_from_idata(idata), draws)
     return {"experiments": list(ps.experiments), "lpd": ps.lpd,
             "lpd_per_obs": ps.lpd_per_obs, "mean_log_lik": ps.mean_log_lik,
+            "fitted_lpd_per_obs": fitted.lpd_per_obs,
             "fit_percent_median": np.asarray(ps.fit_percent_median).tolist(),
             "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
-            "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist()}
+            "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist(),
+            "records": _coverage_records(lik, draws, prep.config.seed),
+            "fitted_records": _coverage_records(likelihood_from_idata(idata), draws,
+                                                prep.config.seed)}
+
+
+def _coverage_records(lik, draws, seed) -> list[dict]:
+    """Coverage of the 90 % posterior-predictive band per record (``summary.json`` form)."""
+    from .crosscheck import predictive_coverage
+
+    return [{"name": c["name"], "coverage_90": c["coverage"].tolist(),
+             "width_90": c["width_m"].tolist(), "fit_percent": c["fit_percent"].tolist()}
+            for c in predictive_coverage(lik, draws, prob=0.9, rng=seed)]
 
 
 def _heldout_new_records(prep: PreparedRun, idata) -> dict:
