@@ -143,7 +143,8 @@ def _answer_word(question: str, status: str) -> str:
     return f"<span class='{cls}'>{_e(word)}</span>"
 
 
-def _coverage_rows(records, role: str) -> list[list[str]]:
+def _coverage_rows(records, role: str, *, relative: bool = False) -> list[list[str]]:
+    """Table rows; band widths in mm, or (``relative``) divided by the record's sd."""
     rows = []
     for r in records:
         cov = _flat(r.get("coverage_90", []))
@@ -154,7 +155,8 @@ def _coverage_rows(records, role: str) -> list[list[str]]:
             cls = "ok" if c >= 0.9 - COVERAGE_TOLERANCE else "bad"
             cells.append(f"<span class='{cls}'>{100 * c:.0f}</span>")
         rows.append([_e(r.get("name", "?")), _e(role), ", ".join(cells) or "&ndash;",
-                     _e(", ".join(f"{1e3 * w:.3f}" for w in width)) or "&ndash;",
+                     _e(", ".join(f"{w:.2f}" if relative else f"{1e3 * w:.3f}"
+                                  for w in width)) or "&ndash;",
                      _e(", ".join(f"{f:.1f}" for f in fit)) or "&ndash;"])
     return rows
 
@@ -174,7 +176,7 @@ def _section_verdict(s: dict) -> str:
     rows = _coverage_rows(held.get("records") or [], "held out")
     rows += _coverage_rows(held.get("fitted_records") or [], "fitted (in-sample)")
     cv = s.get("crossval") or {}
-    cv_rows = _coverage_rows(cv.get("records") or [], "left out")
+    cv_rows = _coverage_rows(cv.get("records") or [], "left out", relative=True)
     if rows:
         out += ("<p class='muted'>Coverage: the share of the measured samples inside the "
                 "90 % posterior-predictive band (model output plus fitted noise); a band "
@@ -186,8 +188,8 @@ def _section_verdict(s: dict) -> str:
         method = cv.get("method") or "each record left out of the fit in turn"
         out += (f"<h3 id='crossval'>Leave-one-record-out ({_e(method)})</h3>"
                 + _table(["record", "role", "coverage of 90 % band (%, per output)",
-                          "band width (mm, per output)", "fit % (per output)"], cv_rows,
-                         left=(0, 1)))
+                          "band width / record sd (per output)", "fit % (per output)"],
+                         cv_rows, left=(0, 1)))
     return out
 
 

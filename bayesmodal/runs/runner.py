@@ -459,6 +459,10 @@ def _heldout_new_records(prep: PreparedRun, idata) -> dict:
             "lpd_per_obs": lpd / n_obs, "mean_log_lik": None,
             "fit_percent_median": q[0].tolist(), "fit_percent_lo": q[1].tolist(),
             "fit_percent_hi": q[2].tolist(), "scores": [s.to_dict() for s in scores],
+            "records": [{"name": sc.name, "coverage_90": sc.coverage_90.tolist(),
+                         "width_90": (sc.width_90 * np.std(e.y_m, axis=0)).tolist(),
+                         "fit_percent": sc.fit_percent.tolist()}
+                        for sc, e in zip(scores, prep.heldout, strict=True)],
             "predicted_as": "new records (per-record parameters drawn from the population)"}
 
 
