@@ -149,9 +149,11 @@ class RunConfig:
     @property
     def layout(self):
         """The per-record layout (``RecordLayout``), or None for shared parameters."""
-        if not self.per_record and not self.noise_per_record:
-            return None
         from .inference.records import RecordLayout
+
+        if not self.per_record and not self.noise_per_record:
+            # AR(p) noise lives in the several-record likelihood: shared layout
+            return None if self.noise in NOISE_MODELS else RecordLayout({})
 
         return RecordLayout(dict(self.per_record), self.noise_per_record)
 
@@ -345,8 +347,12 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         err("crossval.enabled", "leave-one-record-out needs at least two [data.files]")
 
     noise = values.get(("likelihood", "noise"), "ar1")
-    if noise not in NOISE_MODELS:
-        err("likelihood.noise", f"must be one of {NOISE_MODELS}, got {noise!r}")
+    import re  # noqa: PLC0415
+
+    if noise not in NOISE_MODELS and not re.fullmatch(
+            r"ar:auto|ar\d+|ar\(\d+(,\d+)*\)", str(noise).replace(" ", "")):
+        err("likelihood.noise", f"must be one of {NOISE_MODELS}, 'arP' (e.g. 'ar4'), "
+            f"'ar(p1,...,pn)' or 'ar:auto', got {noise!r}")
     kw["noise"] = noise
 
     for key, lo in (("walkers", 4), ("steps", 1), ("burn", 0), ("thin", 1), ("seed", 0)):

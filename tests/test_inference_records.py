@@ -140,3 +140,60 @@ def test_bad_layouts_name_the_fix(records):
 def test_layout_round_trips_through_a_dict():
     lay = RecordLayout({"g_v": "hierarchical", "v0": "independent"}, noise_per_record=True)
     assert RecordLayout.from_dict(lay.to_dict()) == lay
+
+
+def test_ar_p_noise_with_order_one_is_the_ar1_likelihood(records):
+    from bayesmodal.inference.noise import ARpNoise
+
+    ar1 = RecordsLikelihood(MODEL, records, "ar1")
+    arp = RecordsLikelihood(MODEL, records, ARpNoise((1, 1, 1)))
+    assert arp.names[-3:] == ("pacf1_1", "pacf1_2", "pacf1_3")
+    c = records_start(ar1, THETA)
+    # two implementations of the exact AR(1) density: sufficient statistics lose ~3
+    # digits (see residual_loglik), so agree to n_data * 1e3 eps
+    np.testing.assert_allclose(arp(c[None]), ar1(c[None]), rtol=ar1.n_data * 1e3 * EPS)
+    ar3 = RecordsLikelihood(MODEL, records, "ar3")
+    c3 = records_start(ar3, THETA)
+    parts = sum(p.sum(axis=(1, 2)) for p in ar3.pointwise(c3[None]))
+    np.testing.assert_allclose(parts, ar3(c3[None]), rtol=ar3.n_data * 1e3 * EPS)
+    assert np.isfinite(record_priors(ar3).log_prior(c3))
+
+
+def test_noise_model_names_are_checked():
+    from bayesmodal.inference.records import resolve_noise
+
+    assert resolve_noise("ar(2,3,1)", 3).orders == (2, 3, 1)
+    with pytest.raises(ConfigError, match="ar:auto"):
+        resolve_noise("arma", 3)
+    with pytest.raises(DataError, match="one order per output"):
+        resolve_noise("ar(2,3)", 3)
+
+
+def test_predicting_a_record_with_its_own_population_covers_it():
+    """Known truth: records whose gains come from the population the posterior describes
+    are covered; the control with the population spread forced to ~0 and a gain far off
+    covers much less."""
+    from bayesmodal.inference.predictive import predict_new_record, score_samples
+
+    recs = _records(noise_m=2e-5, n=1200, seed=3)
+    lik = RecordsLikelihood(MODEL, recs[:2], "white")
+    c = records_start(lik, THETA)
+    d = dict(zip(lik.names, c, strict=True))
+    rng = np.random.default_rng(11)
+    draws = np.repeat(c[None], 400, axis=0)
+    # a population wide enough to hold the third record's gain (5.0) and offset (0)
+    draws[:, lik.names.index("mu_g_v")] = 5.5
+    draws[:, lik.names.index("tau_g_v")] = 0.1
+    draws[:, lik.names.index("mu_v0")] = 0.0
+    draws[:, lik.names.index("tau_v0")] = 0.02
+    draws[:, lik.names.index("sigma_1"):] = 2e-5
+    _, y_pred, ll = predict_new_record(lik, draws, recs[2], rng=rng)
+    good = score_samples("r2", recs[2].y_m, y_pred, ll)
+    bad_draws = draws.copy()
+    bad_draws[:, lik.names.index("mu_g_v")] = 6.5
+    bad_draws[:, lik.names.index("tau_g_v")] = 1e-4
+    _, y_bad, ll_bad = predict_new_record(lik, bad_draws, recs[2], rng=rng)
+    bad = score_samples("r2", recs[2].y_m, y_bad, ll_bad)
+    assert np.all(good.coverage_90 > bad.coverage_90)
+    assert good.lpd > bad.lpd
+    assert d["g_v[r0]"] > 0

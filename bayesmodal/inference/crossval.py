@@ -203,10 +203,17 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     train = [e for i, e in enumerate(exps) if i != heldout]
     model = _model(spec)
     seed = spec.seed + (0 if heldout is None else 1000 * (heldout + 1))
-    lik = RecordsLikelihood(model, tuple(train), spec.noise, spec.extension, spec.layout)
+    noise = spec.noise
+    if noise == "ar:auto":  # orders from the training records only
+        from ..fit import fit_lsq
+        from .records import choose_noise
+
+        noise = choose_noise(train, model, fit_lsq(train, model))
+    lik = RecordsLikelihood(model, tuple(train), noise, spec.extension, spec.layout)
     priors = record_priors(lik)
     burn = spec.n_steps // 2 if spec.burn is None else spec.burn
-    run = sample_posterior(train, model, noise=spec.noise, extension=spec.extension,
+    run = sample_posterior(train, model, noise=lik.noise_model if lik.noise not in
+                           ("ar1", "white") else lik.noise, extension=spec.extension,
                            layout=spec.layout, priors=priors, n_walkers=spec.n_walkers,
                            n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
                            progress=progress, temperature=spec.temperature)

@@ -186,13 +186,19 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
         raise DataError(f"{experiment.name}: {experiment.n_outputs} outputs, the model has "
                         f"{lik.n_outputs}")
     mech, v0, noise = new_record_parameters(lik, theta, rng)
-    n = lik.n_outputs
-    sigma = noise[:, :n]
-    phi = noise[:, n : 2 * n] if lik.noise == "ar1" else None
     y_hat = _predict_mech(lik, mech, v0, experiment)
-    e = simulate_noise(sigma, phi, experiment.n_samples, rng)
-    with np.errstate(all="ignore"):
-        ll = residual_loglik(experiment.y_m[:, :, None] - np.moveaxis(y_hat, 0, -1), sigma, phi)
+    R = experiment.y_m[:, :, None] - np.moveaxis(y_hat, 0, -1)
+    if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
+        e = lik.noise_simulate(noise, experiment.n_samples, rng)
+        with np.errstate(all="ignore"):
+            ll = lik.noise_loglik(R, noise)
+    else:
+        n = lik.n_outputs
+        sigma = noise[:, :n]
+        phi = noise[:, n : 2 * n] if lik.noise == "ar1" else None
+        e = simulate_noise(sigma, phi, experiment.n_samples, rng)
+        with np.errstate(all="ignore"):
+            ll = residual_loglik(R, sigma, phi)
     return y_hat, y_hat + e, np.where(np.isfinite(ll), ll, -np.inf)
 
 

@@ -508,8 +508,10 @@ def sample_posterior(
     ----------
     experiments : Experiment or sequence of Experiment
     model : LinearModel
-    noise : {"ar1", "white"}
-        Residual model (see ``likelihood``).
+    noise : {"ar1", "white"}, "arP", "ar(p1,...,pn)", "ar:auto" or a NoiseModel
+        Residual model (see ``likelihood``; AR(p) and other models of
+        ``bayesmodal.inference.noise`` go through ``records.RecordsLikelihood``, with
+        ``"ar:auto"`` choosing the orders by BIC on the least-squares residuals).
     priors : PriorSet, optional
         Default ``default_priors(model, noise=noise, extension=extension)``.
     n_walkers : int
@@ -595,6 +597,17 @@ def sample_posterior(
     (60, 32, 9)
     """
     exps = as_experiments(experiments)
+    if not isinstance(noise, str) or noise not in ("ar1", "white"):
+        # AR(p) and other noise models live in the several-record likelihood; one record
+        # with every parameter shared is its simplest layout
+        from .records import RecordLayout, choose_noise
+
+        if layout is None:
+            layout = RecordLayout({})
+        if isinstance(noise, str) and noise.strip().lower() == "ar:auto":
+            if start is None and extension is None:
+                start = fit_lsq(list(exps), model)
+            noise = choose_noise(exps, model, start, extension=extension)
     if layout is None:
         lik = Likelihood(model, exps, noise, extension)
     else:
@@ -670,7 +683,7 @@ def sample_posterior(
         "damping": model.damping,
         **({} if ext is None else {"extension": ext.name}),
         "springs_n_m": list(model.rig.springs_n_m),
-        "noise": noise,
+        "noise": lik.noise,
         "priors": [repr(p) for p in priors.priors],
         "transforms": list(priors.transforms),
         "n_walkers": n_walkers,

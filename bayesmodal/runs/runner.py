@@ -67,6 +67,7 @@ class PreparedRun:
     priors: object
     moves: list
     extension: str | None = None
+    noise: str | None = None  # the resolved noise model (``ar:auto`` -> its orders)
 
 
 @dataclass(frozen=True)
@@ -185,6 +186,15 @@ def prepare_run(config: RunConfig) -> PreparedRun:
                 f"{src}: [model.damping] the {extension} extension is built on free "
                 f"damping, got {cfg.damping!r}")
     layout = cfg.layout
+    noise = cfg.noise
+    if noise == "ar:auto":
+        from ..fit import fit_lsq
+        from ..inference.records import choose_noise
+
+        if extension is not None:
+            raise ConfigError(f"{src}: [likelihood.noise] 'ar:auto' is built for the linear "
+                              "model; give the orders, e.g. 'ar4'")
+        noise = choose_noise(exps, model, fit_lsq(list(exps), model)).name
     if layout is None:
         base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts,
                               extension=extension)
@@ -192,7 +202,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         from ..inference.records import RecordsLikelihood, record_priors
 
         try:
-            base = record_priors(RecordsLikelihood(model, exps, cfg.noise, extension, layout))
+            base = record_priors(RecordsLikelihood(model, exps, noise, extension, layout))
         except ValueError as exc:
             raise ConfigError(f"{src}: [records] {exc}") from exc
     overrides = {}
@@ -215,7 +225,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         moves = parse_moves(cfg.moves)
     except ConfigError as exc:
         raise ConfigError(f"{src}: {exc}") from exc
-    return PreparedRun(cfg, exps, held, model, priors, moves, extension)
+    return PreparedRun(cfg, exps, held, model, priors, moves, extension, noise)
 
 
 def default_out_dir(config: RunConfig, out_root: str | os.PathLike = "runs") -> Path:
@@ -555,7 +565,8 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
                      cfg.walkers, cfg.steps, steps_before, cfg.seed)
             run = sample_posterior(
-                list(prep.experiments), prep.model, noise=cfg.noise, priors=prep.priors,
+                list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
+                priors=prep.priors,
                 n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
                 moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
                 warn=False, extension=prep.extension, restart=cfg.restart,
