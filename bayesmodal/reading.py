@@ -304,7 +304,8 @@ def regularise_time(t_s) -> TimeRegularisation:
     lo, hi = float(steps.min()), float(steps.max())
     two_values = np.all((np.abs(steps - lo) <= tol) | (np.abs(steps - hi) <= tol))
     q = hi - lo
-    if two_values and q <= dt / 3 and shift <= 0.5 * q * (1 + 4 / np.sqrt(n)) + tol:
+    if two_values and q <= dt / 3 and (shift <= 0.5 * q + tol
+                                       or _minimax_line(k, r / q) <= 0.5 + 1e-6):
         return TimeRegularisation(grid, float(dt), "rounded", shift, float(q))
     if n >= _MIN_JITTER_SAMPLES:
         rc = r - r.mean()
@@ -312,3 +313,31 @@ def regularise_time(t_s) -> TimeRegularisation:
         if rho1 < 0.5:
             return TimeRegularisation(grid, float(dt), "jitter", shift)
     return TimeRegularisation(t, float(mean_dt), "irregular", shift)
+
+
+def _minimax_line(k: np.ndarray, r: np.ndarray) -> float:
+    """Smallest ``h`` with ``|r_k - a - b k| <= h`` for all k (Chebyshev line fit).
+
+    Timestamps rounded to ``q`` lie within ``q / 2`` of the true grid, so some line comes
+    within ``1 / 2`` of ``r / q`` (the least-squares residuals in quanta); the
+    least-squares line itself may not (exact ties put half the samples at ``q / 2``).
+    """
+    from scipy.optimize import linprog
+    from scipy.spatial import ConvexHull, QhullError
+
+    x = k / k[-1]  # a well-scaled abscissa
+    # the largest deviation from a line is reached at a vertex of the points' convex hull
+    try:
+        v = ConvexHull(np.column_stack([x, r])).vertices
+    except QhullError:  # all points on one line
+        return 0.0
+    x, r = x[v], r[v]
+    n = x.size
+    ones = np.ones(n)
+    # variables (a, b, h): minimise h subject to +-(r - a - b x) <= h
+    a_ub = np.block([[-ones[:, None], -x[:, None], -ones[:, None]],
+                     [ones[:, None], x[:, None], -ones[:, None]]])
+    b_ub = np.r_[-r, r]
+    res = linprog([0.0, 0.0, 1.0], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 3,
+                  method="highs")
+    return float(res.x[2]) if res.success else float("inf")
