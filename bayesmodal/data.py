@@ -438,12 +438,14 @@ def _check_plausible(path: Path, exp: Experiment, raw_y: np.ndarray, opts: ReadO
                     f"in encoder counts? give --m-per-count {ECP_M_PER_COUNT:.6g}")
             hint = f"are the outputs {unit} (metres per unit of the file)"
         else:
-            scale = peak / float(np.max(np.abs(raw_y)))
-            hint = f"is {scale:.6g} m per count right? set it with --m-per-count"
+            hint = (f"is {peak / float(np.max(np.abs(raw_y))):.6g} m per count right? set "
+                    "it with --m-per-count")
         raise DataError(f"{path}: displacements up to {peak:.3g} m are implausible for the "
                         f"rig (the carts move a few cm at most); {hint}")
     raw_peak = float(np.max(np.abs(raw_y)))
-    if kind in ("mat", "txt") and opts.m_per_count is None and 0 < raw_peak < 1:
+    scale = peak / raw_peak if raw_peak > 0 else 0.0
+    # a scale of encoder counts (at most 0.1 mm per unit) with values below one count
+    if 0 < scale <= 1e-4 and raw_peak < 1:
         raise DataError(
             f"{path}: outputs up to {raw_peak:.3g} are below one encoder count; if they are "
             "already in metres give --m-per-count 1 (ReadOptions(m_per_count=1))")

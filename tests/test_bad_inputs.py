@@ -672,7 +672,9 @@ def render_table(outcomes: dict[str, Outcome]) -> str:
         "nothing on stdout and leaves no output folder; `--debug` shows the traceback.",
         "A warning is one line on stderr and the result is still given.  Loader rows show the",
         "exception of `bayesmodal.data.load_experiment`; `run` and `batch` rows use a",
-        "configuration `cfg.toml` whose `[data] files` names the input.",
+        "configuration `cfg.toml` whose `[data] files` names the input.  Reader options",
+        "(`--columns`, `--input-scale`, ...) shown with an input are given on the command",
+        "line, and to the loader as the `ReadOptions` they parse to.",
         "A well-formed MATLAB v7.3 (HDF5) file with t, x1..xn, v is not a bad input: it is read",
         "like a v5 file (`test_every_entry_point_and_input_is_covered`).",
         "",
@@ -685,7 +687,8 @@ def render_table(outcomes: dict[str, Outcome]) -> str:
         res = outcomes[_case_id(entry, bad)]
         ep = "`load_experiment`" if entry == "load_experiment" else f"`bayesmodal {entry}`"
         code = res.code if isinstance(res.code, str) else str(res.code)
-        lines.append(f"| {_cell(bad.what)} | {ep} | {code} | `{_cell(res.message)}` |")
+        what = bad.what + (f", given `{' '.join(bad.args)}`" if bad.args else "")
+        lines.append(f"| {_cell(what)} | {ep} | {code} | `{_cell(res.message)}` |")
     return "\n".join(lines) + "\n"
 
 
