@@ -292,17 +292,13 @@ def _txt_roles(path: Path, opts: ReadOptions) -> dict:
     table = _readers.read_text(path, None, header_rows=None)
     arr, names = table.data, table.names
     width = arr.shape[1]
-    numbers = [str(i + 1) for i in range(width)]
     if opts.columns is None:
         if table.header:
             if names is not None and set(names) >= {"t", "v"}:
                 return _standard_roles(path, {n: arr[:, i] for i, n in enumerate(names)},
                                        "an ECP .txt file")
-            shown = names if names is not None else numbers
             raise DataError(f"{path}: header {table.header[-1][:60]!r} does not name the "
-                            "columns t, x1..xn, v; " + _hint_columns(
-                                shown if names is None else
-                                [f"{n} ({i + 1})" for i, n in enumerate(names)]))
+                            "columns t, x1..xn, v; " + _hint_columns(_available(names, width)))
         if width < 3:
             raise DataError(f"{path}: {width} column(s); an ECP .txt file needs t x1 .. xn v")
         cols = {"t": arr[:, 0], "v": arr[:, -1]}
@@ -325,9 +321,15 @@ def _table_roles(path: Path, opts: ReadOptions, arr: np.ndarray, names) -> dict:
             return arr[:, int(name) - 1]
         return None
 
-    avail = [f"{n} ({i + 1})" for i, n in enumerate(names)] if names else \
-        [f"columns 1..{width} by number"]
-    return _mapped_roles(path, opts, lookup, avail)
+    return _mapped_roles(path, opts, lookup, _available(names, width))
+
+
+def _available(names, width: int) -> list[str]:
+    """Columns of a text table as a user may name them: header names with their numbers,
+    or numbers only."""
+    if names:
+        return [f"{n} ({i + 1})" for i, n in enumerate(names)]
+    return [f"columns 1..{width} by number"]
 
 
 def _csv_roles(path: Path, opts: ReadOptions) -> dict:
