@@ -339,10 +339,9 @@ def _csv_roles(path: Path, opts: ReadOptions) -> dict:
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not a text file (binary content)") from exc
     names = [h.strip() for h in header.strip().split(",")]
-    if opts.columns is not None:
-        table = _readers.read_text(path, ",", header_rows=1)
-        return _table_roles(path, opts, table.data,
-                            names if len(names) == table.data.shape[1] else None)
+    if opts.columns is not None:  # any number of header rows; names from the last one
+        table = _readers.read_text(path, ",", header_rows=None)
+        return _table_roles(path, opts, table.data, table.names)
     xs = [h for h in names if h.startswith("x") and h[1:].isdigit()]
     missing = [c for c in ("t", "v") if c not in names]
     if not xs:

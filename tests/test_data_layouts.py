@@ -165,6 +165,19 @@ def test_text_header_with_the_standard_names_needs_no_map(tmp_path):
     np.testing.assert_allclose(e.y_m, y, rtol=0, atol=1e-6 * ECP_M_PER_COUNT)
 
 
+def test_csv_with_several_header_rows_and_a_map(tmp_path):
+    t, v, y = two_cart_record(n=400)
+    p = tmp_path / "lab.csv"
+    table = np.column_stack([v, t, y])
+    rows = ["# rig B, run 4", "u (V), time (s), cart 1 (m), cart 2 (m)"]
+    rows += [",".join(repr(float(x)) for x in row) for row in table]
+    p.write_text("\n".join(rows) + "\n")
+    cols = {"t": "time (s)", "v": "u (V)", "x1": "cart 1 (m)", "x2": "cart 2 (m)"}
+    e = load_experiment(p, options=ReadOptions(columns=cols))
+    np.testing.assert_array_equal(e.y_m, y)
+    np.testing.assert_array_equal(e.v_volt, v)
+
+
 def test_sample_index_as_time_is_refused_with_the_fix(tmp_path):
     t, v, y, table = _counts_table()
     p = tmp_path / "indexed.txt"
