@@ -179,3 +179,18 @@ def test_cli_reader_options_are_checked(tmp_path):
     code, out, err = _cli(["ema", str(p), "--columns", "t=time,v=target_v,x1=enc1",
                            "--input-scale", "five"])
     assert code == 2 and len(err) == 1 and "--input-scale: 'five' is not a number" in err[0]
+
+
+def test_frequencies_without_input_energy_keep_the_grid_whole():
+    # rectangular pulses of 1 s every 3 s seen as one transient: the input spectrum has
+    # exact zeros on the FFT grid; the FRF keeps them (H = 0, input power 0) so that the
+    # IRF of LSCE still has its uniform grid, and FRF.reliable leaves them out
+    exp = _record(_pulses(20.0, 1.0, 3.0))
+    frf = frf_from_experiment(exp, method="transient")
+    steps = np.diff(frf.omega_rad_s)
+    np.testing.assert_allclose(steps, steps[0], rtol=1e-9)
+    dead = frf.input_power == 0
+    assert np.any(dead) and np.all(frf.H[dead] == 0)
+    assert not np.any(frf.reliable_mask()[dead])
+    res = identify(exp, "lsce", frf_method="transient")
+    assert res.estimate.n_modes >= 1

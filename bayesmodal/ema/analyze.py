@@ -151,6 +151,11 @@ def check_resonances(
         lo, hi = nu - half, nu + half
         if lo < w[0] or hi > w[-1]:
             continue
+        if np.count_nonzero((w >= lo) & (w <= hi)) < 3:
+            ident[k] = False
+            notes.append(f"mode at {estimate.omega_rad_s[k]:.4g} rad/s not identified: the "
+                         "input has (almost) no energy around it")
+            continue
         sub = frf.band(lo, hi)
         mag = np.abs(sub.H)
         i = np.argmax(mag, axis=0)

@@ -560,8 +560,13 @@ def pulse_frf(
         Syu = Syu + Y * U.conj()[:, None]
         Syy = Syy + np.abs(Y) ** 2
     w = 2 * np.pi * np.fft.rfftfreq(n_fft, dt)
-    keep = (w > 0) & (Suu > 1e-300)
-    H, coh = _estimate(Syu[keep], Suu[keep], Syy[keep], estimator)
+    # every frequency of the grid is kept (impulse_response needs the whole grid); where
+    # the input has no energy at all H is set to 0 and input_power is 0, so that
+    # FRF.reliable leaves it out
+    keep = w > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H, coh = _estimate(Syu[keep], Suu[keep], Syy[keep], estimator)
+    H[~(Suu[keep] > 1e-300)] = 0.0
     w = w[keep]
     if zoh:
         H = H / zoh_factor(w, dt)[:, None]
