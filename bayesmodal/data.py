@@ -2,12 +2,18 @@
 
 Formats
 -------
-- ECP course files, MATLAB v5 ``.mat`` with column vectors ``t, x1..xn, v``;
-- ECP course files, tab/space separated ``.txt`` with columns ``t x1 .. xn v``, no header;
+- ECP course files, MATLAB v5 or v7.3 ``.mat`` with column vectors ``t, x1..xn, v``;
+- ECP course files, tab/space separated ``.txt`` with columns ``t x1 .. xn v``;
 - plain ``.csv`` with header ``t,v,x1,...,xn`` in SI units (s, V, m).
 
 ECP files hold positions in encoder counts; they are converted to metres with
 ``m_per_count`` (default ``0.0706 / 16000`` m per count, errata 7).
+
+Files laid out otherwise (other variable names, struct fields, header rows, the input in
+converter units, time in ms) are read with a :class:`~bayesmodal.reading.ReadOptions`
+(column map and scale factors).  Rounded or jittered timestamps are put on their uniform
+grid with a warning; the misreads that would otherwise pass silently (a sample index as
+time, converter units as volts, mm or counts as metres) are refused with the fix.
 """
 
 from __future__ import annotations
@@ -15,15 +21,18 @@ from __future__ import annotations
 import hashlib
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from . import _readers
 from ._errors import DataError
+from .reading import ReadOptions, regularise_time
 
 __all__ = [
     "Experiment",
+    "ReadOptions",
     "load_experiment",
     "ECP_M_PER_COUNT",
     "MAX_FILE_BYTES",
@@ -224,161 +233,131 @@ def _check_size(path: Path, max_bytes: int | None) -> None:
         )
 
 
-def _ecp_columns(path: Path, cols: dict[str, np.ndarray], m_per_count: float, name: str):
+def _hint_columns(names) -> str:
+    shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
+    return ("map the file's columns with --columns t=NAME,v=NAME,x1=NAME,... "
+            f"(ReadOptions(columns=...)); available: {shown}")
+
+
+def _standard(k: str) -> bool:
+    return k in ("t", "v") or (k[:1] == "x" and k[1:].isdigit())
+
+
+def _check_variables(path: Path, kinds: dict[str, str], numeric: list[str]) -> None:
+    """Refuse a MATLAB file whose variables are not exactly numeric t, x1..xn, v."""
+    found = ", ".join(f"{k} ({kind})" for k, kind in kinds.items()) or "no variables"
+    wrong = [k for k, kind in kinds.items() if _standard(k) and kind != "numeric"]
+    if wrong:
+        raise DataError(f"{path}: variable(s) {wrong} must be real numeric vectors; found "
+                        f"{found}")
+    has_x = any(k[:1] == "x" for k in kinds if _standard(k))
+    missing = [k for k in ("t", "v") if k not in kinds] + ([] if has_x else ["x1"])
+    if missing:
+        raise DataError(f"{path}: missing column(s) {missing}; an ECP .mat file holds "
+                        f"t, x1..xn, v (found {found}); " + _hint_columns(numeric))
+    unexpected = [k for k in kinds if not _standard(k)]
+    if unexpected:
+        raise DataError(f"{path}: unexpected variable(s) {unexpected}; an ECP .mat file "
+                        "holds only t, x1..xn, v (save the record without the others, or "
+                        "pick the columns with --columns t=t,v=v,x1=x1,...)")
+
+
+def _standard_roles(path: Path, cols: dict[str, np.ndarray], what: str) -> dict:
     xs = sorted((k for k in cols if k[:1] == "x" and k[1:].isdigit()), key=lambda k: int(k[1:]))
     missing = [k for k in ("t", "v") if k not in cols]
     if not xs:
         missing.append("x1")
     if missing:
-        raise DataError(
-            f"{path}: missing column(s) {missing}; an ECP file needs t, x1..xn, v "
-            f"(found {sorted(cols)})"
-        )
-    expected = [f"x{i + 1}" for i in range(len(xs))]
-    if xs != expected:
+        raise DataError(f"{path}: missing column(s) {missing}; {what} needs t, x1..xn, v "
+                        f"(found {sorted(cols)})")
+    if xs != [f"x{i + 1}" for i in range(len(xs))]:
         raise DataError(f"{path}: output columns must be x1..xn without gaps, found {xs}")
-    lengths = {k: np.asarray(cols[k]).size for k in ["t", "v", *xs]}
-    if len(set(lengths.values())) != 1:
-        raise DataError(f"{path}: unequal column lengths {lengths}")
-    y = np.column_stack([np.asarray(cols[k], dtype=float).ravel() for k in xs]) * m_per_count
-    return Experiment(
-        np.asarray(cols["t"], dtype=float).ravel(),
-        np.asarray(cols["v"], dtype=float).ravel(),
-        y,
-        name=name,
-        source=str(path),
-    )
+    return {k: cols[k] for k in ("t", "v", *xs)}
 
 
-def _load_mat(path: Path, m_per_count: float, name: str) -> Experiment:
-    import scipy.io
-
-    with open(path, "rb") as fh:
-        head = fh.read(128)
-    if len(head) < 128:
-        raise DataError(f"{path}: truncated .mat file ({len(head)} bytes of header)")
-    if head[:6] == b"\x89HDF\r\n" or b"MATLAB 7.3" in head[:116]:
-        return _load_mat73(path, m_per_count, name)
-    try:
-        raw = scipy.io.loadmat(path, squeeze_me=False)
-    except Exception as exc:  # scipy raises several types for corrupt files
-        raise DataError(f"{path}: not a readable MATLAB v5 file (truncated or corrupt: "
-                        f"{exc})") from exc
-    cols = {k: v for k, v in raw.items() if not k.startswith("__")}
-    _check_variables(path, {k: _kind(v) for k, v in cols.items()})
-    return _ecp_columns(path, cols, m_per_count, name)
+def _mapped_roles(path: Path, opts: ReadOptions, lookup, available: list[str]) -> dict:
+    roles = {}
+    for role, source in opts.columns:
+        col = lookup(source)
+        if col is None:
+            raise DataError(f"{path}: column {source!r} (for {role}) not found; "
+                            + _hint_columns(available))
+        roles[role] = col
+    return roles
 
 
-def _kind(v) -> str:
-    """``"numeric"`` for a real numeric array, else a short description of the variable."""
-    if isinstance(v, np.ndarray) and v.dtype.kind in "fiu":
-        return "numeric"
-    if isinstance(v, np.ndarray) and v.dtype.names:
-        return "struct"
-    if isinstance(v, np.ndarray) and v.dtype.kind == "O":
-        return "cell"
-    if isinstance(v, np.ndarray) and v.dtype.kind in "US":
-        return "text"
-    if isinstance(v, np.ndarray) and v.dtype.kind == "c":
-        return "complex"
-    return type(v).__name__
+def _mat_roles(path: Path, opts: ReadOptions) -> dict:
+    var = _readers.read_mat(path)
+    numeric = list(var.arrays)
+    if opts.columns is None:
+        _check_variables(path, var.top, numeric)
+        return _standard_roles(path, dict(var.arrays), "an ECP file")
+
+    def lookup(name: str):
+        if name in var.arrays:
+            return var.arrays[name]
+        if name in var.kinds:
+            raise DataError(f"{path}: variable {name!r} is {var.kinds[name]}, not a real "
+                            f"numeric vector; " + _hint_columns(numeric))
+        return None
+
+    return _mapped_roles(path, opts, lookup, numeric)
 
 
-def _check_variables(path: Path, kinds: dict[str, str]) -> None:
-    """Refuse a MATLAB file whose variables are not exactly numeric t, x1..xn, v."""
-
-    def expected(k: str) -> bool:
-        return k in ("t", "v") or (k[:1] == "x" and k[1:].isdigit())
-
-    found = ", ".join(f"{k} ({kind})" for k, kind in kinds.items()) or "no variables"
-    wrong = [k for k, kind in kinds.items() if expected(k) and kind != "numeric"]
-    if wrong:
-        raise DataError(f"{path}: variable(s) {wrong} must be real numeric vectors; found "
-                        f"{found}")
-    has_x = any(k[:1] == "x" for k in kinds if expected(k))
-    missing = [k for k in ("t", "v") if k not in kinds] + ([] if has_x else ["x1"])
-    if missing:
-        raise DataError(f"{path}: missing column(s) {missing}; an ECP .mat file holds "
-                        f"t, x1..xn, v (found {found})")
-    unexpected = [k for k in kinds if not expected(k)]
-    if unexpected:
-        raise DataError(f"{path}: unexpected variable(s) {unexpected}; an ECP .mat file "
-                        "holds only t, x1..xn, v (save the record without the others)")
+def _txt_roles(path: Path, opts: ReadOptions) -> dict:
+    table = _readers.read_text(path, None, header_rows=None)
+    arr, names = table.data, table.names
+    width = arr.shape[1]
+    if opts.columns is None:
+        if table.header:
+            if names is not None and set(names) >= {"t", "v"}:
+                return _standard_roles(path, {n: arr[:, i] for i, n in enumerate(names)},
+                                       "an ECP .txt file")
+            raise DataError(f"{path}: header {table.header[-1][:60]!r} does not name the "
+                            "columns t, x1..xn, v; " + _hint_columns(_available(names, width)))
+        if width < 3:
+            raise DataError(f"{path}: {width} column(s); an ECP .txt file needs t x1 .. xn v")
+        cols = {"t": arr[:, 0], "v": arr[:, -1]}
+        cols.update({f"x{i + 1}": arr[:, 1 + i] for i in range(width - 2)})
+        return cols
+    return _table_roles(path, opts, arr, names)
 
 
-def _load_mat73(path: Path, m_per_count: float, name: str) -> Experiment:
-    import h5py
+def _table_roles(path: Path, opts: ReadOptions, arr: np.ndarray, names) -> dict:
+    width = arr.shape[1]
+    index = {n: i for i, n in enumerate(names or [])}
 
-    try:
-        with h5py.File(path, "r") as f:
-            kinds, cols = {}, {}
-            for k in f.keys():
-                if k.startswith("#"):  # MATLAB's #refs# and #subsystem# bookkeeping
-                    continue
-                obj = f[k]
-                if isinstance(obj, h5py.Dataset):
-                    cls = obj.attrs.get("MATLAB_class", b"double")
-                    cls = cls.decode() if isinstance(cls, bytes) else str(cls)
-                    numeric = obj.dtype.kind in "fiu" and cls not in ("char", "logical")
-                    kinds[k] = "numeric" if numeric else cls
-                    if numeric:
-                        cols[k] = np.array(obj)
-                else:
-                    kinds[k] = "struct"
-    except OSError as exc:
-        raise DataError(f"{path}: not a readable MATLAB v7.3 (HDF5) file (truncated or "
-                        f"corrupt: {exc})") from exc
-    _check_variables(path, kinds)
-    return _ecp_columns(path, cols, m_per_count, name)
+    def lookup(name: str):
+        if name in index:
+            return arr[:, index[name]]
+        if name.isdigit():
+            if not 1 <= int(name) <= width:
+                raise DataError(f"{path}: column number {name} is out of range: the file "
+                                f"has {width} columns (numbered from 1)")
+            return arr[:, int(name) - 1]
+        return None
+
+    return _mapped_roles(path, opts, lookup, _available(names, width))
 
 
-def _read_text_table(path: Path, delimiter: str | None, skip_header: bool) -> np.ndarray:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: not a text file (binary content: {exc.reason})") from exc
-    lines = [ln for ln in text.splitlines() if ln.strip()]
-    if skip_header:
-        lines = lines[1:]
-    if not lines:
-        raise DataError(f"{path}: no data rows")
-    rows = []
-    width = None
-    for i, ln in enumerate(lines, start=2 if skip_header else 1):
-        parts = ln.split(delimiter) if delimiter else ln.split()
-        if width is None:
-            width = len(parts)
-        elif len(parts) != width:
-            raise DataError(
-                f"{path}: line {i} has {len(parts)} columns, expected {width} "
-                "(truncated or ragged file)"
-            )
-        try:
-            rows.append([float(p) for p in parts])
-        except ValueError as exc:
-            raise DataError(f"{path}: line {i}: non-numeric value ({exc})") from exc
-    return np.array(rows, dtype=float)
+def _available(names, width: int) -> list[str]:
+    """Columns of a text table as a user may name them: header names with their numbers,
+    or numbers only."""
+    if names:
+        return [f"{n} ({i + 1})" for i, n in enumerate(names)]
+    return [f"columns 1..{width} by number"]
 
 
-def _load_txt(path: Path, m_per_count: float, name: str) -> Experiment:
-    arr = _read_text_table(path, None, skip_header=False)
-    if arr.shape[1] < 3:
-        raise DataError(
-            f"{path}: {arr.shape[1]} column(s); an ECP .txt file needs t x1 .. xn v"
-        )
-    n = arr.shape[1] - 2
-    cols = {"t": arr[:, 0], "v": arr[:, -1]}
-    cols.update({f"x{i + 1}": arr[:, 1 + i] for i in range(n)})
-    return _ecp_columns(path, cols, m_per_count, name)
-
-
-def _load_csv(path: Path, name: str) -> Experiment:
+def _csv_roles(path: Path, opts: ReadOptions) -> dict:
     try:
         with open(path, encoding="utf-8") as fh:
             header = fh.readline()
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not a text file (binary content)") from exc
     names = [h.strip() for h in header.strip().split(",")]
+    if opts.columns is not None:  # any number of header rows; names from the last one
+        table = _readers.read_text(path, ",", header_rows=None)
+        return _table_roles(path, opts, table.data, table.names)
     xs = [h for h in names if h.startswith("x") and h[1:].isdigit()]
     missing = [c for c in ("t", "v") if c not in names]
     if not xs:
@@ -386,95 +365,181 @@ def _load_csv(path: Path, name: str) -> Experiment:
     if missing:
         raise DataError(
             f"{path}: missing column(s) {missing} in header {names}; "
-            "a CSV needs the header t,v,x1,...,xn (SI units: s, V, m)"
+            "a CSV needs the header t,v,x1,...,xn (SI units: s, V, m), or map its columns "
+            "with --columns t=NAME,v=NAME,x1=NAME,..."
         )
     extra = [h for h in names if h not in ("t", "v") and h not in xs]
     if extra:
-        raise DataError(f"{path}: unknown column(s) {extra}; expected t,v,x1,...,xn")
+        raise DataError(f"{path}: unknown column(s) {extra}; expected t,v,x1,...,xn (or map "
+                        "the columns with --columns)")
     if len(set(names)) != len(names):
         raise DataError(f"{path}: duplicated column names in header {names}")
     expected = [f"x{i + 1}" for i in range(len(xs))]
     if sorted(xs, key=lambda k: int(k[1:])) != expected:
         raise DataError(f"{path}: output columns must be x1..xn without gaps, found {xs}")
-    arr = _read_text_table(path, ",", skip_header=True)
+    arr = _readers.read_text(path, ",", header_rows=1).data
     if arr.shape[1] != len(names):
         raise DataError(f"{path}: rows have {arr.shape[1]} columns, header has {len(names)}")
     col = {h: arr[:, i] for i, h in enumerate(names)}
-    y = np.column_stack([col[f"x{i + 1}"] for i in range(len(xs))])
-    return Experiment(col["t"], col["v"], y, name=name, source=str(path))
+    return {k: col[k] for k in ("t", "v", *expected)}
+
+
+def _vector(path: Path, role: str, a) -> np.ndarray:
+    a = np.asarray(a)
+    if a.ndim > 1 and sum(s > 1 for s in a.shape) > 1:
+        raise DataError(f"{path}: column {role} has shape {a.shape}; it must be a vector")
+    return np.asarray(a, dtype=float).ravel()
 
 
 _FORMATS = ("mat", "txt", "csv")
+
+#: Largest plausible motor command, V (the ECP amplifier takes +-10 V).
+_MAX_PLAUSIBLE_V = 30.0
+
+#: Longest plausible sample interval, s (the rig's modes lie at 1-5 Hz).
+_MAX_PLAUSIBLE_DT = 0.5
+
+
+def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) -> Experiment:
+    xs = [k for k in roles if k[0] == "x"]
+    cols = {k: _vector(path, k, roles[k]) for k in ("t", "v", *xs)}
+    lengths = {k: c.size for k, c in cols.items()}
+    if len(set(lengths.values())) != 1:
+        raise DataError(f"{path}: unequal column lengths {lengths}")
+    if opts.n_outputs is not None and len(xs) != opts.n_outputs:
+        raise DataError(f"{path}: {len(xs)} outputs, but {opts.n_outputs} were expected")
+    scale_y = opts.m_per_count if opts.m_per_count is not None else (
+        ECP_M_PER_COUNT if kind in ("mat", "txt") else 1.0)
+    raw_y = np.column_stack([cols[k] for k in xs])
+    t = cols["t"] * opts.time_scale
+    v = cols["v"] * opts.input_scale
+    y = raw_y * scale_y
+    # a rounded or jittered time base is put on its uniform grid; anything else is left
+    # for Experiment to refuse
+    if t.size >= 3 and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0):
+        reg = regularise_time(t)
+        if reg.kind in ("rounded", "jitter"):
+            warnings.warn(f"{path}: {reg.message()}", stacklevel=4)
+            t = reg.t_s
+    exp = Experiment(t, v, y, name=name, source=str(path))
+    _check_plausible(path, exp, raw_y, opts, kind)
+    return exp
+
+
+def _check_plausible(path: Path, exp: Experiment, raw_y: np.ndarray, opts: ReadOptions,
+                     kind: str) -> None:
+    """Refuse the silent misreads: sample index as time, converter units, mm or counts."""
+    t = exp.t_s
+    t_role = (opts.column_map or {}).get("t", "t")
+    if opts.time_scale == 1.0 and np.all(t == np.round(t)) and abs(exp.dt - 1.0) < 1e-12:
+        raise DataError(
+            f"{path}: the time column {t_role!r} counts samples ({t[0]:g}, {t[1]:g}, "
+            f"{t[2]:g}, ...), it is not a time in seconds; map the time column with "
+            "--columns t=NAME (a text file's columns by number, e.g. t=2), or give "
+            "--time-scale 1/1000 if it is in milliseconds")
+    if exp.dt > _MAX_PLAUSIBLE_DT:
+        raise DataError(
+            f"{path}: sample interval {exp.dt:.4g} s is implausible for the rig (its modes "
+            f"at 1-5 Hz need well under {_MAX_PLAUSIBLE_DT} s); if the time column is in "
+            "milliseconds give --time-scale 1/1000 (ReadOptions(time_scale=1e-3))")
+    vmax = float(np.max(np.abs(exp.v_volt)))
+    if vmax > _MAX_PLAUSIBLE_V:
+        raise DataError(
+            f"{path}: input up to {vmax:.4g} V is far beyond the rig's +-10 V command; if it "
+            "is in converter units give volts per unit, e.g. --input-scale 5/4096 for 12 "
+            "bits over 5 V (ReadOptions(input_scale=...))")
+    peak = float(np.max(np.abs(exp.y_m)))
+    if peak > _MAX_PLAUSIBLE_M:
+        if kind == "csv" and opts.m_per_count is None:
+            unit = ("in mm? give --m-per-count 0.001" if peak < 1000 else
+                    f"in encoder counts? give --m-per-count {ECP_M_PER_COUNT:.6g}")
+            hint = f"are the outputs {unit} (metres per unit of the file)"
+        else:
+            hint = (f"is {peak / float(np.max(np.abs(raw_y))):.6g} m per count right? set "
+                    "it with --m-per-count")
+        raise DataError(f"{path}: displacements up to {peak:.3g} m are implausible for the "
+                        f"rig (the carts move a few cm at most); {hint}")
+    raw_peak = float(np.max(np.abs(raw_y)))
+    scale = peak / raw_peak if raw_peak > 0 else 0.0
+    # a scale of encoder counts (at most 0.1 mm per unit) with values below one count
+    if 0 < scale <= 1e-4 and raw_peak < 1:
+        raise DataError(
+            f"{path}: outputs up to {raw_peak:.3g} are below one encoder count; if they are "
+            "already in metres give --m-per-count 1 (ReadOptions(m_per_count=1))")
 
 
 def load_experiment(
     path: str | os.PathLike,
     *,
     fmt: str | None = None,
-    m_per_count: float = ECP_M_PER_COUNT,
+    m_per_count: float | None = None,
     max_bytes: int | None = None,
+    options: ReadOptions | None = None,
 ) -> Experiment:
     """Load one experiment from a file.
 
     Parameters
     ----------
     path : path-like
-        ``.mat`` (ECP, counts), ``.txt`` (ECP, counts) or ``.csv`` (header
-        ``t,v,x1..xn``, SI units).
+        ``.mat`` (MATLAB v5 or v7.3), ``.txt`` (columns separated by white space, optional
+        header rows) or ``.csv`` (header row).  Without a column map: ECP ``.mat``/``.txt``
+        with ``t, x1..xn, v`` in encoder counts, CSV with header ``t,v,x1..xn`` in SI units.
     fmt : {"mat", "txt", "csv"}, optional
         Format; by default taken from the file extension.
     m_per_count : float, optional
-        Metres per encoder count for ECP files, m.
+        Metres per encoder count for the ECP ``.mat``/``.txt`` files, m (default
+        ``ECP_M_PER_COUNT``); same as ``options.m_per_count`` but without effect on CSV.
     max_bytes : int, optional
         Size limit, bytes (default ``MAX_FILE_BYTES`` or ``$BAYESMODAL_MAX_BYTES``).
+    options : ReadOptions, optional
+        Column map and scale factors for files laid out otherwise.
 
     Returns
     -------
     Experiment
-        With ``sha256`` of the file recorded.
+        With ``sha256`` of the file recorded.  Timestamps rounded to a coarser clock, or
+        jittered around a uniform step, are replaced by the fitted uniform grid with a
+        warning that says by how much they moved (``reading.regularise_time``).
 
     Raises
     ------
     DataError
         For a missing, empty, oversized, truncated or malformed file, missing columns,
-        non-finite values, or non-uniform time.
+        non-finite values, irregular time, and for the misreads: a time column that counts
+        samples, an input far beyond a few volts, displacements in mm or counts.
 
     Examples
     --------
     >>> p = find_data("ecp210-3dof/data_impulses.mat")
     >>> e = load_experiment(p) if p else None
+    >>> opts = ReadOptions(columns={"t": "time", "v": "target_v", "x1": "enc1",
+    ...                             "x2": "enc2"}, input_scale=5 / 4096)
     """
     path = Path(path)
+    opts = options if options is not None else ReadOptions()
     if not path.exists():
         raise DataError(f"{path}: no such file")
     if not path.is_file():
         raise DataError(f"{path}: not a regular file")
-    if not (np.isfinite(m_per_count) and m_per_count > 0):
-        raise DataError(f"m_per_count must be finite and > 0 m, got {m_per_count!r}")
     kind = (fmt or path.suffix.lstrip(".")).lower()
+    if m_per_count is not None:
+        if not (np.isfinite(m_per_count) and m_per_count > 0):
+            raise DataError(f"m_per_count must be finite and > 0 m, got {m_per_count!r}")
+        if kind in ("mat", "txt") and opts.m_per_count is None:
+            opts = replace(opts, m_per_count=float(m_per_count))
     if kind not in _FORMATS:
         raise DataError(
             f"{path}: unknown format {kind!r}; expected one of {_FORMATS} "
             "(ECP .mat/.txt in counts, or CSV with header t,v,x1..xn in SI units)"
         )
     _check_size(path, max_bytes)
-    name = path.stem
     if kind == "mat":
-        exp = _load_mat(path, m_per_count, name)
+        roles = _mat_roles(path, opts)
     elif kind == "txt":
-        exp = _load_txt(path, m_per_count, name)
+        roles = _txt_roles(path, opts)
     else:
-        exp = _load_csv(path, name)
-    peak = float(np.max(np.abs(exp.y_m)))
-    if peak > _MAX_PLAUSIBLE_M:
-        hint = ("are the outputs in mm or encoder counts instead of metres? (mm: divide "
-                f"by 1000; counts: multiply by {ECP_M_PER_COUNT:.6g} m per count)"
-                if kind == "csv" else f"is m_per_count = {m_per_count:.6g} m per count right?")
-        warnings.warn(
-            f"{path}: displacements up to {peak:.3g} m are implausible for the rig (the "
-            f"carts move a few cm at most); {hint}",
-            stacklevel=2,
-        )
+        roles = _csv_roles(path, opts)
+    exp = _assemble(path, roles, opts, kind, path.stem)
     return Experiment(exp.t_s, exp.v_volt, exp.y_m, name=exp.name, source=exp.source,
                       sha256=file_sha256(path))
 

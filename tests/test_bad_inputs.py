@@ -136,6 +136,44 @@ def _mat73(name: str, *, corrupt: bool = False, extra_group: bool = False):
     return make
 
 
+def _logger_mat(name: str, *, counts: bool = True, **changes):
+    """A microcontroller logger's record: variables time, enc1..enc3 (counts), target_v
+    (converter units of 4096 per 5 V) and a struct of run parameters."""
+
+    def make(folder: Path) -> str:
+        t, v, y = _record()
+        enc = np.round(y / (0.0706 / 16000)) if counts else y
+        variables = {"time": t, "enc1": enc[:, 0], "enc2": enc[:, 1], "enc3": enc[:, 2],
+                     "target_v": np.round(v * 4096 / 5),
+                     "run": {"gain": 2.5, "operator": "lab 3"}}
+        variables.update(changes)
+        (folder / name).write_bytes(_mat_bytes(**variables))
+        return name
+
+    return make
+
+
+def _ecp_text(name: str, *, header: tuple[str, ...] = (), index: bool = False,
+              time_scale: float = 1.0, time=None):
+    """An ECP-style text record in counts, optionally with header rows and a leading
+    sample-index column."""
+
+    def make(folder: Path) -> str:
+        t, v, y = _record()
+        t = t * time_scale if time is None else time(t)
+        cols = [t, *(y / (0.0706 / 16000)).T, v]
+        if index:
+            cols = [np.arange(t.size, dtype=float)] + cols
+        body = "\n".join("\t".join(f"{x:.10g}" for x in row) for row in np.column_stack(cols))
+        (folder / name).write_text("\n".join([*header, body]) + "\n")
+        return name
+
+    return make
+
+
+_LOGGER_MAP = ("--columns", "t=time,v=target_v,x1=enc1,x2=enc2,x3=enc3")
+
+
 def _sparse(name: str, size: int):
     def make(folder: Path) -> str:
         p = folder / name
@@ -186,6 +224,9 @@ class BadInput:
         A warning (the result is still given), not an error.
     patterns : dict
         Entry point -> pattern, where it differs from ``pattern``.
+    args : tuple of str
+        Reader options given with the input (``--columns ...``); the loader gets the
+        ``ReadOptions`` they parse to.
     """
 
     key: str
@@ -195,6 +236,7 @@ class BadInput:
     entries: tuple[str, ...] = ALL
     warn: bool = False
     patterns: dict = field(default_factory=dict)
+    args: tuple[str, ...] = ()
 
 
 _GARBAGE = np.random.default_rng(0).bytes(4096)
@@ -272,14 +314,64 @@ INPUTS = [
              entries=CLI),
     BadInput("counts_csv", "CSV outputs in encoder counts, not metres",
              _csv("counts.csv", lambda t, v, y: (t, v, y / (0.0706 / 16000))),
-             "implausible for the rig .* are the outputs in mm or encoder counts instead of "
-             "metres",
-             entries=("load_experiment", "lsq", "ema"), warn=True),
+             r"implausible for the rig .* are the outputs in encoder counts\? give "
+             r"--m-per-count 4.4125e-06"),
     BadInput("mm_csv", "CSV outputs in mm, not metres",
-             _csv("mm.csv", lambda t, v, y: (t, v, 1e3 * y)),
-             r"implausible for the rig .* are the outputs in mm or encoder counts instead of "
-             r"metres\? \(mm: divide by 1000",
-             entries=("load_experiment",), warn=True),
+             _csv("mm.csv", lambda t, v, y: (t, v, y * 1e3)),
+             r"implausible for the rig .* are the outputs in mm\? give --m-per-count 0.001"),
+    BadInput("metres_mat", "ECP `.mat` holding metres where counts belong",
+             _ecp_mat("metres.mat", **{f"x{i + 1}": _record()[2][:, i:i + 1]
+                                       for i in range(3)}),
+             r"below one encoder count; if they are already in metres give --m-per-count 1"),
+    BadInput("logger_mat_no_map", "logger `.mat` (time, enc1..enc3, target_v, a struct) "
+             "without a column map", _logger_mat("logger.mat"),
+             r"missing column\(s\) \['t', 'v', 'x1'\].*map the file's columns with "
+             r"--columns t=NAME.*available: time, enc1"),
+    BadInput("logger_mat_wrong_name", "logger `.mat`, column map naming a variable it lacks",
+             _logger_mat("logger.mat"), r"column 'enc4' \(for x3\) not found",
+             entries=("load_experiment", "lsq", "ema"),
+             args=("--columns", "t=time,v=target_v,x1=enc1,x2=enc2,x3=enc4",
+                   "--input-scale", "5/4096")),
+    BadInput("logger_mat_text_field", "logger `.mat`, column map naming a text struct field",
+             _logger_mat("logger.mat"), r"variable 'run.operator' is text, not a real numeric",
+             entries=("load_experiment", "lsq", "ema"),
+             args=("--columns", "t=time,v=run.operator,x1=enc1,x2=enc2,x3=enc3")),
+    BadInput("logger_mat_converter_units", "logger `.mat` read without --input-scale "
+             "(input in converter units)", _logger_mat("logger.mat"),
+             r"input up to 2458 V is far beyond the rig's \+-10 V command.*--input-scale 5/4096",
+             entries=("load_experiment", "lsq", "ema"), args=_LOGGER_MAP),
+    BadInput("txt_header_no_map", "ECP `.txt` with header rows `Sample Time Encoder 1 Pos "
+             "...`, no column map",
+             _ecp_text("header.txt", header=("; exported", "Sample\tTime\tEncoder 1 Pos\t"
+                                             "Encoder 2 Pos\tEncoder 3 Pos\tControl Effort"),
+                       index=True),
+             r"header 'Sample\\tTime.*does not name the columns t, x1..xn, v.*--columns.*"
+             r"Time \(2\)"),
+    BadInput("txt_column_number", "ECP `.txt`, column map with a column number beyond the "
+             "last", _ecp_text("header.txt", header=("Sample Time Encoder 1 Pos Encoder 2 Pos "
+                                                     "Encoder 3 Pos Control Effort",),
+                               index=True),
+             "column number 9 is out of range: the file has 6 columns",
+             entries=("load_experiment", "lsq", "ema"),
+             args=("--columns", "t=2,x1=3,x2=4,x3=5,v=9")),
+    BadInput("txt_sample_index", "header-less `.txt` whose first column is a sample index",
+             _ecp_text("indexed.txt", index=True),
+             r"the time column 't' counts samples \(0, 1, 2, ...\), it is not a time in "
+             r"seconds; map the time column with --columns t=NAME"),
+    BadInput("txt_time_ms", "ECP `.txt` with time in milliseconds",
+             _ecp_text("ms.txt", time_scale=1e3),
+             r"sample interval 5 s is implausible .*--time-scale 1/1000"),
+    BadInput("rounded_time", "timestamps rounded to whole milliseconds (4.5 ms steps)",
+             _ecp_text("rounded.txt", time=lambda t: np.round(np.arange(t.size) * 0.0045, 3)),
+             r"timestamps are rounded to 0.001 s; regularised to a uniform step of 0.004\d+ s, "
+             r"moving samples by at most 0.000\d+ s \(1\d % of a step\)",
+             entries=("load_experiment", "lsq"), warn=True),
+    BadInput("jittered_time", "timestamps jittering by up to 30 % of a step",
+             _ecp_text("jitter.txt", time=lambda t: t + DT * np.random.default_rng(2).uniform(
+                 -0.3, 0.3, t.size)),
+             r"timestamps jitter around a uniform step of 0.005\d* s by up to 0.001\d* s "
+             r"\(\d+ % of a step\); regularised to the uniform grid",
+             entries=("load_experiment", "lsq"), warn=True),
     BadInput("mat_struct", "`.mat` holding one struct `data`",
              _write("struct.mat", _mat_bytes(data={"t": np.arange(5.0), "x": np.zeros(5)})),
              r"missing column\(s\) \['t', 'v', 'x1'\].*found data \(struct\)"),
@@ -365,6 +457,17 @@ def _listing(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in folder.rglob("*")}
 
 
+def _read_options(args: tuple[str, ...]):
+    """The ReadOptions the command line makes of reader arguments."""
+    import argparse
+
+    from bayesmodal.cli._common import add_reader_arguments, reader_options
+
+    parser = argparse.ArgumentParser()
+    add_reader_arguments(parser)
+    return reader_options(parser.parse_args(list(args)))
+
+
 def _cli(argv: list[str]) -> tuple[int, str, list[str]]:
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
@@ -386,7 +489,7 @@ def run_case(entry: str, bad: BadInput, folder: Path) -> Outcome:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 try:
-                    load_experiment(name)
+                    load_experiment(name, options=_read_options(bad.args))
                     code, msg = 0, ""
                 except DataError as exc:
                     code, msg = "DataError", f"DataError: {exc}"
@@ -399,11 +502,11 @@ def run_case(entry: str, bad: BadInput, folder: Path) -> Outcome:
             # ema: a band, as the default band needs a longer record than these
             extra = {"diagnose": ["--no-posterior", "--null", "0"],
                      "ema": ["--band", "5", "60"]}.get(entry, [])
-            code, out, err = _cli([entry, name, *extra])
+            code, out, err = _cli([entry, name, *extra, *bad.args])
             msg = err[0] if err else ""
         elif entry == "sample":
             code, out, err = _cli(["sample", name, "--out", "sampled", "--steps", "20",
-                                   "--walkers", "32", "--quiet", "--no-plots"])
+                                   "--walkers", "32", "--quiet", "--no-plots", *bad.args])
             msg = err[0] if err else ""
         elif entry == "run":
             Path("cfg.toml").write_text(RUN_CONFIG.format(name=name))
@@ -569,7 +672,9 @@ def render_table(outcomes: dict[str, Outcome]) -> str:
         "nothing on stdout and leaves no output folder; `--debug` shows the traceback.",
         "A warning is one line on stderr and the result is still given.  Loader rows show the",
         "exception of `bayesmodal.data.load_experiment`; `run` and `batch` rows use a",
-        "configuration `cfg.toml` whose `[data] files` names the input.",
+        "configuration `cfg.toml` whose `[data] files` names the input.  Reader options",
+        "(`--columns`, `--input-scale`, ...) shown with an input are given on the command",
+        "line, and to the loader as the `ReadOptions` they parse to.",
         "A well-formed MATLAB v7.3 (HDF5) file with t, x1..xn, v is not a bad input: it is read",
         "like a v5 file (`test_every_entry_point_and_input_is_covered`).",
         "",
@@ -582,7 +687,8 @@ def render_table(outcomes: dict[str, Outcome]) -> str:
         res = outcomes[_case_id(entry, bad)]
         ep = "`load_experiment`" if entry == "load_experiment" else f"`bayesmodal {entry}`"
         code = res.code if isinstance(res.code, str) else str(res.code)
-        lines.append(f"| {_cell(bad.what)} | {ep} | {code} | `{_cell(res.message)}` |")
+        what = bad.what + (f", given `{' '.join(bad.args)}`" if bad.args else "")
+        lines.append(f"| {_cell(what)} | {ep} | {code} | `{_cell(res.message)}` |")
     return "\n".join(lines) + "\n"
 
 

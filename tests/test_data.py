@@ -135,10 +135,10 @@ def test_mat_v73_hdf5_is_read(tmp_path):
     np.testing.assert_allclose(e.y_m[:, 0], 100 * ECP_M_PER_COUNT)
 
 
-def test_counts_in_csv_warns(tmp_path):
+def test_counts_in_csv_are_refused_with_the_fix(tmp_path):
     p = tmp_path / "counts.csv"
     p.write_text("t,v,x1\n0,0,0\n0.01,1,2000\n0.02,1,4000\n")
-    with pytest.warns(UserWarning, match="encoder counts"):
+    with pytest.raises(DataError, match="encoder counts.*--m-per-count"):
         load_experiment(p)
 
 

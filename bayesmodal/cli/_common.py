@@ -9,23 +9,60 @@ from pathlib import Path
 import numpy as np
 
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
+from ..reading import ReadOptions, parse_columns, parse_scale
 
 
 def add_data_args(p, *, many: bool = False) -> None:
-    """Add the positional DATA argument(s) and ``--m-per-count``."""
+    """Add the positional DATA argument(s) and the reader options."""
     if many:
         p.add_argument("data", nargs="+", metavar="DATA",
                        help="data files (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI)")
     else:
         p.add_argument("data", metavar="DATA",
                        help="data file (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI)")
-    p.add_argument("--m-per-count", type=float, default=ECP_M_PER_COUNT,
-                   help="metres per encoder count for ECP files (default %(default).6g)")
+    add_reader_arguments(p)
+
+
+def add_reader_arguments(p) -> None:
+    """Add ``--columns``, ``--input-scale``, ``--time-scale`` and ``--m-per-count``."""
+    g = p.add_argument_group("reading lab files (see bayesmodal.data.ReadOptions)")
+    g.add_argument("--columns", default=None, metavar="ROLE=COLUMN,...",
+                   help="which column is time, input and outputs, e.g. "
+                        "t=time,v=target_v,x1=enc1,x2=enc2 (MATLAB variables or struct "
+                        "fields run.enc1, text header names, or 1-based column numbers); "
+                        "default: the file's t, x1..xn, v")
+    g.add_argument("--input-scale", default=None, metavar="V_PER_UNIT",
+                   help="volts per unit of the input column, a number or fraction, e.g. "
+                        "5/4096 for a 12-bit converter over 5 V (default 1)")
+    g.add_argument("--time-scale", default=None, metavar="S_PER_UNIT",
+                   help="seconds per unit of the time column, e.g. 1/1000 for ms (default 1)")
+    g.add_argument("--m-per-count", default=None, metavar="M_PER_UNIT",
+                   help="metres per unit of the output columns, a number or fraction "
+                        f"(default {ECP_M_PER_COUNT:.6g} for ECP .mat/.txt in counts, 1 for "
+                        ".csv in metres)")
+
+
+def reader_options(args) -> ReadOptions:
+    """The ReadOptions of the parsed reader arguments (one place parses them)."""
+    columns = getattr(args, "columns", None)
+    scales = {}
+    for opt, key in (("input_scale", "input_scale"), ("time_scale", "time_scale"),
+                     ("m_per_count", "m_per_count")):
+        text = getattr(args, opt, None)
+        if text is not None:
+            scales[key] = parse_scale(text, "--" + opt.replace("_", "-"))
+    return ReadOptions(columns=parse_columns(columns) if columns else None, **scales)
+
+
+def load_data(paths, args) -> list[Experiment]:
+    """Load data files with the reader options of ``args``."""
+    opts = reader_options(args)
+    return [load_experiment(Path(p), options=opts) for p in paths]
 
 
 def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
-    exps = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in paths]
+    exps = load_data(paths, args)
     for e in exps:  # before any output folder is made
         check_identifiable(e)
     return exps

@@ -5,8 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .._errors import ConfigError
-from ..data import ECP_M_PER_COUNT, load_experiment
-from ._common import print_json
+from ._common import add_reader_arguments, load_data, print_json
 from ._sample import add_sampler_args, sample_to_dir
 
 
@@ -32,8 +31,7 @@ def register(sub) -> None:
     p.add_argument("--test", nargs="+", default=None, metavar="TEST",
                    help="held-out data files for the predictive check (e.g. data_steps.mat; "
                         "default: none)")
-    p.add_argument("--m-per-count", type=float, default=ECP_M_PER_COUNT,
-                   help="metres per encoder count for ECP files (default %(default).6g)")
+    add_reader_arguments(p)
     add_sampler_args(p)
     p.add_argument("--nlive", type=int, default=250, help="dynesty live points")
     p.add_argument("--dlogz", type=float, default=0.5, help="dynesty stopping criterion dlogz")
@@ -69,13 +67,13 @@ def run(args) -> int:
         if not args.data:
             raise ConfigError("no DATA files and no --runs given: give data files to fit "
                               "both damping models, or two or more finished run folders")
-        exps = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.data]
+        exps = load_data(args.data, args)
         idatas = {}
         for damping in ("free", "proportional"):
             _, idatas[damping] = sample_to_dir(exps, args, damping, out / damping)
     tests = None
     if args.test:
-        tests = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.test]
+        tests = load_data(args.test, args)
     choice = choose_model(idatas, test=tests, evidence=not args.no_evidence,
                           nlive=args.nlive, dlogz=args.dlogz, rng=args.seed)
     result = {"model_choice": choice.as_dict()}
@@ -106,7 +104,7 @@ def _run_dirs(args, out: Path) -> int:
         raise ConfigError("give run folders either as arguments or with --runs, not both")
     tests = None
     if args.test:
-        tests = [load_experiment(Path(p), m_per_count=args.m_per_count) for p in args.test]
+        tests = load_data(args.test, args)
     comp = compare_runs(dirs, test=tests)
     write_comparison(comp, out)
     if args.json:

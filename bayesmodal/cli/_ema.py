@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
-import sys
+import warnings
+
+import numpy as np
 
 from .._errors import DataError
 from ..ema import METHODS, identify
+from ..ema.frf import FRF_METHODS
 from ._common import add_data_args, load_args, print_json
 
 
@@ -14,19 +17,23 @@ def register(sub) -> None:
         "ema",
         help="experimental modal analysis (LSCE, circle fit, multi-mode fit, tfest)",
         description="Modal parameters from the FRF of motor volts to cart positions (m/V); "
-        "mode shapes normalised to cart 1.  Exit code 1 (and a one-line message) when no "
+        "mode shapes normalised to cart 1.  Exit code 2 with a one-line error when no "
         "mode is identified.",
     )
     add_data_args(p)
     p.add_argument("--method", choices=METHODS, default="lsce",
                    help="modal parameter fit (default %(default)s)")
-    p.add_argument("--n-modes", type=int, default=3,
-                   help="number of modes sought (default %(default)s)")
+    p.add_argument("--n-modes", type=int, default=None,
+                   help="number of modes sought (default: one per output)")
     p.add_argument("--order", type=int, default=None,
                    help="model order in modes: LSCE polynomial order 2N (default 2 x n-modes), "
                    "tfest denominator order 2N (default n-modes)")
     p.add_argument("--band", type=float, nargs=2, metavar=("LO", "HI"), default=None,
                    help="frequency band, rad/s (default: around the FRF peaks)")
+    p.add_argument("--frf", choices=FRF_METHODS, default="auto",
+                   help="FRF estimate: pulse train segments, step increments, Welch, or the "
+                   "whole record as one transient (default %(default)s: pulse, step or "
+                   "welch from the input)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", default=None,
                    help="write the FRF, Nyquist and stabilisation figures (PNG) into DIR "
@@ -36,17 +43,31 @@ def register(sub) -> None:
 
 def run(args) -> int:
     (exp,) = load_args(args)
+    where = exp.source or exp.name
+    n_modes = args.n_modes if args.n_modes is not None else exp.n_outputs
     orders = None
     if args.plots and args.method == "lsce":
-        top = args.order or 2 * args.n_modes
+        top = args.order or 2 * n_modes
         orders = list(range(1, top + 3))
     try:
-        res = identify(exp, args.method, n_modes=args.n_modes, order=args.order,
+        res = identify(exp, args.method, n_modes=n_modes, order=args.order,
                        band=tuple(args.band) if args.band else None,
-                       stabilization_orders=orders)
+                       stabilization_orders=orders, frf_method=args.frf)
     except DataError as exc:  # name the file in every data problem
-        where = exp.source or exp.name
         raise DataError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") from exc
+    est = res.estimate
+    found = np.flatnonzero(est.identified)
+    if found.size == 0:
+        why = next((n for n in est.notes if "not identified" in n or "computational" in n),
+                   "")
+        raise DataError(
+            f"{where}: no mode identified by {args.method} in {res.band[0]:.4g}.."
+            f"{res.band[1]:.4g} rad/s ({est.n_modes} candidate(s) rejected"
+            + (f", e.g. {why}" if why else "") + "); try another --band, --frf transient "
+            "or --method, or a record that excites the modes")
+    if found.size < n_modes:
+        warnings.warn(f"{where}: {found.size} of the {n_modes} modes sought identified "
+                      f"(see the notes)", stacklevel=2)
     files = []
     if args.plots:
         from ..plots.ema import save_ema_figures
@@ -59,27 +80,20 @@ def run(args) -> int:
     est = res.estimate
     if args.json:
         print_json(summary)
-        return _none_identified(exp, est)
+        return 0
     print(f"{exp.name}: {args.method}, band {res.band[0]:.4g}..{res.band[1]:.4g} rad/s, "
-          f"FRF in {res.frf.units}")
-    print(" mode  omega (rad/s)   zeta     identified  shape (cart 1 = 1)")
-    for k in range(est.n_modes):
+          f"FRF in {res.frf.units} ({res.frf.estimator}, {res.frf.n_averages} average(s))")
+    print(" mode  omega (rad/s)   zeta     shape (cart 1 = 1)")
+    for j, k in enumerate(found):
         shape = " ".join(f"{x:+.3f}" for x in est.mode_shapes[k].real)
-        print(f" {k + 1:4d}  {est.omega_rad_s[k]:12.4f}  {est.zeta[k]:8.4f}  "
-              f"{'yes' if est.identified[k] else 'no':>10s}  {shape}")
+        print(f" {j + 1:4d}  {est.omega_rad_s[k]:12.4f}  {est.zeta[k]:8.4f}  {shape}")
+    rejected = [k for k in range(est.n_modes) if not est.identified[k]]
+    if rejected:
+        cells = ", ".join(f"{est.omega_rad_s[k]:.4g} rad/s (zeta {est.zeta[k]:.3g})"
+                          for k in rejected)
+        print(f"  not identified (computational or without a resonance): {cells}")
     for note in est.notes:
         print(f"  note: {note}")
     for f in files:
         print(f"  wrote {f}")
-    return _none_identified(exp, est)
-
-
-def _none_identified(exp, est) -> int:
-    """Exit code: 1, with a one-line message naming the fix, when no mode was identified."""
-    if est.n_modes and any(est.identified):
-        return 0
-    sys.stdout.flush()
-    print(f"bayesmodal ema: error: no mode identified in {exp.name} (a record without "
-          "resonant response, e.g. slow steps?); use an impulse or sine-sweep record, or "
-          "set --band LO HI around the FRF peaks (rad/s)", file=sys.stderr)
-    return 1
+    return 0

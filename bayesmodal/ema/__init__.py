@@ -7,7 +7,8 @@ FRF estimation (:mod:`.frf`):
 
 - :func:`welch_frf` -- H1/H2 and coherence from Welch-averaged spectra;
 - :func:`pulse_frf` -- the same over the pulse-to-pulse transients of a pulse train;
-- :func:`frf_from_experiment` -- chooses between them for an ``Experiment`` (m/V);
+- :func:`frf_from_experiment` -- chooses between them for an ``Experiment`` (m/V); step
+  records through their increments (:func:`step_increments`);
 - :func:`impulse_response` -- IRF by inverse FFT; :func:`free_decay_segments`;
 - :func:`spectrum`, :func:`spectrogram`, :func:`band_coherence`, :func:`peak_prominence`.
 
@@ -45,11 +46,13 @@ from .frf import (
     frf_from_experiment,
     impulse_response,
     is_pulse_train,
+    is_step_input,
     peak_prominence,
     pulse_frf,
     pulse_segments,
     spectrogram,
     spectrum,
+    step_increments,
     welch_frf,
     zoh_factor,
 )
@@ -96,11 +99,13 @@ __all__ = [
     "frf_from_experiment",
     "impulse_response",
     "is_pulse_train",
+    "is_step_input",
     "peak_prominence",
     "pulse_frf",
     "pulse_segments",
     "spectrogram",
     "spectrum",
+    "step_increments",
     "welch_frf",
     "zoh_factor",
     "ErrorCurve",

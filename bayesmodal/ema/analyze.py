@@ -8,11 +8,15 @@ peaks, fit, and check the result against the FRF.
 - ``"multimode"``: multi-mode fit with residual terms over the band, started from circle
   fits;
 - ``"tfest"``: rational fit with ``2 * order`` poles over the band;
-- ``"lsce"``: LSCE with ``order`` modes on the free decays after the pulses (pulse data)
-  or on the IRF from the FRF (other data).  The order is over-specified by default
+- ``"lsce"``: LSCE with ``order`` modes on the free decays after the pulses (pulse data,
+  and step data through their increments, where each step is an impulse) or on the IRF
+  from the FRF (other data).  The order is over-specified by default
   (``2 n_modes``) so that the extra roots absorb noise and the dry-friction offset; roots
   outside the band (real poles, noise modes near the Nyquist frequency) are left out of
   the estimate (they remain in ``details``) and in-band computational modes are flagged.
+
+Frequencies where the input has (almost) no energy, such as the zeros of the spectrum of
+rectangular pulses, are left out of the peaks and the fits (``FRF.reliable``).
 
 Whatever the method, a mode is finally kept as identified only if the FRF shows a
 resonance where it lies (``peak_prominence`` of at least ``min_prominence`` in some output
@@ -35,7 +39,9 @@ from .frf import (
     frf_from_experiment,
     impulse_response,
     is_pulse_train,
+    is_step_input,
     peak_prominence,
+    step_increments,
 )
 from .lsce import StabilizationDiagram, lsce, lsce_frf, stabilization_diagram
 from .multimode import _linear, modal_basis, multimode_fit
@@ -89,10 +95,20 @@ class EMAResult:
 
 
 def default_band(frf: FRF, n_modes: int) -> tuple[float, float]:
-    """Band around the ``n_modes`` most prominent peaks: 0.4 x lowest to 1.4 x highest."""
+    """Band around the ``n_modes`` most prominent peaks: 0.4 x lowest to 1.4 x highest.
+
+    Raises
+    ------
+    DataError
+        When the FRF shows no resonance peak where the input has energy.
+    """
     pk = pick_peaks(frf, n_modes)
     if pk.omega_rad_s.size == 0:
-        raise DataError("the FRF shows no resonance peak; give the band explicitly")
+        raise DataError(
+            "no mode identified: the FRF shows no resonance peak where the input has energy "
+            f"({frf.omega_rad_s[0]:.3g}..{frf.omega_rad_s[-1]:.3g} rad/s); give the band "
+            "with --band LO HI (rad/s), or a record that excites the modes (pulses, or a "
+            "step that is followed long enough to settle)")
     lo = max(frf.omega_rad_s[0], 0.4 * pk.omega_rad_s.min())
     hi = min(frf.omega_rad_s[-1], 1.4 * pk.omega_rad_s.max())
     return float(lo), float(hi)
@@ -134,6 +150,11 @@ def check_resonances(
         half = max(min(width * abs(mu), 0.35 * nu), 3 * step)
         lo, hi = nu - half, nu + half
         if lo < w[0] or hi > w[-1]:
+            continue
+        if np.count_nonzero((w >= lo) & (w <= hi)) < 3:
+            ident[k] = False
+            notes.append(f"mode at {estimate.omega_rad_s[k]:.4g} rad/s not identified: the "
+                         "input has (almost) no energy around it")
             continue
         sub = frf.band(lo, hi)
         mag = np.abs(sub.H)
@@ -178,6 +199,7 @@ def identify(
     min_prominence: float = 1.5,
     reference: int = 0,
     stabilization_orders=None,
+    frf_method: str = "auto",
 ) -> EMAResult:
     """Experimental modal analysis of one experiment.
 
@@ -207,6 +229,16 @@ def identify(
         Output the mode shapes are normalised on (0 = cart 1).
     stabilization_orders : sequence of int, optional
         With ``method="lsce"``, also fit these orders for a stabilisation diagram.
+    frf_method : {"auto", "pulse", "step", "welch", "transient"}
+        How the FRF is estimated (``frf_from_experiment``).  A step record (``"step"``,
+        or ``"transient"`` ending at another input level) is analysed through its
+        increments: each step is an impulse and LSCE fits the decays after the steps.
+
+    Notes
+    -----
+    The frequency-domain fits, the peaks and the resonance check use only the
+    frequencies where the input had energy (``FRF.reliable``); near the zeros of the
+    spectrum of rectangular pulses the estimate is noise over almost nothing.
 
     Returns
     -------
@@ -221,9 +253,20 @@ def identify(
         raise ConfigError(f"method must be one of {METHODS}, got {method!r}")
     if n_modes < 1 or (order is not None and order < 1):
         raise ConfigError(f"n_modes and order must be >= 1, got {n_modes}, {order}")
+    u, y = experiment.v_volt, experiment.y_m
+    if frf_method in ("step", "transient") or (frf_method == "auto" and is_step_input(u)):
+        if frf_method != "transient" or u[-1] != u[0]:
+            u, y = step_increments(u, y)
     if frf is None:
         check_identifiable(experiment)
-        frf = frf_from_experiment(experiment)
+        frf = frf_from_experiment(experiment, method=frf_method)
+    full = frf
+    frf = full.reliable()
+    pre_notes = []
+    if frf.omega_rad_s.size < full.omega_rad_s.size:
+        pre_notes.append(f"{full.omega_rad_s.size - frf.omega_rad_s.size} of "
+                         f"{full.omega_rad_s.size} frequencies left out: the input has "
+                         "(almost) no energy there")
     if band is None:
         band = default_band(frf, n_modes)
     band = (float(band[0]), float(band[1]))
@@ -244,18 +287,18 @@ def identify(
         fitted = det.frf(frf.omega_rad_s)
     else:
         n = order or 2 * n_modes
-        if stride is None:
-            stride = max(1, int(np.floor(np.pi / (dt * 1.5 * band[1]))))
-        if is_pulse_train(experiment.v_volt):
-            seg = free_decay_segments(experiment.v_volt, dt, duration_s=decay_s)
-            recs = [experiment.y_m[a:b] for a, b in seg]
+        if is_pulse_train(u):
+            seg = free_decay_segments(u, dt, duration_s=decay_s)
+            recs = [y[a:b] for a, b in seg]
+            stride = _stride(stride, dt, band, min(b - a for a, b in seg), n)
             det = lsce(recs, dt, n, stride=stride, reference=reference)
             if stabilization_orders is not None:
                 stab = stabilization_diagram(recs, dt, stabilization_orders, stride=stride)
         else:
-            det = lsce_frf(frf, n, stride=stride, reference=reference)
+            irf = impulse_response(full)
+            stride = _stride(stride, irf.dt, band, irf.h.shape[0], n)
+            det = lsce_frf(full, n, stride=stride, reference=reference)
             if stabilization_orders is not None:
-                irf = impulse_response(frf)
                 stab = stabilization_diagram(irf.h, irf.dt, stabilization_orders, stride=stride)
         est = det.estimate
         # keep the oscillating poles of the band; the rest (real poles, noise modes near
@@ -269,4 +312,21 @@ def identify(
         if np.any(est.identified):
             fitted = _fitted_from_poles(frf, est.poles[est.identified], band)
     est = check_resonances(est, frf, min_prominence=min_prominence)
+    n_found = int(np.count_nonzero(est.identified))
+    if n_found < n_modes:
+        pre_notes.append(f"{n_found} of the {n_modes} modes sought identified in "
+                         f"{band[0]:.4g}..{band[1]:.4g} rad/s")
+    est = replace(est, notes=tuple(pre_notes) + est.notes)
     return EMAResult(est, frf, fitted, np.array(band), det, stab)
+
+
+def _stride(stride: int | None, dt: float, band, shortest: int, n: int) -> int:
+    """LSCE sample stride: by default a Nyquist frequency about 1.5 times the band's
+    upper end (which conditions the polynomial far better than dense sampling), but
+    never so coarse that the shortest record keeps fewer than ``6 n`` samples (``2 n``
+    coefficients need at least as many equations per record)."""
+    if stride is not None:
+        return stride
+    by_band = int(np.floor(np.pi / (dt * 1.5 * band[1])))
+    by_length = shortest // (6 * n)
+    return max(1, min(by_band, by_length))

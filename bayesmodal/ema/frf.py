@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import signal
+from scipy.ndimage import maximum_filter1d
 
 from .._errors import DataError
 
@@ -40,7 +41,10 @@ __all__ = [
     "pulse_segments",
     "free_decay_segments",
     "frf_from_experiment",
+    "FRF_METHODS",
     "is_pulse_train",
+    "is_step_input",
+    "step_increments",
     "impulse_response",
     "frequency_grid",
     "zoh_factor",
@@ -51,6 +55,15 @@ __all__ = [
 ]
 
 ESTIMATORS = ("H1", "H2")
+
+#: Input power, relative to its local envelope, below which an FRF value is not trusted.
+RELIABLE_INPUT_POWER = 1e-2
+
+#: Largest relative standard error of ``|H1|`` at a trusted frequency (averaged FRFs).
+RELIABLE_RELATIVE_ERROR = 0.5
+
+#: Input power, relative to its maximum, below which an FRF value is not trusted.
+RELIABLE_INPUT_POWER_GLOBAL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -132,6 +145,60 @@ class FRF:
         pw = None if self.input_power is None else self.input_power[sel]
         return replace(self, omega_rad_s=self.omega_rad_s[sel], H=self.H[sel], coherence=coh,
                        input_power=pw)
+
+    def reliable_mask(self, min_relative: float = RELIABLE_INPUT_POWER, *,
+                      max_relative_error: float = RELIABLE_RELATIVE_ERROR) -> np.ndarray:
+        """Frequencies where the input had enough energy for the estimate to mean anything.
+
+        ``H1 = S_yu / S_uu`` divides by the input power: near a zero of the input
+        spectrum (the notches of a rectangular pulse at multiples of ``2 pi / width``)
+        the estimate is output noise divided by almost nothing, and it dwarfs every
+        resonance.  A frequency is kept when
+
+        - its input power is at least ``min_relative`` times the largest input power
+          within 2 % of the grid around it (the local envelope, so that the
+          ``1 / omega^2`` fall of a pulse or step spectrum is not taken for a notch) and
+          at least ``RELIABLE_INPUT_POWER_GLOBAL`` (-60 dB) of the largest overall;
+        - with ``n`` averages and a coherence ``gamma^2``, the relative standard error of
+          ``|H1|``, ``sqrt((1 - gamma^2) / (2 n gamma^2))`` (Bendat and Piersol), is at
+          most ``max_relative_error``: ``gamma^2 >= 1 / (1 + 2 n e^2)``.  Where the
+          segments of a pulse train share the same notch, their outputs there are noise
+          and do not agree, so the coherence drops too.
+
+        Parameters
+        ----------
+        min_relative : float
+            Power ratio to the local envelope.
+        max_relative_error : float
+            Largest relative standard error of ``|H1|`` (0.5).
+
+        Returns
+        -------
+        ndarray of bool, shape (n_freq,)
+            All True when ``input_power`` is unknown.
+        """
+        ok = np.ones(self.omega_rad_s.size, bool)
+        if self.input_power is not None:
+            p = self.input_power
+            half = max(2, p.size // 50)
+            env = maximum_filter1d(p, size=2 * half + 1, mode="nearest")
+            ok &= (p >= min_relative * env) & (p >= RELIABLE_INPUT_POWER_GLOBAL * p.max())
+        if self.coherence is not None and self.n_averages > 1:
+            gamma2_min = 1.0 / (1.0 + 2 * self.n_averages * max_relative_error**2)
+            ok &= np.max(self.coherence, axis=1) >= gamma2_min
+        return ok
+
+    def reliable(self, min_relative: float = RELIABLE_INPUT_POWER) -> FRF:
+        """The FRF at the frequencies of ``reliable_mask`` (the grid may then have gaps)."""
+        keep = self.reliable_mask(min_relative)
+        if np.all(keep):
+            return self
+        if np.count_nonzero(keep) < 2:
+            raise DataError("the input has no energy at almost every frequency of the FRF")
+        coh = None if self.coherence is None else self.coherence[keep]
+        pw = None if self.input_power is None else self.input_power[keep]
+        return replace(self, omega_rad_s=self.omega_rad_s[keep], H=self.H[keep],
+                       coherence=coh, input_power=pw)
 
     def select(self, outputs) -> FRF:
         """The FRF of a subset of outputs (index or sequence of indices)."""
@@ -377,6 +444,46 @@ def is_pulse_train(u, *, max_duty: float = 0.1) -> bool:
     return bool(np.any(u != 0) and np.mean(u != 0) <= max_duty)
 
 
+def is_step_input(u, *, max_changes: float = 0.01) -> bool:
+    """True for steps: a piecewise-constant input that changes on at most a fraction
+    ``max_changes`` of the samples and is not a pulse train."""
+    u = np.asarray(u, dtype=float)
+    changes = np.count_nonzero(np.diff(u))
+    return bool(changes >= 1 and changes <= max_changes * u.size and not is_pulse_train(u))
+
+
+def step_increments(u, y) -> tuple[np.ndarray, np.ndarray]:
+    """Sample-to-sample increments of input and outputs, zero at the first sample.
+
+    A step input becomes an impulse train, and its response a free decay after each
+    impulse (the increments of a decay to a new rest position).  The system relating
+    the increments is the same discrete system as the one relating ``u`` and ``y``
+    (differencing commutes with it), so their FRF is the FRF of the record, without
+    the leakage of a step that never returns to zero.
+
+    Parameters
+    ----------
+    u : ndarray, shape (N,)
+    y : ndarray, shape (N,) or (N, n_outputs)
+
+    Returns
+    -------
+    du : ndarray, shape (N,)
+    dy : ndarray, shape (N, n_outputs)
+
+    Examples
+    --------
+    >>> du, dy = step_increments(np.r_[0.0, 0.0, 1.0, 1.0], np.zeros(4))
+    >>> du.tolist()
+    [0.0, 0.0, 1.0, 0.0]
+    """
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    return np.diff(u, prepend=u[:1]), np.diff(y, axis=0, prepend=y[:1])
+
+
 def pulse_frf(
     u,
     y,
@@ -453,8 +560,13 @@ def pulse_frf(
         Syu = Syu + Y * U.conj()[:, None]
         Syy = Syy + np.abs(Y) ** 2
     w = 2 * np.pi * np.fft.rfftfreq(n_fft, dt)
-    keep = (w > 0) & (Suu > 1e-300)
-    H, coh = _estimate(Syu[keep], Suu[keep], Syy[keep], estimator)
+    # every frequency of the grid is kept (impulse_response needs the whole grid); where
+    # the input has no energy at all H is set to 0 and input_power is 0, so that
+    # FRF.reliable leaves it out
+    keep = w > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H, coh = _estimate(Syu[keep], Suu[keep], Syy[keep], estimator)
+    H[~(Suu[keep] > 1e-300)] = 0.0
     w = w[keep]
     if zoh:
         H = H / zoh_factor(w, dt)[:, None]
@@ -503,16 +615,23 @@ def free_decay_segments(
     return np.column_stack([start[ok], stop[ok]])
 
 
+FRF_METHODS = ("auto", "pulse", "step", "welch", "transient")
+
+
 def frf_from_experiment(experiment, *, method: str = "auto", **kwargs) -> FRF:
     """FRF of an Experiment (motor volts to cart positions, m/V).
 
     Parameters
     ----------
     experiment : bayesmodal.data.Experiment
-    method : {"auto", "pulse", "welch", "transient"}
-        ``"pulse"``: segment a pulse train (``pulse_frf``); ``"welch"``: Welch averaging;
-        ``"transient"``: one segment spanning the whole record; ``"auto"`` picks
-        ``"pulse"`` for a pulse train and ``"welch"`` otherwise.
+    method : {"auto", "pulse", "step", "welch", "transient"}
+        ``"pulse"``: segment a pulse train (``pulse_frf``); ``"step"``: the same on the
+        increments of a step record (``step_increments``: each step an impulse, each
+        segment from one step to the next); ``"welch"``: Welch averaging;
+        ``"transient"``: one segment spanning the whole record (increments when the
+        input ends at another level than it starts, e.g. a single step);
+        ``"auto"`` picks ``"pulse"`` for a pulse train, ``"step"`` for steps and
+        ``"welch"`` otherwise.
     **kwargs
         Passed to ``pulse_frf`` or ``welch_frf``.
 
@@ -521,15 +640,22 @@ def frf_from_experiment(experiment, *, method: str = "auto", **kwargs) -> FRF:
     FRF
     """
     u, y, dt = experiment.v_volt, experiment.y_m, experiment.dt
+    if method not in FRF_METHODS:
+        raise DataError(f"FRF method must be one of {FRF_METHODS}, got {method!r}")
     if method == "auto":
-        method = "pulse" if is_pulse_train(u) else "welch"
+        method = "pulse" if is_pulse_train(u) else "step" if is_step_input(u) else "welch"
     if method == "pulse":
         return pulse_frf(u, y, dt, **kwargs)
+    if method == "step":
+        du, dy = step_increments(u, y)
+        kwargs.setdefault("baseline", False)
+        return pulse_frf(du, dy, dt, **kwargs)
     if method == "transient":
+        if u[-1] != u[0]:
+            u, y = step_increments(u, y)
+            kwargs.setdefault("baseline", False)
         return pulse_frf(u, y, dt, segments=np.array([[0, u.size]]), **kwargs)
-    if method == "welch":
-        return welch_frf(u, y, dt, **kwargs)
-    raise DataError(f"method must be auto, pulse, welch or transient, got {method!r}")
+    return welch_frf(u, y, dt, **kwargs)
 
 
 # --------------------------------------------------------------------------- IRF

@@ -4,8 +4,8 @@ The mode indicator is the sum of magnitudes over the outputs,
 ``MIF(w) = sum_i |H_i(w)| / max |H_i|`` (each output scaled to unit maximum so that one
 sensor does not dominate).  Its local maxima with a prominence on a log scale (a lightly
 damped mode rises by about ``1 / (2 zeta)`` above its surroundings, whatever its level)
-are resonance candidates; frequencies where the input had no energy and peaks below
-0.1 % of the largest are ignored.  Noise where ``|H|`` is tiny is prominent on a log
+are resonance candidates; frequencies where the input had no energy (``FRF.reliable_mask``)
+and peaks below 0.1 % of the largest are ignored.  Noise where ``|H|`` is tiny is prominent on a log
 scale too, so when a number of peaks is asked for, the candidates are ranked by their
 prominence on a linear scale.  Each peak is refined by a parabola through the three
 points around the maximum (on the log scale), and its damping is estimated from the
@@ -21,7 +21,7 @@ import numpy as np
 from scipy import signal
 
 from .._errors import DataError
-from .frf import FRF
+from .frf import FRF, RELIABLE_INPUT_POWER
 
 __all__ = ["Peaks", "pick_peaks", "mode_indicator"]
 
@@ -49,10 +49,16 @@ class Peaks:
     band: np.ndarray
 
 
-def mode_indicator(frf: FRF) -> np.ndarray:
-    """Normalised mode indicator, shape (n_freq,): ``sum_i |H_i| / max |H_i|``."""
+def mode_indicator(frf: FRF, *, reliable: np.ndarray | None = None) -> np.ndarray:
+    """Normalised mode indicator, shape (n_freq,): ``sum_i |H_i| / max |H_i|``.
+
+    The maximum is taken over the reliable frequencies only (``frf.reliable_mask()`` by
+    default): the estimate near a zero of the input spectrum would otherwise set the
+    scale and flatten every resonance.
+    """
     mag = np.abs(frf.H)
-    scale = np.max(mag, axis=0)
+    ok = frf.reliable_mask() if reliable is None else np.asarray(reliable, bool)
+    scale = np.max(mag[ok], axis=0) if np.any(ok) else np.max(mag, axis=0)
     scale[scale == 0] = 1.0
     return np.sum(mag / scale, axis=1)
 
@@ -64,7 +70,7 @@ def pick_peaks(
     band: tuple[float, float] | None = None,
     min_prominence: float = 0.2,
     half_widths: float = 3.0,
-    min_input_power: float = 0.01,
+    min_input_power: float = RELIABLE_INPUT_POWER,
     min_level: float = 1e-3,
 ) -> Peaks:
     """Find the resonance peaks of an FRF.
@@ -81,8 +87,9 @@ def pick_peaks(
     half_widths : float
         Half-width of each suggested fitting band, in half-power bandwidths.
     min_input_power : float
-        Frequencies where ``frf.input_power`` is below this are ignored (the FRF estimate
-        is noise where the input has no energy).
+        Frequencies where ``frf.input_power`` is below this fraction of its local envelope
+        are ignored (``FRF.reliable_mask``: the estimate is noise where the input has no
+        energy, e.g. at the zeros of a rectangular pulse's spectrum).
     min_level : float
         Peaks lower than this fraction of the largest value of the mode indicator are
         ignored.
@@ -101,14 +108,16 @@ def pick_peaks(
     """
     sub = frf if band is None else frf.band(*band)
     w = sub.omega_rad_s
-    lin = mode_indicator(sub)
+    ok = sub.reliable_mask(min_input_power)
+    if not np.any(ok):
+        return Peaks(np.empty(0), np.empty(0), np.empty(0), np.empty((0, 2)))
+    lin = mode_indicator(sub, reliable=ok)
     mif = np.log(lin + 1e-300)
-    if sub.input_power is not None:
-        # no peak where the input has no energy: flatten the indicator there
-        mif = np.where(sub.input_power >= min_input_power, mif, mif.min())
+    # no peak where the input has no energy: flatten the indicator there
+    mif = np.where(ok, mif, mif[ok].min())
     # a resonance must also stand out in level: noise where |H| is tiny makes peaks
     # that are prominent on a log scale only
-    floor = np.log(min_level * lin.max())
+    floor = np.log(min_level * lin[ok].max())
     idx, props = signal.find_peaks(mif, prominence=min_prominence, height=floor)
     if idx.size == 0:
         return Peaks(np.empty(0), np.empty(0), np.empty(0), np.empty((0, 2)))

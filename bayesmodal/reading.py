@@ -1,0 +1,343 @@
+"""How to read a lab's record: which column is which, the units, and the time base.
+
+Files come as the lab's software writes them: MATLAB variables named ``enc1, enc2,
+target_v, time`` next to a struct of run parameters, text files with header rows,
+positions in encoder counts, the input in converter units, timestamps rounded to whole
+milliseconds.  :class:`ReadOptions` says how to turn such a file into an
+``Experiment`` (time in s, input in V, positions in m); :func:`parse_columns` and
+:func:`parse_scale` read the command-line spellings (``t=time,v=target_v,x1=enc1`` and
+``5/4096``).
+
+Time base.  A uniform grid ``t_k = t0 + k dt`` is fitted to the timestamps by least
+squares; :func:`regularise_time` replaces the timestamps by that grid when they only
+deviate from it the way rounding or clock jitter does:
+
+- rounding to a quantum ``q`` (the steps take exactly two values ``q`` apart, e.g. 4 and
+  5 ms for ``dt = 4.42 ms`` rounded to 1 ms): every timestamp lies within ``q / 2`` of the
+  grid (plus the grid's own least-squares error, ``~ q / sqrt(N)``);
+- jitter: independent deviations, so that the residuals are uncorrelated from one
+  sample to the next (lag-1 autocorrelation below 1/2; a missing sample or a drifting
+  clock makes a step or a ramp in the residuals, whose autocorrelation is near 1) and
+  smaller than half a step.
+
+Anything else (a gap, a change of rate, a drifting clock) is left alone, and
+``Experiment`` refuses it as not equally spaced.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from ._errors import ConfigError
+
+__all__ = ["ReadOptions", "TimeRegularisation", "parse_columns", "parse_scale",
+           "regularise_time"]
+
+_ROLE = re.compile(r"^(t|v|x[1-9][0-9]*)$")
+
+
+def _check_columns(columns) -> tuple[tuple[str, str], ...]:
+    items = tuple(columns.items()) if isinstance(columns, Mapping) else tuple(columns)
+    roles = []
+    out = []
+    for item in items:
+        role, source = item
+        role, source = str(role).strip(), str(source).strip()
+        if not _ROLE.match(role):
+            raise ConfigError(f"column map: unknown role {role!r}; the roles are t, v and "
+                              "x1..xn (e.g. t=time,v=target_v,x1=enc1,x2=enc2)")
+        if not source:
+            raise ConfigError(f"column map: role {role!r} names no column")
+        if role in roles:
+            raise ConfigError(f"column map: role {role!r} is given twice")
+        roles.append(role)
+        out.append((role, source))
+    missing = [r for r in ("t", "v") if r not in roles]
+    xs = sorted(int(r[1:]) for r in roles if r[0] == "x")
+    if not xs:
+        missing.append("x1")
+    if missing:
+        raise ConfigError(f"column map: role(s) {missing} missing; map t, v and x1..xn "
+                          "(e.g. t=time,v=target_v,x1=enc1,x2=enc2)")
+    if xs != list(range(1, len(xs) + 1)):
+        raise ConfigError(f"column map: outputs must be x1..xn without gaps, got "
+                          f"{[f'x{i}' for i in xs]}")
+    return tuple(out)
+
+
+def _positive(name: str, value, *, allow_none: bool = False):
+    if value is None and allow_none:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number, got {value!r}") from None
+    if not (np.isfinite(x) and x > 0):
+        raise ConfigError(f"{name} must be finite and > 0, got {value!r}")
+    return x
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How to read a record whose layout or units differ from the ECP defaults.
+
+    Parameters
+    ----------
+    columns : mapping of str to str, optional
+        Role to column: roles ``t`` (time), ``v`` (input) and ``x1..xn`` (outputs, n
+        outputs); a column is a MATLAB variable (``enc1``; a struct field as
+        ``run.enc1``), a header name of a text file (``Encoder 1 Pos``), or a 1-based
+        column number of a text file (``"3"``).  Other variables and columns are ignored.
+        Default: the file's own ``t, x1..xn, v`` layout.  Stored as a tuple of pairs.
+    input_scale : float
+        Volts per unit of the input column (``5 / 4096`` for a 12-bit converter over
+        5 V), V.
+    time_scale : float
+        Seconds per unit of the time column (``1e-3`` for milliseconds), s.
+    m_per_count : float, optional
+        Metres per unit of the output columns, m.  Default: ``ECP_M_PER_COUNT`` for the
+        ECP ``.mat``/``.txt`` files (encoder counts), 1 for ``.csv`` (metres).
+    n_outputs : int, optional
+        Number of outputs expected; a record with another number is refused.
+
+    Examples
+    --------
+    >>> opts = ReadOptions(columns={"t": "time", "v": "target_v", "x1": "enc1"},
+    ...                    input_scale=5 / 4096)
+    >>> opts.column_map["x1"], opts.n_mapped_outputs
+    ('enc1', 1)
+    """
+
+    columns: tuple[tuple[str, str], ...] | None = None
+    input_scale: float = 1.0
+    time_scale: float = 1.0
+    m_per_count: float | None = None
+    n_outputs: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.columns is not None:
+            object.__setattr__(self, "columns", _check_columns(self.columns))
+        object.__setattr__(self, "input_scale", _positive("input_scale", self.input_scale))
+        object.__setattr__(self, "time_scale", _positive("time_scale", self.time_scale))
+        object.__setattr__(self, "m_per_count",
+                           _positive("m_per_count", self.m_per_count, allow_none=True))
+        if self.n_outputs is not None:
+            n = int(self.n_outputs)
+            if n != self.n_outputs or n < 1:
+                raise ConfigError(f"n_outputs must be an integer >= 1, got {self.n_outputs!r}")
+            m = self.n_mapped_outputs
+            if m is not None and m != n:
+                raise ConfigError(f"the column map names {m} outputs but n_outputs is {n}")
+            object.__setattr__(self, "n_outputs", n)
+
+    @property
+    def column_map(self) -> dict[str, str] | None:
+        """The column map as a dict (role to column), or None."""
+        return None if self.columns is None else dict(self.columns)
+
+    @property
+    def n_mapped_outputs(self) -> int | None:
+        """Number of outputs the column map names (None without a map)."""
+        if self.columns is None:
+            return None
+        return sum(1 for role, _ in self.columns if role[0] == "x")
+
+
+def parse_scale(text: str, name: str = "scale") -> float:
+    """A positive scale factor written as a number or a fraction.
+
+    Parameters
+    ----------
+    text : str
+        ``"5/4096"``, ``"0.001"``, ``"1e-3"`` or ``"1/1000"``.
+    name : str
+        Option name for the error message.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ConfigError
+        Not a number or fraction, or not finite and positive.
+
+    Examples
+    --------
+    >>> parse_scale("5/4096") == 5 / 4096
+    True
+    """
+    s = str(text).strip()
+    try:
+        num, sep, den = s.partition("/")
+        value = float(Fraction(num.strip())) / (float(Fraction(den.strip())) if sep else 1.0)
+    except (ValueError, ZeroDivisionError):
+        raise ConfigError(f"{name}: {text!r} is not a number or fraction (e.g. 5/4096 or "
+                          "0.001)") from None
+    if not (np.isfinite(value) and value > 0):
+        raise ConfigError(f"{name}: {text!r} must be finite and > 0")
+    return value
+
+
+def parse_columns(text: str) -> dict[str, str]:
+    """A column map written as ``role=column,...``.
+
+    Parameters
+    ----------
+    text : str
+        E.g. ``"t=time,v=target_v,x1=enc1,x2=enc2"``; columns may be MATLAB variables,
+        struct fields (``run.enc1``), header names or 1-based column numbers.
+
+    Returns
+    -------
+    dict
+        Role to column, checked as in :class:`ReadOptions`.
+
+    Raises
+    ------
+    ConfigError
+        An item without ``=``, an unknown or repeated role, or missing ``t``, ``v``, ``x1``.
+
+    Examples
+    --------
+    >>> parse_columns("t=time, v=target_v, x1=enc1")
+    {'t': 'time', 'v': 'target_v', 'x1': 'enc1'}
+    """
+    pairs = []
+    for item in filter(None, (s.strip() for s in str(text).split(","))):
+        role, sep, source = item.partition("=")
+        if not sep:
+            raise ConfigError(f"column map: {item!r} is not ROLE=COLUMN (e.g. "
+                              "t=time,v=target_v,x1=enc1,x2=enc2)")
+        pairs.append((role.strip(), source.strip()))
+    return dict(_check_columns(pairs))
+
+
+@dataclass(frozen=True)
+class TimeRegularisation:
+    """How timestamps were put on a uniform grid.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (N,)
+        The uniform grid ``t0 + k dt``, s.
+    dt : float
+        Its step, s.
+    kind : str
+        ``"uniform"`` (nothing changed), ``"rounded"``, ``"jitter"`` or ``"irregular"``
+        (left unchanged: not a rounded or jittered uniform grid).
+    max_shift_s : float
+        Largest distance of a timestamp from the grid, s.
+    quantum_s : float
+        Rounding quantum (``kind == "rounded"``), else NaN, s.
+    """
+
+    t_s: np.ndarray
+    dt: float
+    kind: str
+    max_shift_s: float
+    quantum_s: float = float("nan")
+
+    def message(self) -> str:
+        """One line saying what was done (empty for ``uniform`` and ``irregular``)."""
+        pct = 100 * self.max_shift_s / self.dt
+        if self.kind == "rounded":
+            return (f"timestamps are rounded to {self.quantum_s:.3g} s; regularised to a "
+                    f"uniform step of {self.dt:.6g} s, moving samples by at most "
+                    f"{self.max_shift_s:.3g} s ({pct:.0f} % of a step)")
+        if self.kind == "jitter":
+            return (f"timestamps jitter around a uniform step of {self.dt:.6g} s by up to "
+                    f"{self.max_shift_s:.3g} s ({pct:.0f} % of a step); regularised to the "
+                    "uniform grid")
+        return ""
+
+
+#: Relative tolerance on the steps of a uniform grid (as in ``Experiment``).
+_DT_RTOL = 1e-6
+
+#: Fewest samples for telling jitter from a gap by the residuals' autocorrelation: the
+#: lag-1 autocorrelation of independent residuals has a standard error 1/sqrt(N), so
+#: N >= 64 keeps the 1/2 threshold beyond 4 standard errors.
+_MIN_JITTER_SAMPLES = 64
+
+
+def regularise_time(t_s) -> TimeRegularisation:
+    """Fit a uniform grid to timestamps and say whether they are a rounded/jittered copy.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N,)
+        Finite, strictly increasing timestamps, s (``N >= 3``).
+
+    Returns
+    -------
+    TimeRegularisation
+        ``t_s`` is the fitted grid for ``"rounded"`` and ``"jitter"``, the input otherwise.
+
+    Examples
+    --------
+    >>> t = np.round(np.arange(200) * 0.00442, 3)      # rounded to whole milliseconds
+    >>> r = regularise_time(t)
+    >>> r.kind, round(r.dt, 5)
+    ('rounded', 0.00442)
+    """
+    t = np.asarray(t_s, dtype=float)
+    n = t.size
+    steps = np.diff(t)
+    mean_dt = (t[-1] - t[0]) / (n - 1)
+    if np.max(np.abs(steps - mean_dt)) <= _DT_RTOL * mean_dt + 1e-12:
+        return TimeRegularisation(t, float(mean_dt), "uniform", 0.0)
+    k = np.arange(n, dtype=float)
+    dt, t0 = np.polyfit(k, t, 1)
+    grid = t0 + k * dt
+    r = t - grid
+    shift = float(np.max(np.abs(r)))
+    if not (dt > 0 and shift < 0.5 * dt):
+        return TimeRegularisation(t, float(mean_dt), "irregular", shift)
+    # rounding: exactly two step values, q apart, and every stamp within q/2 of the grid
+    tol = _DT_RTOL * dt + 1e-12
+    lo, hi = float(steps.min()), float(steps.max())
+    two_values = np.all((np.abs(steps - lo) <= tol) | (np.abs(steps - hi) <= tol))
+    q = hi - lo
+    if two_values and q <= dt / 3 and (shift <= 0.5 * q + tol
+                                       or _minimax_line(k, r / q) <= 0.5 + 1e-6):
+        return TimeRegularisation(grid, float(dt), "rounded", shift, float(q))
+    if n >= _MIN_JITTER_SAMPLES:
+        rc = r - r.mean()
+        rho1 = float(np.dot(rc[1:], rc[:-1]) / np.dot(rc, rc))
+        if rho1 < 0.5:
+            return TimeRegularisation(grid, float(dt), "jitter", shift)
+    return TimeRegularisation(t, float(mean_dt), "irregular", shift)
+
+
+def _minimax_line(k: np.ndarray, r: np.ndarray) -> float:
+    """Smallest ``h`` with ``|r_k - a - b k| <= h`` for all k (Chebyshev line fit).
+
+    Timestamps rounded to ``q`` lie within ``q / 2`` of the true grid, so some line comes
+    within ``1 / 2`` of ``r / q`` (the least-squares residuals in quanta); the
+    least-squares line itself may not (exact ties put half the samples at ``q / 2``).
+    """
+    from scipy.optimize import linprog
+    from scipy.spatial import ConvexHull, QhullError
+
+    x = k / k[-1]  # a well-scaled abscissa
+    # the largest deviation from a line is reached at a vertex of the points' convex hull
+    try:
+        v = ConvexHull(np.column_stack([x, r])).vertices
+    except QhullError:  # all points on one line
+        return 0.0
+    x, r = x[v], r[v]
+    n = x.size
+    ones = np.ones(n)
+    # variables (a, b, h): minimise h subject to +-(r - a - b x) <= h
+    a_ub = np.block([[-ones[:, None], -x[:, None], -ones[:, None]],
+                     [ones[:, None], x[:, None], -ones[:, None]]])
+    b_ub = np.r_[-r, r]
+    res = linprog([0.0, 0.0, 1.0], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 3,
+                  method="highs")
+    return float(res.x[2]) if res.success else float("inf")
