@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 from conftest import measured
@@ -28,6 +29,9 @@ def test_steps_identify_modes_through_the_step_differences(capsys):
     impulses, and modes 2 and 3 are identified (the no-mode exit 2 is tested on synthetic
     records in test_ema_records.py)."""
     path = measured("data_steps.mat").source
-    code, out, err = _ema(capsys, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # the CLI shows "2 of the 3 modes" as one line
+        code, out, err = _ema(capsys, path)
     assert code == 0, err
     assert sum(out["identified"]) >= 2
+    assert "warning: " in err and "modes sought identified" in err
