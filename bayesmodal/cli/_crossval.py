@@ -37,7 +37,8 @@ def register(sub) -> None:
     p.add_argument("--draws", type=int, default=200,
                    help="posterior draws per held-out prediction (default 200)")
     p.add_argument("--temperature", type=float, default=1.0,
-                   help="likelihood temperature T of the generalised posterior (default %(default)s)")
+                   help="likelihood temperature T of the generalised posterior "
+                        "(default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--workers", type=int, default=None,
                    help="local processes (default: the number of CPUs)")

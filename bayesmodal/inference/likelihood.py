@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
+from .._resid_kernels import ar1_sums
 from ..data import Experiment
 from ..simulate import simulate_linear
 from ..system import LinearModel
@@ -56,6 +57,7 @@ __all__ = [
     "ar1_terms",
     "simulate_noise",
     "residual_loglik",
+    "loglik_from_sums",
     "resolve_extension",
 ]
 
@@ -158,6 +160,34 @@ def residual_loglik(R: np.ndarray, sigma: np.ndarray, phi: np.ndarray | None) ->
         one_m_p2 = 1.0 - p**2
         t = (-n * (_HALF_LOG_2PI + np.log(s)) + 0.5 * np.log(one_m_p2)
              - 0.5 * R[0] ** 2 * one_m_p2 / s**2 - 0.5 * ss / s**2)
+    return t.sum(axis=0)
+
+
+def loglik_from_sums(s00, s01, r0, rl, n: int, sigma: np.ndarray,
+                     phi: np.ndarray | None) -> np.ndarray:
+    """:func:`residual_loglik` from the residual sums of ``_resid_kernels.ar1_sums``.
+
+    Parameters
+    ----------
+    s00, s01, r0, rl : ndarray, shape (n_out, nb)
+    n : int
+        Record length.
+    sigma, phi : ndarray, shape (nb, n_out) (phi None for white noise)
+
+    Returns
+    -------
+    ndarray, shape (nb,)
+    """
+    s = sigma.T
+    if phi is None:
+        t = -n * (_HALF_LOG_2PI + np.log(s)) - 0.5 * (s00 + r0**2) / s**2
+    else:
+        p = phi.T
+        s11 = s00 - rl**2 + r0**2
+        ss = s00 - 2 * p * s01 + p**2 * s11
+        one_m_p2 = 1.0 - p**2
+        t = (-n * (_HALF_LOG_2PI + np.log(s)) + 0.5 * np.log(one_m_p2)
+             - 0.5 * r0**2 * one_m_p2 / s**2 - 0.5 * ss / s**2)
     return t.sum(axis=0)
 
 
@@ -378,8 +408,8 @@ class Likelihood:
         acc = np.zeros(int(ok.sum()))
         with np.errstate(all="ignore"):
             for e, yh in zip(self.experiments, self.predict(mech), strict=True):
-                # (N, n_out, nb): the simulator's output is batch-innermost in memory
-                acc += residual_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), sigma, phi)
+                # compiled sums over the simulator's (batch-innermost) output, no temporaries
+                acc += loglik_from_sums(*ar1_sums(e.y_m, yh), e.n_samples, sigma, phi)
         total[ok] = np.where(np.isfinite(acc), acc, -np.inf)
         return total
 

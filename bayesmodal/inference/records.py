@@ -40,12 +40,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import ConfigError, DataError
+from .._resid_kernels import ar1_sums, ar1_sums_affine
 from ..data import Experiment
 from ..simulate import simulate_linear
 from ..system import LinearModel
 from .likelihood import (
     Likelihood,
     ar1_terms,
+    loglik_from_sums,
     residual_loglik,
     simulate_noise,
     white_terms,
@@ -520,12 +522,32 @@ class RecordsLikelihood:
         th = theta[ok]
         with np.errstate(all="ignore"):
             for r, e in enumerate(self.experiments):
-                full, _ = self.record_theta(th, r)
-                yh = self.predict_record(th, r)
-                ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1),
-                                       full[:, len(self.mech_names):])
+                full, v0 = self.record_theta(th, r)
+                params = full[:, len(self.mech_names):]
+                if self.noise in ("white", "ar1"):
+                    ll = self._basic_loglik(e, full, v0, params)
+                else:
+                    yh = self.predict_record(th, r)
+                    ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params)
                 out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
         return out
+
+    def _basic_loglik(self, e: Experiment, full, v0, params) -> np.ndarray:
+        """White or AR(1) log-likelihood of one record from compiled residual sums (the
+        per-record gain and offset applied inside the kernel, no temporaries)."""
+        n = self.n_outputs
+        sigma = params[:, :n]
+        phi = params[:, n : 2 * n] if self.noise == "ar1" else None
+        mech = full[:, : len(self.mech_names)]
+        if self.extension is not None or not np.any(v0):
+            sums = ar1_sums(e.y_m, self.predict_mech(mech, v0, e))
+        else:
+            unit = mech.copy()
+            unit[:, 0] = 1.0
+            a = simulate_linear(self.model, unit, e.v_volt, e.dt)
+            b = simulate_linear(self.model, unit, np.ones(e.n_samples), e.dt)
+            sums = ar1_sums_affine(e.y_m, a, b, mech[:, 0], v0)
+        return loglik_from_sums(*sums, e.n_samples, sigma, phi)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Total log-likelihood over the records, shape (nb,)."""
