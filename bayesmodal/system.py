@@ -287,7 +287,7 @@ class Rig:
     sensors: tuple[Sensor, ...] | None = None
     clamped: tuple[str, ...] = ()
     gain_n_v: float | None = None
-    name: str = ""
+    name: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
