@@ -98,6 +98,8 @@ def _attrs(run) -> dict:
         "parameter_names": json.dumps(list(run.names)),
         "mechanical_names": json.dumps(list(lik.mech_names)),
         "springs_n_m": json.dumps(list(lik.model.rig.springs_n_m)),
+        **({} if lik.model.rig.is_chain else {"rig_toml": _rig_toml(lik.model.rig)}),
+        **({} if lik.initial_state == "rest" else {"initial_state": lik.initial_state}),
         "burn": int(run.burn),
         "thin": int(run.thin),
         "n_steps": int(run.chain.shape[0]),
@@ -247,7 +249,17 @@ def model_from_idata(idata):
     from ..system import LinearModel, Rig
 
     a = idata.posterior.attrs
+    if "rig_toml" in a:  # a rig other than the chain
+        from ..rigs import rig_from_toml
+
+        return LinearModel(rig_from_toml(a["rig_toml"], where="idata"), a["damping"])
     return LinearModel(Rig(tuple(json.loads(a["springs_n_m"]))), a["damping"])
+
+
+def _rig_toml(rig) -> str:
+    from ..rigs import rig_to_toml
+
+    return rig_to_toml(rig)
 
 
 def priors_from_idata(idata):
@@ -282,8 +294,9 @@ def likelihood_from_idata(idata, experiments=None):
     from .likelihood import Likelihood
 
     exps = experiments_from_idata(idata) if experiments is None else experiments
-    return Likelihood(model_from_idata(idata), tuple(exps), idata.posterior.attrs["noise"],
-                      extension_from_idata(idata))
+    a = idata.posterior.attrs
+    return Likelihood(model_from_idata(idata), tuple(exps), a["noise"],
+                      extension_from_idata(idata), a.get("initial_state", "rest"))
 
 
 def save_idata(idata, path: str | os.PathLike) -> Path:

@@ -476,6 +476,7 @@ def sample_posterior(
     warn: bool = True,
     extension=None,
     restart: int | None = None,
+    initial_state: str = "rest",
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -537,6 +538,9 @@ def sample_posterior(
         the restart and have had ``burn - restart`` steps to spread out again.  The
         restart is deterministic for an integer ``rng`` and survives a resume from
         ``backend``.
+    initial_state : {"rest", "estimate"}
+        ``"estimate"`` samples each record's initial positions and velocities too (free
+        decays; see ``Likelihood``); they follow the model parameters in the chain.
 
     Returns
     -------
@@ -557,10 +561,11 @@ def sample_posterior(
     (60, 32, 9)
     """
     exps = as_experiments(experiments)
-    lik = Likelihood(model, exps, noise, extension)
+    lik = Likelihood(model, exps, noise, extension, initial_state)
     ext = lik.extension
     if priors is None:
-        priors = default_priors(model, noise=noise, extension=ext)
+        priors = default_priors(model, noise=noise, extension=ext,
+                                initial_states=lik.initial_state_names)
     log_post = LogPosterior(lik, priors)
     n_par = priors.n_params
     n_walkers = int(n_walkers)
@@ -590,10 +595,16 @@ def sample_posterior(
     # start point: LSQ mechanical estimate plus moment estimates of the noise
     if ext is None:
         if start is None:
-            start = fit_lsq(list(exps), model)
+            start = fit_lsq(list(exps), model, initial_state=initial_state)
         lsq = start if isinstance(start, LSQResult) else None
         theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
-        theta_mech = model.check(theta_mech)
+        if lik.initial_state_names and lsq is not None:
+            theta_mech = np.r_[model.check(theta_mech), lsq.x0.ravel()]
+        elif lik.initial_state_names:
+            theta_mech = np.r_[model.check(theta_mech[: model.n_params]),
+                               theta_mech[model.n_params :]]
+        else:
+            theta_mech = model.check(theta_mech)
     else:
         from ..extensions import ExtensionFit, fit_extension_lsq
 
@@ -615,6 +626,9 @@ def sample_posterior(
         "damping": model.damping,
         **({} if ext is None else {"extension": ext.name}),
         "springs_n_m": list(model.rig.springs_n_m),
+        # (absent for the chain, so that the hashes of earlier runs stay valid)
+        **({} if model.rig.is_chain else {"rig": _rig_dict(model.rig)}),
+        **({} if initial_state == "rest" else {"initial_state": initial_state}),
         "noise": noise,
         "priors": [repr(p) for p in priors.priors],
         "transforms": list(priors.transforms),
@@ -701,3 +715,9 @@ def sample_posterior(
         n_evaluations=n_eval,
         config=config,
     )
+
+
+def _rig_dict(rig) -> dict:
+    from ..rigs import rig_to_dict
+
+    return rig_to_dict(rig)
