@@ -460,6 +460,13 @@ class Rig:
         ``i + 1`` (the last to the frame), all known, the default dampers, the motor on
         cart 1 with share 1 and unknown gain, a sensor on every cart in order, no clamps.
         """
+        cached = self.__dict__.get("_is_chain")
+        if cached is None:
+            cached = self._chain_layout()
+            object.__setattr__(self, "_is_chain", cached)  # not a field: eq and hash ignore it
+        return cached
+
+    def _chain_layout(self) -> bool:
         n = len(self.carts)
         names = [str(i + 1) for i in range(n)]
         chain = Rig(springs_n_m=self.springs_n_m) if len(self.springs) == n else None
@@ -486,9 +493,9 @@ class Rig:
         """
         if not self.is_chain:
             raise ModelError(
-                f"{what} supports only the chain rig (springs cart i to i+1, the last to the "
-                "frame, all known; motor on cart 1; a sensor on every cart; no clamps); use "
-                "the linear model for this rig")
+                f"{what}: needs the chain rig (spring i joins cart i to i+1, the last to the "
+                "frame, all known; motor on cart 1; a sensor on every cart; no clamps); this "
+                "rig is not one, use the linear model (fit_lsq, sample_posterior) instead")
 
     def cart_index(self, name: str) -> int:
         """1-based position of a cart in ``carts`` (its parameter number)."""

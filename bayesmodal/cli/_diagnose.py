@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._common import add_data_args, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
 def register(sub) -> None:
     p = sub.add_parser("diagnose", help="diagnose the linear model's misfit and name the cause")
     add_data_args(p, many=True)
+    add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", help="write the diagnostics' plots to DIR")
     p.add_argument("--seed", type=int, default=0, help="seed of the null simulations and "
@@ -65,7 +66,8 @@ def run(args) -> int:
     from ..diagnose import diagnose
 
     exps = load_args(args)
-    d = diagnose(exps, train=args.train, n_null=args.null, posterior=not args.no_posterior,
+    d = diagnose(exps, rig=load_rig(args), train=args.train, n_null=args.null,
+                 posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
                  n_starts=args.starts)
     if args.plots:

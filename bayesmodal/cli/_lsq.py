@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 from ..fit import fit_lsq
-from ..system import LinearModel, Rig
-from ._common import add_data_args, load_args, print_json
+from ..system import LinearModel
+from ._common import (
+    add_data_args,
+    add_initial_state_argument,
+    add_rig_argument,
+    load_args,
+    load_rig,
+    print_json,
+)
 
 
 def register(sub) -> None:
     p = sub.add_parser("lsq", help="least-squares fit of the linear model")
     add_data_args(p, many=True)
+    add_rig_argument(p)
+    add_initial_state_argument(p)
     p.add_argument("--damping", choices=["free", "proportional"], default="free")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.set_defaults(func=run)
@@ -36,8 +45,8 @@ def lsq_summary(res) -> dict:
 
 def run(args) -> int:
     exps = load_args(args)
-    model = LinearModel(Rig(), args.damping)
-    res = fit_lsq(exps, model)
+    model = LinearModel(load_rig(args), args.damping)
+    res = fit_lsq(exps, model, initial_state=args.initial_state)
     summary = lsq_summary(res)
     if args.json:
         print_json(summary)

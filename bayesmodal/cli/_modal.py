@@ -9,7 +9,7 @@ import numpy as np
 from .._errors import ConfigError
 from ..modal import ConvergenceError, modal_report, rayleigh_modes, transfer_function
 from ..system import LinearModel, Rig
-from ._common import print_json
+from ._common import add_rig_argument, load_rig, print_json
 
 #: Report Table 3 (free damping) and Table 4 (proportional damping), the defaults.
 REPORT_PARAMS = {
@@ -33,15 +33,19 @@ def register(sub) -> None:
                    help="parameters to change from the report's values, "
                    "e.g. m1=1.57,ca=1.6,cb=8e-5")
     p.add_argument("--damping", choices=["free", "proportional"], default="free")
+    add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write rayleigh_contour.png, bode_force.png, mode_shapes.png here")
     p.set_defaults(func=run)
 
 
-def parse_params(text: str, damping: str) -> dict[str, float]:
-    """``"a=1,b=2"`` merged over the report's values for this damping model."""
-    params = dict(REPORT_PARAMS[damping])
+def parse_params(text: str, damping: str, names=None) -> dict[str, float]:
+    """``"a=1,b=2"`` merged over the report's values for this damping model.
+
+    With ``names`` (a rig other than the report's), no defaults: every name must be given.
+    """
+    params = dict(REPORT_PARAMS[damping]) if names is None else dict.fromkeys(names, np.nan)
     for item in filter(None, (s.strip() for s in text.split(","))):
         name, sep, value = item.partition("=")
         name = name.strip()
@@ -57,8 +61,13 @@ def parse_params(text: str, damping: str) -> dict[str, float]:
 
 
 def run(args) -> int:
-    model = LinearModel(Rig(), args.damping)
-    theta = model.as_vector(parse_params(args.params, args.damping))
+    model = LinearModel(load_rig(args), args.damping)
+    report_rig = model.rig == Rig()
+    theta = model.as_vector(parse_params(args.params, args.damping,
+                                         None if report_rig else model.names))
+    if not np.all(np.isfinite(theta)):
+        missing = [n for n, v in zip(model.names, theta, strict=True) if not np.isfinite(v)]
+        raise ConfigError(f"--params must give {missing} for this rig (no report values)")
     try:
         report = modal_report(model, theta)
     except ConvergenceError as exc:

@@ -5,12 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..static import steady_state
-from ._common import add_data_args, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
 def register(sub) -> None:
     p = sub.add_parser("static", help="voltage-to-force gain and spring ratios from steps")
     add_data_args(p)
+    add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", help="write the plateau-picking plot into DIR")
     p.set_defaults(func=run)
@@ -39,7 +40,8 @@ def format_static(results) -> str:
 
 def run(args) -> int:
     (exp,) = load_args(args)
-    results = [steady_state(exp, reference=ref) for ref in ("zero", "previous")]
+    results = [steady_state(exp, rig=load_rig(args), reference=ref)
+               for ref in ("zero", "previous")]
     if args.plots:
         import matplotlib
 

@@ -425,8 +425,9 @@ def resolve_extension(extension, model: LinearModel):
     Raises
     ------
     ModelError
-        For an unknown name, an object that is not an ``Extension``, or a model whose
-        damping is not free (every extension is built on ``LinearModel(rig, "free")``).
+        For an unknown name, an object that is not an ``Extension``, a model whose
+        damping is not free (every extension is built on ``LinearModel(rig, "free")``), or
+        a rig other than the chain driven at cart 1 (``Rig.is_chain``).
     """
     if extension is None:
         return None
@@ -441,6 +442,7 @@ def resolve_extension(extension, model: LinearModel):
         raise ModelError(
             f"the {ext.name} extension is built on the free-damping model; got "
             f"{model.damping!r} damping (use LinearModel(rig, 'free'))")
+    model.rig.require_chain(f"the {ext.name} extension")
     return ext
 
 
