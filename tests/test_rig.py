@@ -536,3 +536,23 @@ def test_chain_matrix_unchanged_helper():
     # chain_matrix stays importable for callers (assembles a chain of dampers/springs)
     np.testing.assert_array_equal(chain_matrix(np.array([1.0, 2.0]), grounded_last=True),
                                   [[1.0, -1.0], [-1.0, 3.0]])
+
+
+@pytest.mark.slow
+def test_free_decay_is_sampled_with_its_initial_state():
+    """emcee on a one-cart free decay: mass, damper and initial state near the truth."""
+    from bayesmodal.inference import sample_posterior
+
+    rig = Rig(carts=(Cart("1"),), springs=(Spring("1", "frame", 396.0),),
+              drive=(Drive("1"),), gain_n_v=6.2)
+    truth = {"g_v": 6.2, "m1": 1.5, "c1": 2.0}
+    x0 = np.array([0.01, 0.0])
+    rng = np.random.default_rng(21)
+    model, e = _record(rig, eom_1cart(truth, (396.0,)), truth, rng, x0=x0, v=np.zeros(N))
+    run = sample_posterior(e, model, noise="white", n_walkers=16, n_steps=1500, rng=3,
+                           initial_state="estimate", warn=False)
+    assert run.names[:4] == ("m1", "c1", "x1_0", "v1_0")
+    draws = run.flat_draws
+    want = np.r_[1.5, 2.0, x0]
+    z = np.abs(np.median(draws[:, :4], axis=0) - want) / draws[:, :4].std(axis=0)
+    assert np.all(z < 4), z
