@@ -314,8 +314,11 @@ class Rig:
             if self.sensors is None:
                 set_(self, "sensors", tuple(Sensor(c, "count", ECP_M_PER_COUNT)
                                             for c in names))
-        elif self.springs_n_m is not None:
-            raise ModelError("give either springs_n_m (a chain) or carts and springs, not both")
+        elif self.springs_n_m is not None and tuple(float(k) for k in self.springs_n_m) != tuple(
+                float(s.stiffness_n_m) for s in self.springs):
+            # (equal values come from dataclasses.replace of a built rig)
+            raise ModelError("give either springs_n_m (a chain) or carts and springs, not both "
+                             "(with dataclasses.replace of springs pass springs_n_m=None)")
         carts = _as_tuple(self.carts, Cart, "carts")
         springs = _as_tuple(self.springs, Spring, "springs")
         cart_names = [c.name for c in carts]

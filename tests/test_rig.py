@@ -556,3 +556,16 @@ def test_free_decay_is_sampled_with_its_initial_state():
     want = np.r_[1.5, 2.0, x0]
     z = np.abs(np.median(draws[:, :4], axis=0) - want) / draws[:, :4].std(axis=0)
     assert np.all(z < 4), z
+
+
+def test_replace_keeps_a_description_valid():
+    import dataclasses
+
+    rig = load_rig("ecp210-2cart-frame-at-drive")
+    known = dataclasses.replace(rig, gain_n_v=6.2)
+    assert "g_v" not in LinearModel(known).names and known.springs == rig.springs
+    with pytest.raises(ModelError, match="springs_n_m=None"):
+        dataclasses.replace(rig, springs=(Spring("1", "frame", 1.0), Spring("1", "2", 2.0)))
+    moved = dataclasses.replace(rig, springs=(Spring("1", "frame", 1.0),
+                                              Spring("1", "2", 2.0)), springs_n_m=None)
+    assert moved.springs_n_m == (1.0, 2.0)

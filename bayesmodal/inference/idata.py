@@ -120,7 +120,10 @@ def _attrs(run) -> dict:
         }),
     }
     if run.lsq is not None:
-        attrs["lsq_theta_json"] = json.dumps(run.lsq.theta.tolist())
+        # (with estimated initial states they follow, as in the mechanical names)
+        x0 = getattr(run.lsq, "x0", None)
+        theta = run.lsq.theta if x0 is None else np.r_[run.lsq.theta, np.ravel(x0)]
+        attrs["lsq_theta_json"] = json.dumps(theta.tolist())
         attrs["lsq_fit_percent_json"] = json.dumps(run.lsq.fit_percent.tolist())
     return attrs
 
