@@ -182,7 +182,7 @@ def check_records(model: LinearModel, experiments: Sequence[Experiment],
                 "the input gain (gain_n_v in the rig's [drive] table, from `bayesmodal "
                 "static`), or add a forced record")
         free = rig.free_carts
-        if not (any(s.known for s in rig.springs)
+        if not (any(s.known and (s.a in free or s.b in free) for s in rig.springs)
                 or any(c.mass == "known" for c in rig.carts if c.name in free)):
             raise ModelError(
                 "free decays fix only the ratios of masses, dampers and springs; add a known "

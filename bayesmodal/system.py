@@ -356,7 +356,8 @@ class Rig:
         dup = sorted({s for s in snames if snames.count(s) > 1})
         if dup:
             raise ModelError(f"duplicate spring name {dup[0]!r}; give every spring a unique name")
-        clash = [s for s in snames if s in _RESERVED or s[:1] in "mc"]
+        clash = [s for s in snames if s in _RESERVED or s[:1] in "mcxv"
+                 or s.startswith(("sigma", "phi"))]
         if clash:
             raise ModelError(f"spring name {clash[0]!r} clashes with a parameter name; "
                              "use names such as k1, k_left")
@@ -661,7 +662,7 @@ def _check_scale(rig: Rig) -> None:
     # fixed force, and leaves a free decay unchanged: something absolute must be known.
     free = rig.free_carts
     known_mass = any(c.mass == "known" for c in rig.carts if c.name in free)
-    known_spring = any(s.known for s in rig.springs)
+    known_spring = any(s.known and (s.a in free or s.b in free) for s in rig.springs)
     known_gain = rig.gain_n_v is not None and bool(rig.drive)
     if not (known_mass or known_spring or known_gain):
         raise ModelError(

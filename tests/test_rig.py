@@ -433,6 +433,15 @@ BAD = {
     "negative stiffness": (
         {"carts": CART2[:1], "springs": [{"between": ["1", "frame"], "stiffness_n_m": -5.0}]},
         "stiffness_n_m"),
+    "spring named like a mass": (
+        {"carts": CART2[:1], "springs": [{"between": ["1", "frame"], "stiffness_n_m": 5e2,
+                                          "name": "m1", "known": False}]},
+        "clashes with a parameter name"),
+    "duplicate damper": (
+        {"carts": CART2, "springs": [{"between": ["1", "frame"], "stiffness_n_m": 500.0},
+                                     {"between": ["1", "2"], "stiffness_n_m": 500.0}],
+         "dampers": {"ground": ["1"], "pairs": [["1", "2"], ["2", "1"]]}},
+        "duplicate damper"),
     "sensor on a clamped cart": (
         {"carts": CART2, "springs": [{"between": ["1", "frame"], "stiffness_n_m": 500.0},
                                      {"between": ["1", "2"], "stiffness_n_m": 500.0}],
