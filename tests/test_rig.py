@@ -578,3 +578,15 @@ def test_replace_keeps_a_description_valid():
     moved = dataclasses.replace(rig, springs=(Spring("1", "frame", 1.0),
                                               Spring("1", "2", 2.0)), springs_n_m=None)
     assert moved.springs_n_m == (1.0, 2.0)
+
+
+def test_diagnose_refuses_permuted_sensors():
+    from bayesmodal.diagnose import diagnose
+
+    chain = Rig()
+    rev = Rig(carts=chain.carts, springs=chain.springs, drive=chain.drive,
+              sensors=tuple(reversed(chain.sensors)))
+    t = np.arange(50) * DT
+    e = Experiment(t, np.ones(50), np.zeros((50, 3)) + t[:, None])
+    with pytest.raises(ModelError, match="sensor on every moving cart"):
+        diagnose([e], rig=rev)
