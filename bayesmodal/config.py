@@ -9,7 +9,9 @@ problem in a file is collected and reported at once, each naming the file and th
     heldout = ["ecp210-3dof/data_steps.mat"]     # optional: records scored, not fitted
 
     [rig]
-    springs_n_m = [774.0, 770.0, 396.0]
+    springs_n_m = [774.0, 770.0, 396.0]   # a chain; or file = "my_rig.toml" (or a preset
+                                          # name), or the tables of a rig description
+                                          # inline ([[rig.carts]], [[rig.springs]], ...)
 
     [model]
     damping = "free"            # or "proportional"
@@ -79,7 +81,8 @@ NOISE_MODELS = ("ar1", "white")
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "data": {"files": list, "m_per_count": (int, float), "heldout": list},
-    "rig": {"springs_n_m": list},
+    "rig": {"springs_n_m": list, "file": str, "name": str, "clamped": list, "carts": list,
+            "springs": list, "dampers": dict, "drive": dict, "sensors": list},
     "model": {"damping": str, "extensions": list},
     "priors": {},  # free keys, checked against parameter names later
     "likelihood": {"noise": str, "temperature": (int, float)},
@@ -132,6 +135,7 @@ class RunConfig:
     evidence: bool = False
     evidence_nlive: int = 250
     evidence_dlogz: float = 0.5
+    rig: dict | None = None
     per_record: dict[str, str] = field(default_factory=dict)
     noise_per_record: bool = False
     temperature: float = 1.0
@@ -145,6 +149,15 @@ class RunConfig:
     _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "temperature": 1.0,
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None}
+
+    def make_rig(self):
+        """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
+        from .rigs import rig_from_dict  # noqa: PLC0415
+        from .system import Rig  # noqa: PLC0415
+
+        if self.rig is None:
+            return Rig(self.springs_n_m)
+        return rig_from_dict(self.rig, where=f"{self.source}: [rig]")
 
     @property
     def layout(self):
@@ -169,7 +182,8 @@ class RunConfig:
             n_walkers=self.crossval_walkers or self.walkers,
             n_steps=self.crossval_steps or self.steps, burn=None if self.crossval_steps
             else self.burn, n_predictive=self.crossval_draws, seed=self.seed,
-            temperature=self.temperature, springs_n_m=self.springs_n_m)
+            temperature=self.temperature, springs_n_m=self.springs_n_m,
+            rig=None if self.rig is None else self.make_rig())
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -187,6 +201,8 @@ class RunConfig:
         for k, default in self._NEW_DEFAULTS.items():
             if d[k] == default:
                 d.pop(k)
+        if d["rig"] is None:  # likewise for a chain given by springs_n_m
+            d.pop("rig")
         # where the data live does not change the result; their content is hashed separately
         d["data_files"] = [Path(f).name for f in self.data_files]
         d["heldout_files"] = [Path(f).name for f in self.heldout_files]
@@ -304,6 +320,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             err("rig.springs_n_m", f"must be a non-empty list of positive N/m, got {springs!r}")
         else:
             kw["springs_n_m"] = tuple(float(k) for k in springs)
+    _parse_rig(raw.get("rig"), values, kw, base, err)
 
     damping = values.get(("model", "damping"), "free")
     if damping not in DAMPING_MODELS:
@@ -457,11 +474,16 @@ def _check_prior_names(priors, kw, err) -> None:
     from .system import LinearModel, Rig  # noqa: PLC0415
 
     try:
-        model = LinearModel(Rig(kw.get("springs_n_m", ECP210_SPRINGS_N_M)),
-                            kw.get("damping", "free"))
+        if kw.get("rig") is not None:
+            from .rigs import rig_from_dict  # noqa: PLC0415
+
+            rig = rig_from_dict(kw["rig"])
+        else:
+            rig = Rig(kw.get("springs_n_m", ECP210_SPRINGS_N_M))
+        model = LinearModel(rig, kw.get("damping", "free"))
     except ValueError:
         return
-    n = model.n_carts
+    n = model.n_outputs
     allowed = set(model.names) | {f"sigma_{i + 1}" for i in range(n)} | {
         f"phi_{i + 1}" for i in range(n)}
     try:
@@ -513,3 +535,34 @@ def load_config(path: str | os.PathLike, *, check_files: bool = True) -> RunConf
         raise ConfigError(f"{path}: not valid TOML ({exc})") from exc
     return parse_config(raw, source=str(path), base=path.parent, name=path.stem,
                         check_files=check_files)
+
+
+def _parse_rig(table, values, kw, base: Path, err) -> None:
+    """``[rig] file = ...`` or an inline description: the canonical description in kw."""
+    if not isinstance(table, dict):
+        return
+    inline = {k: v for k, v in table.items() if k not in ("springs_n_m", "file")}
+    given = [k for k in ("springs_n_m", "file") if k in table] + (["inline tables"] if inline
+                                                                   else [])
+    if len(given) > 1:
+        err("rig", f"give one of springs_n_m, file or an inline description, got {given}")
+        return
+    if not (inline or "file" in table):
+        return
+    from ._errors import ModelError  # noqa: PLC0415
+    from .rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict  # noqa: PLC0415
+
+    try:
+        if inline:
+            rig = rig_from_dict(inline, where="inline description")
+        else:
+            f = values.get(("rig", "file"))
+            if f is None:
+                return
+            p = Path(f).expanduser()
+            rig = load_rig(f if f in PRESETS else (p if p.is_absolute() else base / p))
+    except ModelError as exc:
+        err("rig", str(exc))
+        return
+    kw["rig"] = rig_to_dict(rig)
+    kw["springs_n_m"] = rig.springs_n_m

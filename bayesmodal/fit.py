@@ -1,11 +1,12 @@
 """Output-error least squares (the report's ``lsqnonlin`` fit, section 2.2).
 
 The parameters minimise ``sum_e sum_k ||y_e[k] - yhat_e[k; theta]||^2`` over one or more
-experiments, with ``yhat`` the exact ZOH simulation from rest.  Positive parameters are
-optimised in log space (which makes the problem scale-free and keeps masses positive);
-damping coefficients that may vanish (``c12, c23, ..., cb``) are optimised on a linear scale
-with a zero lower bound.  The Jacobian is by forward differences, evaluated in one batched
-simulator call.
+experiments, with ``yhat`` the exact ZOH simulation from rest (or, for free decays with
+``initial_state="estimate"``, from an initial state estimated with the parameters).
+Positive parameters are optimised in log space (which makes the problem scale-free and
+keeps masses positive); damping coefficients that may vanish (``c12, c23, ..., cb``) are
+optimised on a linear scale with a zero lower bound.  The Jacobian is by forward
+differences, evaluated in one batched simulator call.
 """
 
 from __future__ import annotations
@@ -46,6 +47,9 @@ class LSQResult:
     success : bool
     message : str
     n_evaluations : int
+    x0 : ndarray, shape (n_experiments, 2 n_carts), or None
+        Estimated initial positions (m) and velocities (m/s) per experiment with
+        ``initial_state="estimate"``; None when every record starts from rest.
     """
 
     model: LinearModel
@@ -57,6 +61,7 @@ class LSQResult:
     success: bool
     message: str
     n_evaluations: int
+    x0: np.ndarray | None = None
 
     @property
     def params(self) -> dict[str, float]:
@@ -69,18 +74,59 @@ class LSQResult:
         return np.sqrt(np.clip(np.diag(self.cov), 0, None))
 
 
+def param_kinds(model: LinearModel) -> tuple[str, ...]:
+    """Kind of each parameter: gain, mass, ground (damper), pair (damper), ca, cb, spring."""
+    out = []
+    for name in model.names:
+        if name == "g_v":
+            out.append("gain")
+        elif name in ("ca", "cb"):
+            out.append(name)
+        elif name[0] == "m" and name[1:].isdigit():
+            out.append("mass")
+        elif name[0] == "c" and name[1:].isdigit() and int(name[1:]) <= len(model.rig.carts):
+            out.append("ground")
+        elif name[0] == "c":
+            out.append("pair")
+        else:
+            out.append("spring")
+    return tuple(out)
+
+
 def default_start(model: LinearModel) -> np.ndarray:
-    """A neutral starting point: g_v 5.25 N/V (nominal), masses 1 kg, small damping."""
+    """A neutral starting point: g_v 5.25 N/V (nominal), masses 1 kg, small damping.
+
+    Carts of nominal mass start at their mass and unknown springs at their nominal stiffness.
+    """
     n = model.n_carts
-    if model.damping == "proportional":
-        tail = [1.0, 1e-4]
-    else:
-        tail = [1.0] * n + [0.1] * (n - 1)
-    return np.array([5.25] + [1.0] * n + tail)
+    if model.rig.is_chain:
+        if model.damping == "proportional":
+            tail = [1.0, 1e-4]
+        else:
+            tail = [1.0] * n + [0.1] * (n - 1)
+        return np.array([5.25] + [1.0] * n + tail)
+    rig = model.rig
+    nominal_mass = {f"m{rig.cart_index(c.name)}": c.mass_kg for c in rig.carts
+                    if c.mass_kg is not None}
+    springs = {s.name: s.stiffness_n_m for s in rig.springs}
+    base = {"gain": 5.25, "ground": 1.0, "pair": 0.1, "ca": 1.0, "cb": 1e-4}
+    out = []
+    for name, kind in zip(model.names, param_kinds(model), strict=True):
+        if kind == "mass":
+            out.append(nominal_mass.get(name, 1.0))
+        elif kind == "spring":
+            out.append(springs[name])
+        else:
+            out.append(base[kind])
+    return np.array(out)
 
 
 def _log_mask(model: LinearModel) -> np.ndarray:
     n = model.n_carts
+    if not model.rig.is_chain:
+        # positive scale parameters in log space; the dampers that may vanish stay linear
+        return np.array([k in ("gain", "mass", "ground", "ca", "spring")
+                         for k in param_kinds(model)])
     mask = np.zeros(model.n_params, bool)
     mask[: 1 + n] = True  # g_v and masses
     if model.damping == "free":
@@ -90,32 +136,94 @@ def _log_mask(model: LinearModel) -> np.ndarray:
     return mask
 
 
-def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) -> None:
+INITIAL_STATES = ("rest", "estimate")
+
+
+def check_records(model: LinearModel, experiments: Sequence[Experiment],
+                  initial_state: str = "rest") -> None:
+    """Refuse records that do not match the model or cannot identify its parameters.
+
+    Parameters
+    ----------
+    model : LinearModel
+    experiments : sequence of Experiment
+    initial_state : {"rest", "estimate"}
+        ``"estimate"`` admits free decays (records with no input).
+
+    Raises
+    ------
+    DataError
+        No records, a record with the wrong number of outputs, a record with no input when
+        it starts from rest, or a record where nothing moves.
+    ModelError
+        Free decays only while ``g_v`` is unknown, or with nothing but the gain to fix the
+        scale of masses and springs; the message names what to add.
+    """
+    if initial_state not in INITIAL_STATES:
+        raise ModelError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
     if not experiments:
         raise DataError("no experiments given")
     for e in experiments:
-        if e.n_outputs != model.n_carts:
+        if e.n_outputs != model.n_outputs:
             raise DataError(
                 f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
-                f"{model.n_carts} carts"
+                f"{model.n_outputs} {'carts' if model.rig.is_chain else 'sensors'}"
             )
-        check_identifiable(e)
+        if initial_state == "rest":
+            check_identifiable(e)
+        elif np.all(np.ptp(e.y_m, axis=0) == 0):
+            raise DataError(f"{e.source or e.name}: every output is constant (no cart ever "
+                            "moves); nothing is identifiable")
+    if all(not np.any(e.v_volt != 0) for e in experiments):
+        rig = model.rig
+        if "g_v" in model.names:
+            raise ModelError(
+                "g_v cannot be estimated from free decays only (no record has an input); give "
+                "the input gain (gain_n_v in the rig's [drive] table, from `bayesmodal "
+                "static`), or add a forced record")
+        free = rig.free_carts
+        if not (any(s.known and (s.a in free or s.b in free) for s in rig.springs)
+                or any(c.mass == "known" for c in rig.carts if c.name in free)):
+            raise ModelError(
+                "free decays fix only the ratios of masses, dampers and springs; add a known "
+                "mass (mass = \"known\", mass_kg) or a known spring (known = true)")
 
 
-def residuals(model: LinearModel, theta: np.ndarray, experiments: Sequence[Experiment]):
+def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) -> None:
+    check_records(model, experiments, "rest")
+
+
+def initial_state_guess(model: LinearModel, experiment: Experiment) -> np.ndarray:
+    """Initial state from a record's first samples, shape (2 n_carts,): m and m/s.
+
+    Sensed carts take the first sample and the first difference; the others start at 0.
+    """
+    n = model.n_carts
+    out = model.output_index
+    idx = np.arange(n) if out is None else out
+    x0 = np.zeros(2 * n)
+    x0[idx] = experiment.y_m[0]
+    x0[n + idx] = (experiment.y_m[1] - experiment.y_m[0]) / experiment.dt
+    return x0
+
+
+def residuals(model: LinearModel, theta: np.ndarray, experiments: Sequence[Experiment],
+              x0: np.ndarray | None = None):
     """Stacked residuals ``y - yhat`` for a batch of parameter sets.
 
     Parameters
     ----------
     theta : ndarray, shape (nb, n_params)
+    x0 : ndarray, shape (nb, n_experiments, 2 n_carts), optional
+        Initial states (m, m/s); rest by default.
 
     Returns
     -------
     ndarray, shape (nb, sum_e N_e * n_outputs), m
     """
     parts = []
-    for e in experiments:
-        yh = simulate_linear(model, theta, e.v_volt, e.dt)
+    for i, e in enumerate(experiments):
+        yh = simulate_linear(model, theta, e.v_volt, e.dt, None if x0 is None else x0[:, i])
         parts.append((e.y_m[None] - yh).reshape(theta.shape[0], -1))
     return np.concatenate(parts, axis=1)
 
@@ -126,6 +234,7 @@ def fit_lsq(
     *,
     theta0: np.ndarray | None = None,
     max_nfev: int = 400,
+    initial_state: str = "rest",
 ) -> LSQResult:
     """Output-error least-squares fit of the linear model.
 
@@ -137,6 +246,10 @@ def fit_lsq(
         Starting point (``default_start(model)`` if omitted).
     max_nfev : int
         Maximum number of Jacobian/residual evaluations.
+    initial_state : {"rest", "estimate"}
+        ``"rest"`` (default): every record starts at rest.  ``"estimate"``: each record's
+        initial positions and velocities are estimated with the parameters (free decays:
+        records with no input and an initial displacement); see ``LSQResult.x0``.
 
     Returns
     -------
@@ -158,13 +271,21 @@ def fit_lsq(
     if isinstance(experiments, Experiment):
         experiments = [experiments]
     experiments = list(experiments)
-    _check_experiments(model, experiments)
+    check_records(model, experiments, initial_state)
     theta0 = default_start(model) if theta0 is None else model.check(np.asarray(theta0, float))
-    mask = _log_mask(model)
+    n_p = model.n_params
+    n_s = 2 * model.n_carts
+    n_x = n_s * len(experiments) if initial_state == "estimate" else 0
+    mask = np.r_[_log_mask(model), np.zeros(n_x, bool)]
+    if n_x:
+        x00 = np.concatenate([initial_state_guess(model, e) for e in experiments])
+        # a unit step moves a position by a millimetre and a velocity by a centimetre/s
+        x_scale = np.tile(np.r_[np.full(n_s // 2, 1e-3), np.full(n_s // 2, 1e-2)],
+                          len(experiments))
 
-    def to_z(theta):
+    def to_z(theta):  # model parameters only
         z = np.array(theta, dtype=float)
-        z[..., mask] = np.log(z[..., mask])
+        z[..., mask[:n_p]] = np.log(z[..., mask[:n_p]])
         return z
 
     def to_theta(z):
@@ -173,54 +294,70 @@ def fit_lsq(
         return th
 
     # Scale the linear-scale parameters so that a unit step is a sensible size.
-    scale = np.where(mask, 1.0, np.maximum(np.abs(theta0), 1e-3))
+    scale = np.where(mask[:n_p], 1.0, np.maximum(np.abs(theta0), 1e-3))
     if model.damping == "proportional":
-        scale[-1] = max(abs(theta0[-1]), 1e-4)
+        icb = model.names.index("cb")
+        scale[icb] = max(abs(theta0[icb]), 1e-4)
     z0 = to_z(theta0) / scale
-    lower = np.where(mask, -np.inf, 0.0)
-    upper = np.full(model.n_params, np.inf)
-    z0 = np.clip(z0, lower + 1e-12 * ~mask, upper)
+    lower = np.where(mask[:n_p], -np.inf, 0.0)
+    upper = np.full(n_p, np.inf)
+    z0 = np.clip(z0, lower + 1e-12 * ~mask[:n_p], upper)
+    if n_x:  # initial states: unbounded, linear
+        scale = np.r_[scale, x_scale]
+        z0 = np.r_[z0, x00 / x_scale]
+        lower = np.r_[lower, np.full(n_x, -np.inf)]
+        upper = np.r_[upper, np.full(n_x, np.inf)]
+
+    def split(ws):
+        th = to_theta(ws * scale)
+        if not n_x:
+            return th, None
+        return th[:, :n_p], th[:, n_p:].reshape(ws.shape[0], len(experiments), n_s)
 
     def fun(w):
-        return residuals(model, to_theta(w[None] * scale), experiments)[0]
+        return _res(model, split(w[None]), experiments)[0]
 
     def jac(w):
         # forward differences, all perturbed parameter sets in one batched simulation
         h = 1e-7 * np.maximum(np.abs(w), 1.0)
-        ws = np.repeat(w[None], model.n_params + 1, axis=0)
-        for i in range(model.n_params):
+        ws = np.repeat(w[None], w.size + 1, axis=0)
+        for i in range(w.size):
             # step away from the zero bound
             ws[i + 1, i] += h[i]
-        r = residuals(model, to_theta(ws * scale), experiments)
+        r = _res(model, split(ws), experiments)
         return ((r[1:] - r[0]) / h[:, None]).T
 
     sol = least_squares(fun, z0, jac=jac, bounds=(lower, upper), method="trf",
                         x_scale="jac", max_nfev=max_nfev, xtol=1e-12, ftol=1e-12, gtol=1e-10)
-    theta = to_theta(sol.x * scale)
+    theta, x0_hat = split(sol.x[None])
+    theta = theta[0]
+    x0_hat = None if x0_hat is None else x0_hat[0]
     try:
         theta = model.check(theta)
     except ModelError as exc:  # pragma: no cover - bounds make this unreachable
         raise ModelError(f"least squares ended at impossible parameters: {exc}") from exc
 
     fits, sq = [], []
-    for e in experiments:
-        yh = simulate_linear(model, theta, e.v_volt, e.dt)
+    for i, e in enumerate(experiments):
+        yh = simulate_linear(model, theta, e.v_volt, e.dt, None if x0_hat is None else x0_hat[i])
         fits.append(fit_percent(e.y_m, yh))
         sq.append(((e.y_m - yh) ** 2).sum(axis=0))
     n_total = sum(e.n_samples for e in experiments)
     sigma = np.sqrt(np.sum(sq, axis=0) / n_total)
 
     # Covariance in theta space: J_theta = J_w / (scale * dtheta/dz)
+    # (the initial states are nuisance parameters: the block of the full covariance is their
+    # marginal covariance)
     Jw = sol.jac
-    dtheta_dw = scale * np.where(mask, theta, 1.0)
+    dtheta_dw = scale * np.where(mask, np.r_[theta, np.ones(n_x)], 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):  # a log parameter ended at 0
         J = Jw / dtheta_dw
-    dof = max(Jw.shape[0] - model.n_params, 1)
+    dof = max(Jw.shape[0] - n_p - n_x, 1)
     s2 = 2 * sol.cost / dof
-    cov = np.full((model.n_params, model.n_params), np.nan)
+    cov = np.full((n_p, n_p), np.nan)
     if np.all(np.isfinite(J)):
         try:
-            cov = s2 * np.linalg.inv(J.T @ J)
+            cov = s2 * np.linalg.inv(J.T @ J)[:n_p, :n_p]
         except np.linalg.LinAlgError:
             pass
     return LSQResult(
@@ -233,4 +370,9 @@ def fit_lsq(
         success=bool(sol.success),
         message=str(sol.message),
         n_evaluations=int(sol.nfev),
+        x0=x0_hat,
     )
+
+
+def _res(model, theta_x0, experiments):
+    return residuals(model, theta_x0[0], experiments, theta_x0[1])

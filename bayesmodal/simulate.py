@@ -392,8 +392,8 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
 
     Returns
     -------
-    y : ndarray, shape (N, n) or (nb, N, n)
-        Cart positions, m.
+    y : ndarray, shape (N, n_outputs) or (nb, N, n_outputs)
+        Positions of the sensed carts (``model.rig.sensors``; every cart for a chain), m.
 
     Raises
     ------
@@ -416,5 +416,8 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
     M, C, K, b = model.matrices(theta)
     masses = np.diagonal(M, axis1=1, axis2=2)
     y = LinearSimulator(u, dt, model.n_carts).run_second_order(masses, C, K, b, x0)
+    out = getattr(model, "output_index", None)
+    if out is not None:  # sensors on some carts, or in another order (non-chain rigs)
+        y = y[..., out]
     return y[0] if single else y
 

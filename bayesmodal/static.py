@@ -441,6 +441,7 @@ def steady_state(
     if reference not in _REFERENCES:
         raise ModelError(f"reference must be one of {_REFERENCES}, got {reference!r}")
     rig = Rig() if rig is None else rig
+    rig.require_chain("the static-gain analysis")  # the level-to-gain formulas assume it
     e = experiment
     if e.n_outputs != rig.n_carts:
         raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")

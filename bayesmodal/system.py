@@ -1,8 +1,8 @@
-"""The rig model: a chain of carts joined by springs, driven at cart 1.
+"""The rig model: carts on a rail joined by springs and dampers, driven by a motor.
 
-Spring ``i`` joins cart ``i`` and cart ``i + 1``; the last spring joins cart ``n`` to the
-frame.  For three carts with ``k = (k1, k2, k3)`` the equations of motion are (report eq. 3,
-with errata 1 and 2)::
+The default rig is a chain: spring ``i`` joins cart ``i`` and cart ``i + 1``; the last spring
+joins cart ``n`` to the frame; the motor drives cart 1.  For three carts with
+``k = (k1, k2, k3)`` the equations of motion are (report eq. 3, with errata 1 and 2)::
 
     m1 x1'' = k1 (x2 - x1) + c12 (x2' - x1') - c1 x1' + g_v v
     m2 x2'' = k1 (x1 - x2) + k2 (x3 - x2) + c12 (x1' - x2') + c23 (x3' - x2') - c2 x2'
@@ -13,25 +13,59 @@ so that ``M x'' + C x' + K x = b v`` with ``K[n-1, n-1] = k_{n-1} + k_n`` and
 
     A = [[0, I], [-M^-1 K, -M^-1 C]],   B = [0; M^-1 b].
 
-Two damping models are supported: ``"free"`` (absolute dampers ``c1..cn`` to the frame and
-relative dampers ``c12, c23, ...`` between neighbours) and ``"proportional"``
-(``C = ca M + cb K``).
+Any other rectilinear layout is described by a ``Rig`` with explicit ``carts``, ``springs``,
+``dampers``, ``drive``, ``sensors`` and ``clamped`` carts (see docs/rigs.md and
+``bayesmodal.rigs`` for the TOML form).  Every two-node element between carts ``i`` and
+``j`` with value ``k`` adds ``k`` to ``K[i, i]`` and ``K[j, j]`` and ``-k`` to ``K[i, j]``
+and ``K[j, i]``; an element to the frame (or to a clamped cart) adds only ``K[i, i]``.
+Clamped carts are not degrees of freedom.  Unknown springs are parameters ``k*`` appended
+after the damping parameters; carts of known mass drop out of the parameter vector, as does
+``g_v`` when the input gain is known.
+
+Two damping models are supported: ``"free"`` (a damper from each listed cart to the frame,
+``c1..cn``, and one across each listed pair, ``c12, c23, ...``; by default every cart and
+every spring between two carts) and ``"proportional"`` (``C = ca M + cb K``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ._errors import ModelError
+from .data import ECP_M_PER_COUNT
 
-__all__ = ["Rig", "LinearModel", "DAMPING_MODELS", "ECP210_SPRINGS_N_M"]
+__all__ = [
+    "Rig",
+    "Cart",
+    "Spring",
+    "Damper",
+    "Drive",
+    "Sensor",
+    "LinearModel",
+    "DAMPING_MODELS",
+    "ECP210_SPRINGS_N_M",
+    "FRAME",
+    "MASS_KINDS",
+    "SENSOR_UNITS",
+]
 
 #: Nominal springs of the ECP Model 210 three-cart rig, N/m (report Table 1).
 ECP210_SPRINGS_N_M = (774.0, 770.0, 396.0)
 
 DAMPING_MODELS = ("free", "proportional")
+
+#: Name of the fixed frame (ground) as a spring or damper end.
+FRAME = "frame"
+
+#: How a cart's mass enters: estimated without a nominal value, estimated with a nominal
+#: value (the fit's start), or known (fixed, not a parameter).
+MASS_KINDS = ("unknown", "nominal", "known")
+
+#: Sensor units and their fixed scale in metres per unit (None: the scale must be given).
+SENSOR_UNITS = {"m": 1.0, "mm": 1e-3, "count": None}
 
 
 def _pair_name(i: int, n: int) -> str:
@@ -39,45 +73,479 @@ def _pair_name(i: int, n: int) -> str:
     return f"c{i}{i + 1}" if n < 10 else f"c{i}_{i + 1}"
 
 
+def _finite_positive(value, what: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{what} must be a number, got {value!r}") from None
+    if not (np.isfinite(x) and x > 0):
+        raise ModelError(f"{what} must be finite and > 0, got {value!r}")
+    return x
+
+
 @dataclass(frozen=True)
-class Rig:
-    """Geometry and known stiffnesses of a chain of carts.
+class Cart:
+    """A cart on the rail.
 
     Parameters
     ----------
-    springs_n_m : tuple of float, length n_carts
-        Spring stiffnesses, N/m.  Spring ``i`` joins cart ``i`` and ``i + 1``; the last one
-        joins the last cart to the frame.
+    name : str
+        Unique name (the ECP carts are ``"1"``, ``"2"``, ``"3"``); not ``"frame"``.
+    mass : {"unknown", "nominal", "known"}
+        ``"unknown"``: estimated; ``"nominal"``: estimated, starting from ``mass_kg``;
+        ``"known"``: fixed at ``mass_kg`` and not a parameter.
+    mass_kg : float, optional
+        Mass, kg; required for ``"nominal"`` and ``"known"``.
+    """
+
+    name: str
+    mass: str = "unknown"
+    mass_kg: float | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name or self.name == FRAME:
+            raise ModelError(f"a cart needs a non-empty name other than {FRAME!r}, "
+                             f"got {self.name!r}")
+        if self.mass not in MASS_KINDS:
+            raise ModelError(f"cart {self.name!r}: mass must be one of {MASS_KINDS}, "
+                             f"got {self.mass!r}")
+        if self.mass == "unknown":
+            if self.mass_kg is not None:
+                object.__setattr__(self, "mass_kg", _finite_positive(
+                    self.mass_kg, f"cart {self.name!r}: mass_kg"))
+        else:
+            if self.mass_kg is None:
+                raise ModelError(f"cart {self.name!r}: a {self.mass} mass needs mass_kg")
+            object.__setattr__(self, "mass_kg", _finite_positive(
+                self.mass_kg, f"cart {self.name!r}: mass_kg"))
+
+
+@dataclass(frozen=True)
+class Spring:
+    """A linear spring between two carts or between a cart and the frame.
+
+    Parameters
+    ----------
+    a, b : str
+        Cart names; ``b`` (or ``a``) may be ``"frame"``.
+    stiffness_n_m : float
+        Known stiffness, or the prior's centre (and the fit's start) when unknown, N/m.
+    known : bool
+        True (default): fixed.  False: estimated, parameter ``name``.
+    prior_sd_n_m : float, optional
+        Unknown springs: standard deviation of a normal prior (truncated at 0), N/m; omitted:
+        a uniform prior on ``[stiffness_n_m / 10, 10 stiffness_n_m]``.
+    name : str
+        Parameter name when unknown; default ``k<index>`` (1-based spring index).
+    """
+
+    a: str
+    b: str
+    stiffness_n_m: float
+    known: bool = True
+    prior_sd_n_m: float | None = None
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        where = f"spring {self.name or (self.a + '-' + self.b)!r}"
+        object.__setattr__(self, "stiffness_n_m", _finite_positive(
+            self.stiffness_n_m, f"{where}: stiffness_n_m (N/m)"))
+        if not isinstance(self.known, bool):
+            raise ModelError(f"{where}: known must be true or false, got {self.known!r}")
+        if self.prior_sd_n_m is not None:
+            object.__setattr__(self, "prior_sd_n_m", _finite_positive(
+                self.prior_sd_n_m, f"{where}: prior_sd_n_m (N/m)"))
+        if self.a == self.b:
+            raise ModelError(f"{where} joins {self.a!r} to itself; give two different ends")
+
+
+@dataclass(frozen=True)
+class Damper:
+    """A viscous damper of the free damping model between two carts or a cart and the frame."""
+
+    a: str
+    b: str = FRAME
+
+    def __post_init__(self) -> None:
+        if self.a == self.b:
+            raise ModelError(f"damper joins {self.a!r} to itself; give two different ends")
+
+
+@dataclass(frozen=True)
+class Drive:
+    """A cart pushed by the motor: force ``share * g_v * v`` (share may be negative)."""
+
+    cart: str
+    share: float = 1.0
+
+    def __post_init__(self) -> None:
+        s = float(self.share)
+        if not np.isfinite(s) or s == 0:
+            raise ModelError(f"drive on cart {self.cart!r}: share must be finite and non-zero, "
+                             f"got {self.share!r}")
+        object.__setattr__(self, "share", s)
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A position sensor on a cart.
+
+    Parameters
+    ----------
+    cart : str
+    unit : {"m", "mm", "count"}
+        Unit of the raw record.
+    m_per_unit : float, optional
+        Metres per unit; fixed for ``"m"`` and ``"mm"``, required for ``"count"``.
+    """
+
+    cart: str
+    unit: str = "m"
+    m_per_unit: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.unit not in SENSOR_UNITS:
+            raise ModelError(f"sensor on cart {self.cart!r}: unit {self.unit!r} is not "
+                             f"supported; use one of {tuple(SENSOR_UNITS)}")
+        fixed = SENSOR_UNITS[self.unit]
+        if fixed is None:
+            if self.m_per_unit is None:
+                raise ModelError(f"sensor on cart {self.cart!r}: unit 'count' needs "
+                                 "m_per_unit (metres per count)")
+            object.__setattr__(self, "m_per_unit", _finite_positive(
+                self.m_per_unit, f"sensor on cart {self.cart!r}: m_per_unit"))
+        else:
+            if self.m_per_unit is not None and float(self.m_per_unit) != fixed:
+                raise ModelError(f"sensor on cart {self.cart!r}: unit {self.unit!r} is "
+                                 f"{fixed} m per unit, got m_per_unit={self.m_per_unit!r}")
+            object.__setattr__(self, "m_per_unit", fixed)
+
+
+def _as_tuple(items, kind, what: str) -> tuple:
+    if items is None:
+        return None
+    if isinstance(items, (str, bytes)) or not isinstance(items, Sequence):
+        raise ModelError(f"{what} must be a list, got {items!r}")
+    out = tuple(items)
+    for it in out:
+        if not isinstance(it, kind):
+            raise ModelError(f"{what} must hold {kind.__name__} objects, got {it!r}")
+    return out
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Layout of a rectilinear rig: carts, springs, dampers, drive, sensors, clamps.
+
+    ``Rig()`` is the ECP Model 210 three-cart chain; ``Rig(springs_n_m=(...))`` a chain of
+    ``len(springs_n_m)`` carts (spring ``i`` joins cart ``i`` and ``i + 1``, the last one
+    joins the last cart to the frame, the motor drives cart 1, an encoder on every cart).
+    Any other layout gives ``carts`` and ``springs`` (and optionally the rest); see
+    docs/rigs.md and ``bayesmodal.rigs.load_rig`` for the TOML form.
+
+    Parameters
+    ----------
+    springs_n_m : tuple of float, optional
+        Chain shorthand: spring stiffnesses, N/m.  Give either this or ``carts``.  After
+        construction it holds the nominal stiffness of every spring in ``springs`` order.
+    carts : tuple of Cart
+        Carts in order; cart ``i`` (1-based) has the parameters ``m<i>`` and ``c<i>``.
+    springs : tuple of Spring
+    dampers : tuple of Damper, optional
+        Dampers of the free damping model; default: one from every unclamped cart to the
+        frame and one across every spring joining two unclamped carts.
+    drive : tuple of Drive
+        Carts the motor pushes; empty for a rig with no input (free decays only).
+    sensors : tuple of Sensor, optional
+        Measured carts in the order of the record's columns; default every unclamped cart.
+    clamped : tuple of str
+        Carts fixed to the frame (not degrees of freedom).
+    gain_n_v : float, optional
+        Known input gain, N/V (then ``g_v`` is not a parameter); default estimated.
+    name : str
+        Free-text label.
 
     Examples
     --------
     >>> rig = Rig()
     >>> rig.n_carts
     3
-    >>> rig.stiffness_matrix()[2, 2]
+    >>> float(rig.stiffness_matrix()[2, 2])
     1166.0
+    >>> two = Rig(carts=(Cart("1"), Cart("2")),
+    ...           springs=(Spring("1", "frame", 770.0), Spring("1", "2", 396.0)),
+    ...           drive=(Drive("1"),))
+    >>> two.stiffness_matrix().tolist()
+    [[1166.0, -396.0], [-396.0, 396.0]]
     """
 
-    springs_n_m: tuple[float, ...] = ECP210_SPRINGS_N_M
+    springs_n_m: tuple[float, ...] | None = None
+    carts: tuple[Cart, ...] = ()
+    springs: tuple[Spring, ...] = ()
+    dampers: tuple[Damper, ...] | None = None
+    drive: tuple[Drive, ...] | None = None
+    sensors: tuple[Sensor, ...] | None = None
+    clamped: tuple[str, ...] = ()
+    gain_n_v: float | None = None
+    name: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
-        k = np.asarray(self.springs_n_m, dtype=float)
-        if k.ndim != 1 or k.size < 1:
+        set_ = object.__setattr__
+        if not self.carts:
+            k = np.asarray(ECP210_SPRINGS_N_M if self.springs_n_m is None else self.springs_n_m,
+                           dtype=float)
+            if k.ndim != 1 or k.size < 1:
+                raise ModelError(
+                    f"springs_n_m must be a non-empty 1-D sequence, got {self.springs_n_m!r}"
+                )
+            if not np.all(np.isfinite(k)) or np.any(k <= 0):
+                raise ModelError(
+                    f"every spring stiffness must be finite and > 0 N/m, got {k.tolist()}")
+            if self.springs:
+                raise ModelError("springs given without carts; list the carts too")
+            n = k.size
+            names = [str(i + 1) for i in range(n)]
+            set_(self, "carts", tuple(Cart(c) for c in names))
+            set_(self, "springs", tuple(
+                Spring(names[i], names[i + 1] if i + 1 < n else FRAME, float(k[i]),
+                       name=f"k{i + 1}") for i in range(n)))
+            if self.drive is None:
+                set_(self, "drive", (Drive("1"),))
+            if self.sensors is None:
+                set_(self, "sensors", tuple(Sensor(c, "count", ECP_M_PER_COUNT)
+                                            for c in names))
+        elif self.springs_n_m is not None and tuple(float(k) for k in self.springs_n_m) != tuple(
+                float(s.stiffness_n_m) for s in self.springs):
+            # (equal values come from dataclasses.replace of a built rig)
+            raise ModelError("give either springs_n_m (a chain) or carts and springs, not both "
+                             "(with dataclasses.replace of springs pass springs_n_m=None)")
+        carts = _as_tuple(self.carts, Cart, "carts")
+        springs = _as_tuple(self.springs, Spring, "springs")
+        cart_names = [c.name for c in carts]
+        dup = sorted({c for c in cart_names if cart_names.count(c) > 1})
+        if dup:
+            raise ModelError(f"duplicate cart {dup[0]!r}; give every cart a unique name")
+        known_ends = set(cart_names) | {FRAME}
+        clamped = tuple(str(c) for c in (self.clamped or ()))
+        for c in clamped:
+            if c not in cart_names:
+                raise ModelError(f"clamped cart {c!r} is not a cart; carts are {cart_names}")
+        if len(set(clamped)) != len(clamped):
+            raise ModelError(f"duplicate clamped cart in {list(clamped)}; list each once")
+        free = [c for c in cart_names if c not in clamped]
+        if not free:
+            raise ModelError("every cart is clamped; leave at least one cart free")
+
+        # springs: ends, names, duplicates
+        named = []
+        pairs = set()
+        for i, s in enumerate(springs):
+            for end in (s.a, s.b):
+                if end not in known_ends:
+                    raise ModelError(f"spring {s.name or i + 1!r} joins unknown cart {end!r}; "
+                                     f"carts are {cart_names} (or {FRAME!r})")
+            if not s.name:
+                s = Spring(s.a, s.b, s.stiffness_n_m, s.known, s.prior_sd_n_m, f"k{i + 1}")
+            pair = frozenset((s.a, s.b))
+            if pair in pairs:
+                raise ModelError(f"duplicate spring between {s.a!r} and {s.b!r}; combine "
+                                 "parallel springs into one (stiffnesses add)")
+            pairs.add(pair)
+            named.append(s)
+        snames = [s.name for s in named]
+        dup = sorted({s for s in snames if snames.count(s) > 1})
+        if dup:
+            raise ModelError(f"duplicate spring name {dup[0]!r}; give every spring a unique name")
+        clash = [s for s in snames if s in _RESERVED or s[:1] in "mcxv"
+                 or s.startswith(("sigma", "phi"))]
+        if clash:
+            raise ModelError(f"spring name {clash[0]!r} clashes with a parameter name; "
+                             "use names such as k1, k_left")
+        springs = tuple(named)
+
+        # every free cart must reach the frame (or a clamped cart) through springs
+        grounded = {FRAME, *clamped}
+        reach = set(grounded)
+        changed = True
+        while changed:
+            changed = False
+            for s in springs:
+                if (s.a in reach) != (s.b in reach):
+                    reach |= {s.a, s.b}
+                    changed = True
+        lost = [c for c in free if c not in reach]
+        if lost:
             raise ModelError(
-                f"springs_n_m must be a non-empty 1-D sequence, got {self.springs_n_m!r}"
-            )
-        if not np.all(np.isfinite(k)) or np.any(k <= 0):
-            raise ModelError(f"every spring stiffness must be finite and > 0 N/m, got {k.tolist()}")
-        object.__setattr__(self, "springs_n_m", tuple(float(x) for x in k))
+                f"cart {lost[0]!r} has no spring path to the frame (K is singular); add a "
+                "spring from it or a neighbour to the frame, or clamp it")
+
+        # dampers
+        if self.dampers is None:
+            dampers = tuple(Damper(c) for c in free) + tuple(
+                Damper(s.a, s.b) for s in springs
+                if s.a in free and s.b in free)
+        else:
+            dampers = _as_tuple(self.dampers, Damper, "dampers")
+            seen = set()
+            for d in dampers:
+                for end in (d.a, d.b):
+                    if end not in known_ends:
+                        raise ModelError(f"damper {d.a}-{d.b} joins unknown cart {end!r}; "
+                                         f"carts are {cart_names} (or {FRAME!r})")
+                    if end in clamped:
+                        raise ModelError(f"damper {d.a}-{d.b} ends at clamped cart {end!r}; "
+                                         "give it as a damper to the frame instead")
+                pair = frozenset((d.a, d.b))
+                if pair in seen:
+                    raise ModelError(f"duplicate damper between {d.a!r} and {d.b!r}; "
+                                     "list each pair once")
+                seen.add(pair)
+            # ground dampers first (a cart on either end), then pairs, as in the chain
+            dampers = tuple(Damper(d.b if d.a == FRAME else d.a) for d in dampers
+                            if FRAME in (d.a, d.b)) + tuple(
+                d for d in dampers if FRAME not in (d.a, d.b))
+
+        drive = _as_tuple(() if self.drive is None else self.drive, Drive, "drive")
+        for d in drive:
+            if d.cart not in cart_names:
+                raise ModelError(f"driven cart {d.cart!r} is not a cart; carts are {cart_names}")
+            if d.cart in clamped:
+                raise ModelError(f"driven cart {d.cart!r} is clamped; drive a free cart")
+        dcarts = [d.cart for d in drive]
+        if len(set(dcarts)) != len(dcarts):
+            raise ModelError(f"duplicate driven cart in {dcarts}; list each once")
+
+        sensors = (tuple(Sensor(c) for c in free) if self.sensors is None
+                   else _as_tuple(self.sensors, Sensor, "sensors"))
+        if not sensors:
+            raise ModelError("no sensors; list at least one measured cart")
+        for s in sensors:
+            if s.cart not in cart_names:
+                raise ModelError(f"sensor on {s.cart!r}, which is not a cart; carts are "
+                                 f"{cart_names}")
+            if s.cart in clamped:
+                raise ModelError(f"sensor on clamped cart {s.cart!r}; it never moves, "
+                                 "remove it")
+        scarts = [s.cart for s in sensors]
+        if len(set(scarts)) != len(scarts):
+            raise ModelError(f"duplicate sensor on {scarts}; list each cart once")
+
+        if self.gain_n_v is not None:
+            set_(self, "gain_n_v", _finite_positive(self.gain_n_v, "gain_n_v (N/V)"))
+        set_(self, "carts", carts)
+        set_(self, "springs", springs)
+        set_(self, "dampers", dampers)
+        set_(self, "drive", drive)
+        set_(self, "sensors", sensors)
+        set_(self, "clamped", clamped)
+        set_(self, "springs_n_m", tuple(s.stiffness_n_m for s in springs))
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def free_carts(self) -> tuple[str, ...]:
+        """Names of the carts that move (the degrees of freedom), in order."""
+        return tuple(c.name for c in self.carts if c.name not in self.clamped)
 
     @property
     def n_carts(self) -> int:
-        """Number of carts (degrees of freedom)."""
-        return len(self.springs_n_m)
+        """Number of degrees of freedom (unclamped carts)."""
+        return len(self.free_carts)
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of measured outputs (sensors)."""
+        return len(self.sensors)
+
+    @property
+    def is_chain(self) -> bool:
+        """True for the chain layout ``Rig(springs_n_m=...)`` describes (any sensor units).
+
+        The chain has carts ``"1".."n"`` of unknown mass, spring ``i`` between cart ``i`` and
+        ``i + 1`` (the last to the frame), all known, the default dampers, the motor on
+        cart 1 with share 1 and unknown gain, a sensor on every cart in order, no clamps.
+        """
+        cached = self.__dict__.get("_is_chain")
+        if cached is None:
+            cached = self._chain_layout()
+            object.__setattr__(self, "_is_chain", cached)  # not a field: eq and hash ignore it
+        return cached
+
+    def _chain_layout(self) -> bool:
+        n = len(self.carts)
+        names = [str(i + 1) for i in range(n)]
+        chain = Rig(springs_n_m=self.springs_n_m) if len(self.springs) == n else None
+        return (
+            chain is not None
+            and [c.name for c in self.carts] == names
+            and all(c.mass == "unknown" for c in self.carts)
+            and all(s.known for s in self.springs)
+            and [(s.a, s.b) for s in self.springs] == [(s.a, s.b) for s in chain.springs]
+            and self.dampers == chain.dampers
+            and self.drive == chain.drive
+            and [s.cart for s in self.sensors] == names
+            and not self.clamped
+            and self.gain_n_v is None
+        )
+
+    def require_chain(self, what: str) -> None:
+        """Raise ModelError unless the rig is the chain driven at cart 1 (``is_chain``).
+
+        Parameters
+        ----------
+        what : str
+            What needs the chain, for the message (e.g. ``"the coulomb_friction extension"``).
+        """
+        if not self.is_chain:
+            raise ModelError(
+                f"{what}: needs the chain rig (spring i joins cart i to i+1, the last to the "
+                "frame, all known; motor on cart 1; a sensor on every cart; no clamps); this "
+                "rig is not one, use the linear model (fit_lsq, sample_posterior) instead")
+
+    def cart_index(self, name: str) -> int:
+        """1-based position of a cart in ``carts`` (its parameter number)."""
+        return [c.name for c in self.carts].index(name) + 1
+
+    def output_matrix(self) -> np.ndarray:
+        """Output matrix in metres, shape (n_outputs, n_carts): ``y = C_out x``."""
+        free = self.free_carts
+        out = np.zeros((self.n_outputs, self.n_carts))
+        for i, s in enumerate(self.sensors):
+            out[i, free.index(s.cart)] = 1.0
+        return out
+
+    def input_vector(self) -> np.ndarray:
+        """Drive shares per degree of freedom, shape (n_carts,); ``b = g_v * input_vector``."""
+        free = self.free_carts
+        d = np.zeros(self.n_carts)
+        for dr in self.drive:
+            d[free.index(dr.cart)] = dr.share
+        return d
 
     def stiffness_matrix(self) -> np.ndarray:
-        """Stiffness matrix K, shape (n, n), N/m."""
-        return chain_matrix(np.asarray(self.springs_n_m), grounded_last=True)
+        """Stiffness matrix K, shape (n, n), N/m (unknown springs at their nominal value)."""
+        if self.is_chain:
+            return chain_matrix(np.asarray(self.springs_n_m), grounded_last=True)
+        return sum(s.stiffness_n_m * self.element_pattern(s.a, s.b) for s in self.springs)
+
+    def element_pattern(self, a: str, b: str) -> np.ndarray:
+        """Unit matrix of a two-node element, shape (n_carts, n_carts).
+
+        ``+1`` on the diagonal of each free end, ``-1`` off the diagonal when both ends are
+        free; an end at the frame or at a clamped cart contributes nothing.
+        """
+        free = self.free_carts
+        idx = [free.index(e) for e in (a, b) if e in free]
+        out = np.zeros((self.n_carts, self.n_carts))
+        for i in idx:
+            out[i, i] += 1.0
+        if len(idx) == 2:
+            out[idx[0], idx[1]] -= 1.0
+            out[idx[1], idx[0]] -= 1.0
+        return out
+
+
+#: Names a spring may not take (they are other parameters).
+_RESERVED = ("g_v", "ca", "cb")
 
 
 def chain_matrix(elements: np.ndarray, *, grounded_last: bool) -> np.ndarray:
@@ -111,22 +579,124 @@ def chain_matrix(elements: np.ndarray, *, grounded_last: bool) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class _Layout:
+    """Where each parameter goes in M, C, K and b (built once per LinearModel)."""
+
+    names: tuple[str, ...]
+    gain: int | None  # index of g_v, or None (known gain or no drive)
+    mass_idx: np.ndarray  # parameter indices of the unknown masses
+    mass_dof: np.ndarray  # their degrees of freedom
+    masses0: np.ndarray  # known masses (1 where a parameter fills in), kg
+    k_idx: np.ndarray  # parameter indices of the unknown springs
+    k_pat: np.ndarray  # (n_k, n, n) unit patterns
+    K0: np.ndarray  # known part of K, N/m
+    c_idx: np.ndarray  # free damping: parameter indices
+    c_pat: np.ndarray  # (n_c, n, n)
+    positive: np.ndarray  # bool mask of parameters that must be > 0
+    outputs: np.ndarray | None  # sensor DOF indices, None when every DOF in order
+
+
+def _layout(rig: Rig, damping: str) -> _Layout:
+    n = rig.n_carts
+    free = rig.free_carts
+    n_all = len(rig.carts)
+    names: list[str] = []
+    positive: list[bool] = []
+    gain = None
+    if rig.drive and rig.gain_n_v is None:
+        gain = 0
+        names.append("g_v")
+        positive.append(True)
+    mass_idx, mass_dof = [], []
+    masses0 = np.ones(n)
+    for c in rig.carts:
+        if c.name not in free:
+            continue
+        dof = free.index(c.name)
+        if c.mass == "known":
+            masses0[dof] = c.mass_kg
+        else:
+            mass_idx.append(len(names))
+            mass_dof.append(dof)
+            names.append(f"m{rig.cart_index(c.name)}")
+            positive.append(True)
+    c_idx, c_pat = [], []
+    if damping == "proportional":
+        names += ["ca", "cb"]
+        positive += [True, False]
+    else:
+        for d in rig.dampers:
+            if d.b == FRAME:
+                names.append(f"c{rig.cart_index(d.a)}")
+                positive.append(True)
+            else:
+                i, j = sorted((rig.cart_index(d.a), rig.cart_index(d.b)))
+                names.append(f"c{i}{j}" if n_all < 10 else f"c{i}_{j}")
+                positive.append(False)
+            c_idx.append(len(names) - 1)
+            c_pat.append(rig.element_pattern(d.a, d.b))
+    K0 = np.zeros((n, n))
+    k_idx, k_pat = [], []
+    for s in rig.springs:
+        pat = rig.element_pattern(s.a, s.b)
+        if s.known:
+            K0 = K0 + s.stiffness_n_m * pat
+        else:
+            k_idx.append(len(names))
+            k_pat.append(pat)
+            names.append(s.name)
+            positive.append(True)
+    outputs = np.array([free.index(s.cart) for s in rig.sensors])
+    if outputs.size == n and np.array_equal(outputs, np.arange(n)):
+        outputs = None
+    return _Layout(
+        names=tuple(names), gain=gain, mass_idx=np.array(mass_idx, int),
+        mass_dof=np.array(mass_dof, int), masses0=masses0, k_idx=np.array(k_idx, int),
+        k_pat=np.array(k_pat).reshape(-1, n, n), K0=K0, c_idx=np.array(c_idx, int),
+        c_pat=np.array(c_pat).reshape(-1, n, n), positive=np.array(positive, bool),
+        outputs=outputs)
+
+
+def _check_scale(rig: Rig) -> None:
+    # Scaling every mass, damper and spring by a factor a scales the motion by 1/a under a
+    # fixed force, and leaves a free decay unchanged: something absolute must be known.
+    free = rig.free_carts
+    known_mass = any(c.mass == "known" for c in rig.carts if c.name in free)
+    known_spring = any(s.known and (s.a in free or s.b in free) for s in rig.springs)
+    known_gain = rig.gain_n_v is not None and bool(rig.drive)
+    if not (known_mass or known_spring or known_gain):
+        raise ModelError(
+            "masses, springs and input gain cannot be separated (all unknown: scaling them "
+            "together gives the same motion); add a known mass (mass = \"known\", mass_kg), "
+            "a known spring (known = true) or the input gain from a static-gain record "
+            "(gain_n_v, see `bayesmodal static`)")
+
+
+@dataclass(frozen=True)
 class LinearModel:
     """Linear rig model with a chosen damping model.
 
     Parameters
     ----------
     rig : Rig
-        Known geometry and springs.
+        Layout, known masses and springs.
     damping : {"free", "proportional"}
         Damping model.
 
     Attributes
     ----------
     names : tuple of str
-        Parameter names in vector order, e.g. ``("g_v", "m1", "m2", "m3", "c1", "c2", "c3",
-        "c12", "c23")`` or ``("g_v", "m1", "m2", "m3", "ca", "cb")``.  Units: g_v N/V,
-        masses kg, c* N s/m, ca 1/s, cb s.
+        Parameter names in vector order: ``g_v`` (unless the gain is known), the unknown
+        masses ``m<i>``, the damping (``c<i>`` to the frame, then ``c<i><j>`` across pairs;
+        or ``ca, cb``), then the unknown springs.  For ``Rig()``: ``("g_v", "m1", "m2",
+        "m3", "c1", "c2", "c3", "c12", "c23")`` or ``("g_v", "m1", "m2", "m3", "ca",
+        "cb")``.  Units: g_v N/V, masses kg, c* N s/m, ca 1/s, cb s, k* N/m.
+
+    Raises
+    ------
+    ModelError
+        For an unknown damping model, or a rig whose masses, springs and gain are all
+        unknown (see ``docs/rigs.md``).
 
     Examples
     --------
@@ -141,10 +711,27 @@ class LinearModel:
     def __post_init__(self) -> None:
         if self.damping not in DAMPING_MODELS:
             raise ModelError(f"damping must be one of {DAMPING_MODELS}, got {self.damping!r}")
+        if not isinstance(self.rig, Rig):
+            raise ModelError(f"rig must be a Rig, got {type(self.rig).__name__}")
+        _check_scale(self.rig)
+        chain = self.rig.is_chain
+        object.__setattr__(self, "_chain", chain)
+        object.__setattr__(self, "_layout", None if chain else _layout(self.rig, self.damping))
 
     @property
     def n_carts(self) -> int:
+        """Number of degrees of freedom (unclamped carts)."""
         return self.rig.n_carts
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of measured outputs (the rig's sensors)."""
+        return self.rig.n_outputs
+
+    @property
+    def output_index(self) -> np.ndarray | None:
+        """Degree of freedom of each output, shape (n_outputs,); None for all, in order."""
+        return None if self._chain else self._layout.outputs
 
     @property
     def n_states(self) -> int:
@@ -152,6 +739,8 @@ class LinearModel:
 
     @property
     def names(self) -> tuple[str, ...]:
+        if not self._chain:
+            return self._layout.names
         n = self.rig.n_carts
         masses = tuple(f"m{i + 1}" for i in range(n))
         if self.damping == "proportional":
@@ -189,13 +778,18 @@ class LinearModel:
     def valid(self, theta: np.ndarray) -> np.ndarray:
         """Boolean mask, shape (...,), of physically admissible parameter sets.
 
-        Admissible: finite, g_v > 0, masses > 0, every damping coefficient >= 0.  For
-        proportional damping ``ca >= 0`` and ``cb >= 0`` (which makes C positive
-        semi-definite and the system stable).
+        Admissible: finite, g_v > 0, masses > 0, unknown springs > 0, every damping
+        coefficient >= 0.  For proportional damping ``ca >= 0`` and ``cb >= 0`` (which
+        makes C positive semi-definite and the system stable).
         """
         theta = np.asarray(theta, dtype=float)
-        n = self.rig.n_carts
         ok = np.all(np.isfinite(theta), axis=-1)
+        if not self._chain:
+            pos = self._layout.positive
+            ok &= np.all(theta[..., pos] > 0, axis=-1)
+            ok &= np.all(theta[..., ~pos] >= 0, axis=-1)
+            return ok
+        n = self.rig.n_carts
         ok &= theta[..., 0] > 0
         ok &= np.all(theta[..., 1 : 1 + n] > 0, axis=-1)
         ok &= np.all(theta[..., 1 + n :] >= 0, axis=-1)
@@ -212,9 +806,10 @@ class LinearModel:
         bad = ~self.valid(theta)
         if np.any(bad):
             first = theta[bad][0] if theta.ndim > 1 else theta
+            springs = "" if self._chain else ", springs > 0"
             raise ModelError(
-                "impossible parameters (need finite values, g_v > 0, masses > 0, damping >= 0): "
-                f"{self.as_dict(first)}"
+                "impossible parameters (need finite values, g_v > 0, masses > 0, damping >= 0"
+                f"{springs}): {self.as_dict(first)}"
             )
         return theta
 
@@ -229,11 +824,13 @@ class LinearModel:
         Returns
         -------
         M, C, K : ndarray, shape (..., n, n)
-            kg, N s/m, N/m.
+            kg, N s/m, N/m, over the degrees of freedom (unclamped carts).
         b : ndarray, shape (..., n)
             Force per volt at each cart, N/V.
         """
         theta = np.asarray(theta, dtype=float)
+        if not self._chain:
+            return self._general_matrices(theta)
         n = self.rig.n_carts
         batch = theta.shape[:-1]
         masses = theta[..., 1 : 1 + n]
@@ -250,6 +847,24 @@ class LinearModel:
             C = C + absolute[..., :, None] * np.eye(n)
         b = np.zeros(batch + (n,))
         b[..., 0] = theta[..., 0]
+        return M, C, K, b
+
+    def _general_matrices(self, theta: np.ndarray):
+        lay = self._layout
+        n = self.rig.n_carts
+        batch = theta.shape[:-1]
+        masses = np.broadcast_to(lay.masses0, batch + (n,)).copy()
+        masses[..., lay.mass_dof] = theta[..., lay.mass_idx]
+        M = masses[..., :, None] * np.eye(n)
+        K = lay.K0 + np.einsum("...j,jab->...ab", theta[..., lay.k_idx], lay.k_pat)
+        if self.damping == "proportional":
+            ia = self.names.index("ca")
+            C = theta[..., ia, None, None] * M + theta[..., ia + 1, None, None] * K
+        else:
+            C = np.einsum("...j,jab->...ab", theta[..., lay.c_idx], lay.c_pat)
+        g = theta[..., lay.gain] if lay.gain is not None else np.full(
+            batch, self.rig.gain_n_v if self.rig.gain_n_v is not None else 0.0)
+        b = g[..., None] * self.rig.input_vector()
         return M, C, K, b
 
     def state_space(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""Helpers shared by sub-commands: loading data arguments, printing JSON."""
+"""Helpers shared by sub-commands: loading data and rig arguments, printing JSON."""
 
 from __future__ import annotations
 
@@ -8,8 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .._errors import DataError
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
 from ..reading import ReadOptions, parse_columns, parse_scale
+from ..system import Rig
 
 
 def add_data_args(p, *, many: bool = False) -> None:
@@ -60,11 +62,42 @@ def load_data(paths, args) -> list[Experiment]:
     return [load_experiment(Path(p), options=opts) for p in paths]
 
 
+def add_rig_argument(p) -> None:
+    """Add ``--rig FILE``: a TOML rig description or a preset name (docs/rigs.md)."""
+    from ..rigs import PRESETS
+
+    p.add_argument("--rig", metavar="FILE", default=None,
+                   help="rig description: a TOML file or a preset (" + ", ".join(PRESETS)
+                   + "); default the ECP 210 three-cart rig (see docs/rigs.md)")
+
+
+def load_rig(args) -> Rig:
+    """The rig of ``--rig`` (``Rig()`` when the option is absent or not given)."""
+    from ..rigs import load_rig as _load
+
+    source = getattr(args, "rig", None)
+    return Rig() if source is None else _load(source)
+
+
 def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
-    exps = load_data(paths, args)
+    rig = load_rig(args) if getattr(args, "rig", None) else None
+    opts = reader_options(args)
+    if rig is not None and getattr(args, "m_per_count", None) is None:
+        # encoder files in counts: the rig's sensor scale unless --m-per-count says otherwise
+        scales = {s.m_per_unit for s in rig.sensors if s.unit == "count"}
+        if len(scales) == 1:
+            from dataclasses import replace
+
+            opts = replace(opts, m_per_count=scales.pop())
+    exps = [load_experiment(Path(p), options=opts) for p in paths]
     for e in exps:  # before any output folder is made
-        check_identifiable(e)
+        if rig is not None and e.n_outputs != rig.n_outputs:
+            raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the rig "
+                            f"{args.rig!r} has {rig.n_outputs} sensors; give one column "
+                            "per sensor, in the rig's sensor order")
+        if getattr(args, "initial_state", "rest") == "rest":
+            check_identifiable(e)  # (a free decay has no input: checked by the fit)
     return exps
 
 
@@ -89,3 +122,10 @@ def to_jsonable(obj):
 def print_json(obj) -> None:
     json.dump(to_jsonable(obj), sys.stdout, indent=2)
     sys.stdout.write("\n")
+
+
+def add_initial_state_argument(p) -> None:
+    """Add ``--initial-state {rest,estimate}`` (``estimate`` for free decays)."""
+    p.add_argument("--initial-state", choices=["rest", "estimate"], default="rest",
+                   help="rest: records start at rest; estimate: fit each record's initial "
+                   "positions and velocities (free decays with no input)")

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from .._format import sig
-from ._common import add_data_args, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
 def register(sub) -> None:
@@ -20,6 +20,7 @@ def register(sub) -> None:
         "minutes; progress goes to stderr.",
     )
     add_data_args(p, many=True)
+    add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR",
                    help="write the diagnostics' plots to DIR (default: no plots)")
@@ -80,7 +81,8 @@ def run(args) -> int:
     from ..diagnose import diagnose
 
     exps = load_args(args)
-    d = diagnose(exps, train=args.train, n_null=args.null, posterior=not args.no_posterior,
+    d = diagnose(exps, rig=load_rig(args), train=args.train, n_null=args.null,
+                 posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
                  n_starts=args.starts, progress=not args.quiet)
     if args.plots:

@@ -9,7 +9,7 @@ import numpy as np
 from .._errors import DataError
 from ..ema import METHODS, identify
 from ..ema.frf import FRF_METHODS
-from ._common import add_data_args, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, print_json
 
 
 def register(sub) -> None:
@@ -21,6 +21,7 @@ def register(sub) -> None:
         "mode is identified.",
     )
     add_data_args(p)
+    add_rig_argument(p)  # (the FRF is model-free: the rig sets the sensors and scale)
     p.add_argument("--method", choices=METHODS, default="lsce",
                    help="modal parameter fit (default %(default)s)")
     p.add_argument("--n-modes", type=int, default=None,

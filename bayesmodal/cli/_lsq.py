@@ -6,8 +6,15 @@ import numpy as np
 
 from .._format import estimate, param_unit, percent, values
 from ..fit import fit_lsq
-from ..system import LinearModel, Rig
-from ._common import add_data_args, load_args, print_json
+from ..system import LinearModel
+from ._common import (
+    add_data_args,
+    add_initial_state_argument,
+    add_rig_argument,
+    load_args,
+    load_rig,
+    print_json,
+)
 
 
 def register(sub) -> None:
@@ -20,6 +27,8 @@ def register(sub) -> None:
         "(report Tables 3-6).",
     )
     add_data_args(p, many=True)
+    add_rig_argument(p)
+    add_initial_state_argument(p)
     p.add_argument("--damping", choices=["free", "proportional"], default="free",
                    help="damping model: free (c1, c2, c3, c12, c23 each fitted) or "
                    "proportional (C = ca M + cb K)")
@@ -48,8 +57,8 @@ def lsq_summary(res) -> dict:
 
 def run(args) -> int:
     exps = load_args(args)
-    model = LinearModel(Rig(), args.damping)
-    res = fit_lsq(exps, model)
+    model = LinearModel(load_rig(args), args.damping)
+    res = fit_lsq(exps, model, initial_state=args.initial_state)
     summary = lsq_summary(res)
     if args.json:
         print_json(summary)

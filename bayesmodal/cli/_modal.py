@@ -10,7 +10,7 @@ from .._errors import ConfigError
 from .._format import param_unit, sig
 from ..modal import ConvergenceError, modal_report, rayleigh_modes, transfer_function
 from ..system import LinearModel, Rig
-from ._common import print_json
+from ._common import add_rig_argument, load_rig, print_json
 
 #: Report Table 3 (free damping) and Table 4 (proportional damping), the defaults.
 REPORT_PARAMS = {
@@ -37,6 +37,7 @@ def register(sub) -> None:
     p.add_argument("--damping", choices=["free", "proportional"], default="free",
                    help="damping model: free (c1, c2, c3, c12, c23) or proportional "
                    "(C = ca M + cb K)")
+    add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write rayleigh_contour.png, bode_force.png, mode_shapes.png here "
@@ -44,14 +45,18 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def parse_params(text: str, damping: str, springs=None) -> tuple[dict[str, float], list[float]]:
+def parse_params(text: str, damping: str, springs=None, names=None
+                 ) -> tuple[dict[str, float], list[float]]:
     """``"a=1,k2=900"`` merged over the report's values and the rig's springs.
 
     Returns the model parameters (``LinearModel.names``) and the springs k1..kn, N/m.
-    Each value is checked on its own, so that an error names the parameter.
+    Each value is checked on its own, so that an error names the parameter.  With
+    ``names`` (a rig other than the report's) there are no defaults: every name must be
+    given, and the springs are the rig's (known or among ``names``).
     """
-    params = dict(REPORT_PARAMS[damping])
-    springs = list(Rig().springs_n_m if springs is None else springs)
+    params = dict(REPORT_PARAMS[damping]) if names is None else dict.fromkeys(names, np.nan)
+    springs = [] if names is not None else list(
+        Rig().springs_n_m if springs is None else springs)
     ks = {f"k{i + 1}": i for i in range(len(springs))}
     known = [*params, *ks]
     for item in filter(None, (s.strip() for s in text.split(","))):
@@ -82,9 +87,17 @@ def parse_params(text: str, damping: str, springs=None) -> tuple[dict[str, float
 
 
 def run(args) -> int:
-    params, springs = parse_params(args.params, args.damping)
-    model = LinearModel(Rig(tuple(springs)), args.damping)
+    rig = load_rig(args)
+    if rig == Rig():
+        params, springs = parse_params(args.params, args.damping)
+        model = LinearModel(Rig(tuple(springs)), args.damping)
+    else:
+        model = LinearModel(rig, args.damping)
+        params, _ = parse_params(args.params, args.damping, names=model.names)
     theta = model.as_vector(params)
+    if not np.all(np.isfinite(theta)):
+        missing = [n for n, v in zip(model.names, theta, strict=True) if not np.isfinite(v)]
+        raise ConfigError(f"--params must give {missing} for this rig (no report values)")
     try:
         report = modal_report(model, theta)
     except ConvergenceError as exc:

@@ -9,7 +9,14 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._format import param_unit, sig
-from ._common import add_data_args, load_args, print_json
+from ._common import (
+    add_data_args,
+    add_initial_state_argument,
+    add_rig_argument,
+    load_args,
+    load_rig,
+    print_json,
+)
 
 
 def register(sub) -> None:
@@ -22,6 +29,8 @@ def register(sub) -> None:
                     "from the checkpoint.",
     )
     add_data_args(p, many=True)
+    add_rig_argument(p)
+    add_initial_state_argument(p)
     add_sampler_args(p)
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder (default runs/sample-<damping>-<noise>)")
@@ -52,14 +61,15 @@ def add_sampler_args(p) -> None:
 def sample_to_dir(exps, args, damping: str, out: Path):
     """Sample one model into ``out``; return (summary, idata) (shared with ``compare``)."""
     from ..inference import sample_posterior, to_inference_data, write_run
-    from ..system import LinearModel, Rig
+    from ..system import LinearModel
 
-    model = LinearModel(Rig(), damping)
+    model = LinearModel(load_rig(args), damping)
     for e in exps:  # checked before the output folder is made
-        if e.n_outputs != model.n_carts:
+        if e.n_outputs != model.n_outputs:
             raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
-                            f"{model.n_carts} carts; give a record with one position column "
-                            f"per cart (x1..x{model.n_carts})")
+                            f"{model.n_outputs} {'carts' if model.rig.is_chain else 'sensors'}; "
+                            "give a record with one position column per "
+                            f"{'cart' if model.rig.is_chain else 'sensor'}")
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "chain.h5"
@@ -69,7 +79,7 @@ def sample_to_dir(exps, args, damping: str, out: Path):
         run = sample_posterior(
             exps, model, noise=args.noise, n_walkers=args.walkers,
             n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
-            progress=not args.quiet,
+            progress=not args.quiet, initial_state=getattr(args, "initial_state", "rest"),
         )
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)

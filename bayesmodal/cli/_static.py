@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..static import steady_state
-from ._common import add_data_args, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
 def register(sub) -> None:
@@ -17,6 +17,7 @@ def register(sub) -> None:
         "referenced to zero and to the previous plateau.",
     )
     add_data_args(p)
+    add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", help="write the plateau-picking plot into DIR "
                    "(default: no plots)")
@@ -46,7 +47,8 @@ def format_static(results) -> str:
 
 def run(args) -> int:
     (exp,) = load_args(args)
-    results = [steady_state(exp, reference=ref) for ref in ("zero", "previous")]
+    results = [steady_state(exp, rig=load_rig(args), reference=ref)
+               for ref in ("zero", "previous")]
     if args.plots:
         import matplotlib
 

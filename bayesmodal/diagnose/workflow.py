@@ -209,6 +209,10 @@ def diagnose(
     if not exps:
         raise DataError("no experiments given")
     rig = Rig() if rig is None else rig
+    if LinearModel(rig, "free").output_index is not None:
+        # the diagnostics read output j as the position of cart j
+        raise ModelError("diagnose needs a sensor on every moving cart, in cart order; "
+                         "list the rig's [[sensors]] that way")
     for e in exps:
         if not isinstance(e, Experiment):
             raise DataError(f"expected Experiment objects, got {type(e).__name__}")

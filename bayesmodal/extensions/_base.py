@@ -148,6 +148,8 @@ class Extension(ABC):
     @staticmethod
     def linear_model(rig: Rig) -> LinearModel:
         """The underlying free-damping linear model."""
+        # the simulators hard-wire the chain driven at cart 1 (see _nl_kernels)
+        rig.require_chain("model extensions (bayesmodal.extensions)")
         return LinearModel(rig, "free")
 
     @abstractmethod

@@ -54,6 +54,8 @@ class CrossvalSpec:
         Likelihood tempering ``L^(1/T)`` (1: the plain posterior).
     springs_n_m : tuple of float, optional
         The rig's springs (default: the ECP 210's).
+    rig : Rig, optional
+        A rig description (``bayesmodal.rigs``); overrides ``springs_n_m``.
     """
 
     damping: str = "free"
@@ -67,6 +69,7 @@ class CrossvalSpec:
     seed: int = 1
     temperature: float = 1.0
     springs_n_m: tuple[float, ...] | None = None
+    rig: object = None
 
     def __post_init__(self) -> None:
         if self.n_predictive < 2:
@@ -77,6 +80,10 @@ class CrossvalSpec:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["layout"] = self.layout.to_dict()
+        if self.rig is not None:
+            from ..rigs import rig_to_dict
+
+            d["rig"] = rig_to_dict(self.rig)
         return d
 
 
@@ -163,6 +170,8 @@ class CrossvalResult:
 def _model(spec: CrossvalSpec):
     from ..system import LinearModel, Rig
 
+    if spec.rig is not None:
+        return LinearModel(spec.rig, spec.damping)
     rig = Rig() if spec.springs_n_m is None else Rig(tuple(spec.springs_n_m))
     return LinearModel(rig, spec.damping)
 

@@ -98,6 +98,8 @@ def _attrs(run) -> dict:
         "parameter_names": json.dumps(list(run.names)),
         "mechanical_names": json.dumps(list(lik.mech_names)),
         "springs_n_m": json.dumps(list(lik.model.rig.springs_n_m)),
+        **({} if lik.model.rig.is_chain else {"rig_toml": _rig_toml(lik.model.rig)}),
+        **({} if lik.initial_state == "rest" else {"initial_state": lik.initial_state}),
         "burn": int(run.burn),
         "thin": int(run.thin),
         "n_steps": int(run.chain.shape[0]),
@@ -121,7 +123,10 @@ def _attrs(run) -> dict:
     if layout is not None:
         attrs["record_layout_json"] = json.dumps(layout.to_dict())
     if run.lsq is not None:
-        attrs["lsq_theta_json"] = json.dumps(run.lsq.theta.tolist())
+        # (with estimated initial states they follow, as in the mechanical names)
+        x0 = getattr(run.lsq, "x0", None)
+        theta = run.lsq.theta if x0 is None else np.r_[run.lsq.theta, np.ravel(x0)]
+        attrs["lsq_theta_json"] = json.dumps(theta.tolist())
         attrs["lsq_fit_percent_json"] = json.dumps(run.lsq.fit_percent.tolist())
     return attrs
 
@@ -259,7 +264,17 @@ def model_from_idata(idata):
     from ..system import LinearModel, Rig
 
     a = idata.posterior.attrs
+    if "rig_toml" in a:  # a rig other than the chain
+        from ..rigs import rig_from_toml
+
+        return LinearModel(rig_from_toml(a["rig_toml"], where="idata"), a["damping"])
     return LinearModel(Rig(tuple(json.loads(a["springs_n_m"]))), a["damping"])
+
+
+def _rig_toml(rig) -> str:
+    from ..rigs import rig_to_toml
+
+    return rig_to_toml(rig)
 
 
 def priors_from_idata(idata):
@@ -294,15 +309,16 @@ def likelihood_from_idata(idata, experiments=None):
     from .likelihood import Likelihood
 
     exps = experiments_from_idata(idata) if experiments is None else experiments
-    layout = idata.posterior.attrs.get("record_layout_json")
+    a = idata.posterior.attrs
+    layout = a.get("record_layout_json")
     if layout:
         from .records import RecordLayout, RecordsLikelihood
 
-        return RecordsLikelihood(model_from_idata(idata), tuple(exps),
-                                 idata.posterior.attrs["noise"], extension_from_idata(idata),
+        return RecordsLikelihood(model_from_idata(idata), tuple(exps), a["noise"],
+                                 extension_from_idata(idata),
                                  RecordLayout.from_dict(json.loads(layout)))
-    return Likelihood(model_from_idata(idata), tuple(exps), idata.posterior.attrs["noise"],
-                      extension_from_idata(idata))
+    return Likelihood(model_from_idata(idata), tuple(exps), a["noise"],
+                      extension_from_idata(idata), a.get("initial_state", "rest"))
 
 
 def save_idata(idata, path: str | os.PathLike) -> Path:

@@ -234,6 +234,10 @@ class Likelihood:
     extension : str or Extension, optional
         A model extension (name in ``bayesmodal.extensions.EXTENSIONS`` or an instance);
         requires ``model`` with free damping.  None (default) is the linear model.
+    initial_state : {"rest", "estimate"}
+        ``"rest"`` (default): every record starts at rest.  ``"estimate"``: the initial
+        positions and velocities of each record are parameters (free decays), named in
+        ``initial_state_names`` and placed at the end of ``mech_names``.
 
     Attributes
     ----------
@@ -263,6 +267,7 @@ class Likelihood:
     experiments: tuple[Experiment, ...]
     noise: str = "ar1"
     extension: object = None
+    initial_state: str = "rest"
 
     def __post_init__(self) -> None:
         if isinstance(self.experiments, Experiment):
@@ -272,25 +277,49 @@ class Likelihood:
         if not exps:
             raise DataError("no experiments given")
         for e in exps:
-            if e.n_outputs != self.model.n_carts:
+            if e.n_outputs != self.model.n_outputs:
                 raise DataError(
-                    f"{e.name}: {e.n_outputs} outputs but the model has {self.model.n_carts} carts"
+                    f"{e.name}: {e.n_outputs} outputs but the model has "
+                    f"{self.model.n_outputs} {'carts' if self.model.rig.is_chain else 'sensors'}"
                 )
         if self.noise not in NOISE_MODELS:
             raise ConfigError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
+        if self.initial_state != "rest":
+            from ..fit import check_records
+
+            check_records(self.model, exps, self.initial_state)
+            if self.extension is not None:
+                raise ModelError("initial_state='estimate' works with the linear model only; "
+                                 "drop the extension or use records that start at rest")
         object.__setattr__(self, "experiments", exps)
         object.__setattr__(self, "extension", resolve_extension(self.extension, self.model))
 
     # ---------------------------------------------------------------- layout
     @property
     def n_outputs(self) -> int:
-        return self.model.n_carts
+        return self.model.n_outputs
+
+    @property
+    def initial_state_names(self) -> tuple[str, ...]:
+        """Initial positions ``x<i>_0`` (m) and velocities ``v<i>_0`` (m/s) per record.
+
+        Empty unless ``initial_state="estimate"``; with several records each name ends in
+        ``_e<j>`` (1-based record number).
+        """
+        if self.initial_state == "rest":
+            return ()
+        rig = self.model.rig
+        carts = [rig.cart_index(c) for c in rig.free_carts]
+        states = [f"x{i}_0" for i in carts] + [f"v{i}_0" for i in carts]
+        if len(self.experiments) == 1:
+            return tuple(states)
+        return tuple(f"{s}_e{j + 1}" for j in range(len(self.experiments)) for s in states)
 
     @property
     def mech_names(self) -> tuple[str, ...]:
-        """Model parameter names (linear, then the extension's), without the noise."""
+        """Model parameter names (linear, then the extension's or the initial states)."""
         if self.extension is None:
-            return self.model.names
+            return self.model.names + self.initial_state_names
         return self.extension.names(self.model.rig)
 
     @property
@@ -337,7 +366,7 @@ class Likelihood:
         mech, sigma, phi = self.split(theta)
         ok = np.all(np.isfinite(theta), axis=-1)
         if self.extension is None:
-            ok &= self.model.valid(mech)
+            ok &= self.model.valid(mech[:, : self.model.n_params])
         else:
             with np.errstate(invalid="ignore"):
                 ok &= self.extension.valid(self.model.rig, mech)
@@ -359,6 +388,11 @@ class Likelihood:
             rig = self.model.rig
             return [self.extension.simulate(rig, theta_mech, e.v_volt, e.dt)
                     for e in self.experiments]
+        if self.initial_state != "rest":
+            p = self.model.n_params
+            x0 = theta_mech[:, p:].reshape(len(theta_mech), len(self.experiments), -1)
+            return [simulate_linear(self.model, theta_mech[:, :p], e.v_volt, e.dt, x0[:, j])
+                    for j, e in enumerate(self.experiments)]
         return [
             simulate_linear(self.model, theta_mech, e.v_volt, e.dt) for e in self.experiments
         ]
@@ -444,8 +478,9 @@ def resolve_extension(extension, model: LinearModel):
     Raises
     ------
     ModelError
-        For an unknown name, an object that is not an ``Extension``, or a model whose
-        damping is not free (every extension is built on ``LinearModel(rig, "free")``).
+        For an unknown name, an object that is not an ``Extension``, a model whose
+        damping is not free (every extension is built on ``LinearModel(rig, "free")``), or
+        a rig other than the chain driven at cart 1 (``Rig.is_chain``).
     """
     if extension is None:
         return None
@@ -460,6 +495,7 @@ def resolve_extension(extension, model: LinearModel):
         raise ModelError(
             f"the {ext.name} extension is built on the free-damping model; got "
             f"{model.damping!r} damping (use LinearModel(rig, 'free'))")
+    model.rig.require_chain(f"the {ext.name} extension")
     return ext
 
 

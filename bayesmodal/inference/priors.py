@@ -65,7 +65,7 @@ proportional ratio ``cb omega / 2`` of 0.2 at the highest mode (about 42 rad/s).
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -349,6 +349,7 @@ def default_priors(
     n_outputs: int | None = None,
     overrides: Mapping[str, object] | None = None,
     extension=None,
+    initial_states: Sequence[str] = (),
 ) -> PriorSet:
     """Documented default priors for a rig model and a noise model.
 
@@ -357,18 +358,24 @@ def default_priors(
     model : LinearModel
     noise : {"ar1", "white"}
     n_outputs : int, optional
-        Number of measured outputs (default: the number of carts).
+        Number of measured outputs (default: the rig's sensors, one per cart for a chain).
     overrides : mapping of str to prior, optional
         Per-parameter replacements, e.g. ``{"g_v": Normal(6.2, 0.5, lo=0)}``.
     extension : str or Extension, optional
         A model extension (free damping only); its parameters get ``Uniform`` priors on
         their ``ParamSpec.bounds`` (see the module docstring for the transforms).
+    initial_states : sequence of str
+        Names of estimated initial states (``Likelihood.initial_state_names``): uniform on
+        +-0.1 m for positions ``x*``, +-2 m/s for velocities ``v*``.
 
     Returns
     -------
     PriorSet
-        Parameters ordered as ``model.names`` (or ``extension.names(model.rig)``) followed
-        by ``noise_names(n_outputs, noise)``.
+        Parameters ordered as ``model.names`` (or ``extension.names(model.rig)``), the
+        initial states, then ``noise_names(n_outputs, noise)``.  For a rig other than the
+        chain: the same priors by parameter kind, and for an unknown spring
+        ``Normal(stiffness_n_m, prior_sd_n_m, lo=0)`` or, without ``prior_sd_n_m``,
+        ``Uniform(stiffness_n_m / 10, 10 stiffness_n_m)`` (log transform).
 
     Examples
     --------
@@ -379,7 +386,7 @@ def default_priors(
     (('Fc1', 'Fc2', 'Fc3'), Uniform(lo=0.0, hi=2.0))
     """
     n = model.n_carts
-    n_out = n if n_outputs is None else int(n_outputs)
+    n_out = model.n_outputs if n_outputs is None else int(n_outputs)
     names, priors, trs = [], [], []
 
     def add(nm, prior, tr):
@@ -387,18 +394,24 @@ def default_priors(
         priors.append(prior)
         trs.append(tr)
 
-    add("g_v", Uniform(1.0, 15.0), "log")
-    for i in range(n):
-        add(f"m{i + 1}", Uniform(0.2, 5.0), "log")
     mech = model.names
-    if model.damping == "proportional":
-        add("ca", Uniform(0.0, 20.0), "log")
-        add("cb", Uniform(0.0, 0.01), "identity")
+    if not model.rig.is_chain:
+        _layout_priors(model, add)
     else:
-        for nm in mech[1 + n :]:
-            add(nm, Uniform(0.0, 20.0), "identity")
+        add("g_v", Uniform(1.0, 15.0), "log")
+        for i in range(n):
+            add(f"m{i + 1}", Uniform(0.2, 5.0), "log")
+        if model.damping == "proportional":
+            add("ca", Uniform(0.0, 20.0), "log")
+            add("cb", Uniform(0.0, 0.01), "identity")
+        else:
+            for nm in mech[1 + n :]:
+                add(nm, Uniform(0.0, 20.0), "identity")
     if tuple(names) != tuple(mech):  # pragma: no cover - guards against a model change
         raise ConfigError(f"default priors do not match the model parameters {mech}")
+    for nm in initial_states:
+        # initial positions within 10 cm, velocities within 2 m/s of rest
+        add(nm, Uniform(-0.1, 0.1) if nm.startswith("x") else Uniform(-2.0, 2.0), "identity")
     if extension is not None:
         from .likelihood import resolve_extension
 
@@ -413,3 +426,27 @@ def default_priors(
             add(nm, Uniform(-1.0, 1.0), "tanh")
     ps = PriorSet(tuple(names), tuple(priors), tuple(trs))
     return ps.replace(overrides) if overrides else ps
+
+
+def _layout_priors(model, add) -> None:
+    """Default priors of a non-chain rig, by parameter kind (the chain's values)."""
+    from ..fit import param_kinds
+
+    springs = {s.name: s for s in model.rig.springs}
+    for nm, kind in zip(model.names, param_kinds(model), strict=True):
+        if kind == "gain":
+            add(nm, Uniform(1.0, 15.0), "log")
+        elif kind == "mass":
+            add(nm, Uniform(0.2, 5.0), "log")
+        elif kind == "ca":
+            add(nm, Uniform(0.0, 20.0), "log")
+        elif kind == "cb":
+            add(nm, Uniform(0.0, 0.01), "identity")
+        elif kind == "spring":
+            s = springs[nm]
+            k = s.stiffness_n_m
+            prior = (Uniform(k / 10, 10 * k) if s.prior_sd_n_m is None
+                     else Normal(k, s.prior_sd_n_m, lo=0.0))
+            add(nm, prior, "log")
+        else:
+            add(nm, Uniform(0.0, 20.0), "identity")

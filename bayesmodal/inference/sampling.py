@@ -501,6 +501,7 @@ def sample_posterior(
     restart: int | None = None,
     layout=None,
     temperature: float = 1.0,
+    initial_state: str = "rest",
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -577,6 +578,9 @@ def sample_posterior(
         the posterior of a misspecified model (calibrated by leave-one-record-out
         coverage, ``bayesmodal.inference.crossval``); 1 (default) is Bayes' rule.  The
         stored log-likelihood is the untempered one.
+    initial_state : {"rest", "estimate"}
+        ``"estimate"`` samples each record's initial positions and velocities too (free
+        decays; see ``Likelihood``); they follow the model parameters in the chain.
 
     Returns
     -------
@@ -609,15 +613,19 @@ def sample_posterior(
                 start = fit_lsq(list(exps), model)
             noise = choose_noise(exps, model, start, extension=extension)
     if layout is None:
-        lik = Likelihood(model, exps, noise, extension)
+        lik = Likelihood(model, exps, noise, extension, initial_state)
     else:
         from .records import RecordsLikelihood
 
+        if initial_state != "rest":
+            raise ConfigError("estimated initial states (free decays) are built for the "
+                              "single-record likelihood; drop the per-record layout")
         lik = RecordsLikelihood(model, exps, noise, extension, layout)
     ext = lik.extension
     if priors is None:
         if layout is None:
-            priors = default_priors(model, noise=noise, extension=ext)
+            priors = default_priors(model, noise=noise, extension=ext,
+                                    initial_states=lik.initial_state_names)
         else:
             from .records import record_priors
 
@@ -651,10 +659,16 @@ def sample_posterior(
     # start point: LSQ mechanical estimate plus moment estimates of the noise
     if ext is None:
         if start is None:
-            start = fit_lsq(list(exps), model)
+            start = fit_lsq(list(exps), model, initial_state=initial_state)
         lsq = start if isinstance(start, LSQResult) else None
         theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
-        theta_mech = model.check(theta_mech)
+        if lik.initial_state_names and lsq is not None:
+            theta_mech = np.r_[model.check(theta_mech), lsq.x0.ravel()]
+        elif lik.initial_state_names:
+            theta_mech = np.r_[model.check(theta_mech[: model.n_params]),
+                               theta_mech[model.n_params :]]
+        else:
+            theta_mech = model.check(theta_mech)
     else:
         from ..extensions import ExtensionFit, fit_extension_lsq
 
@@ -683,6 +697,9 @@ def sample_posterior(
         "damping": model.damping,
         **({} if ext is None else {"extension": ext.name}),
         "springs_n_m": list(model.rig.springs_n_m),
+        # (absent for the chain, so that the hashes of earlier runs stay valid)
+        **({} if model.rig.is_chain else {"rig": _rig_dict(model.rig)}),
+        **({} if initial_state == "rest" else {"initial_state": initial_state}),
         "noise": lik.noise,
         "priors": [repr(p) for p in priors.priors],
         "transforms": list(priors.transforms),
@@ -771,3 +788,9 @@ def sample_posterior(
         n_evaluations=n_eval,
         config=config,
     )
+
+
+def _rig_dict(rig) -> dict:
+    from ..rigs import rig_to_dict
+
+    return rig_to_dict(rig)

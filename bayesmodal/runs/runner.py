@@ -29,7 +29,7 @@ from .._errors import ConfigError, DataError
 from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
 from ..metrics import fit_percent
-from ..system import LinearModel, Rig
+from ..system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 
@@ -164,11 +164,15 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     exps = _load(cfg.data_files, cfg, "data.files")
     held = _load(cfg.heldout_files, cfg, "data.heldout", fitted=False)
     try:
-        model = LinearModel(Rig(cfg.springs_n_m), cfg.damping)
+        model = LinearModel(cfg.make_rig(), cfg.damping)
     except ValueError as exc:
-        raise ConfigError(f"{src}: [rig.springs_n_m] {exc}") from exc
+        raise ConfigError(f"{src}: [rig{'' if cfg.rig else '.springs_n_m'}] {exc}") from exc
     for e in exps + held:
-        if e.n_outputs != model.n_carts:
+        if cfg.rig is not None and e.n_outputs != model.n_outputs:
+            raise ConfigError(
+                f"{src}: [rig] the rig has {model.n_outputs} sensors, but "
+                f"{e.source or e.name} has {e.n_outputs} measured outputs")
+        if cfg.rig is None and e.n_outputs != model.n_carts:
             raise ConfigError(
                 f"{src}: [rig.springs_n_m] {len(cfg.springs_n_m)} springs make "
                 f"{model.n_carts} carts, but {e.source or e.name} has {e.n_outputs} measured "
