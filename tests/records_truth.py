@@ -28,14 +28,16 @@ DT = 0.005
 
 
 def inputs(n: int = 2000) -> dict[str, np.ndarray]:
-    """Pulses (3 V), steps (0.5 V) and a chirp (0.2 V, 0.5-8 Hz) of ``n`` samples."""
+    """Four records of ``n`` samples at the rig's amplitudes: pulses (3 V), steps (0.5 V)
+    and two chirps (0.2 V, 0.5-8 Hz up, and 8-0.5 Hz down)."""
     t = np.arange(n) * DT
     period = n * DT / 3
     pulses = 3.0 * ((t % period) < 0.05)
     steps = 0.5 * ((t % period) < period / 2)
     f = 0.5 + (8.0 - 0.5) * t / t[-1]
-    chirp = 0.2 * np.sin(2 * np.pi * np.cumsum(f) * DT)
-    return {"pulses": pulses, "steps": steps, "chirp": chirp}
+    up = 0.2 * np.sin(2 * np.pi * np.cumsum(f) * DT)
+    down = 0.2 * np.sin(2 * np.pi * np.cumsum(f[::-1]) * DT)
+    return {"pulses": pulses, "steps": steps, "chirp_up": up, "chirp_down": down}
 
 
 def simulate(theta_lin, v, dt=DT):

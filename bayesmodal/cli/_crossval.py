@@ -26,8 +26,9 @@ def register(sub) -> None:
                         "[sampler] settings are used (default: the options below)")
     p.add_argument("--damping", choices=["free", "proportional"], default="free",
                    help="damping model (default free)")
-    p.add_argument("--noise", choices=["ar1", "white"], default="ar1",
-                   help="residual model (default ar1)")
+    p.add_argument("--noise", default="ar1", metavar="MODEL",
+                   help="residual model: ar1, white, arP (e.g. ar4), ar(p1,p2,p3) or ar:auto "
+                   "(orders by BIC on each fold's training records) (default ar1)")
     p.add_argument("--per-record", default="g_v=hierarchical,v0=hierarchical",
                    metavar="NAME=KIND,...",
                    help="per-record parameters, KIND independent or hierarchical, or 'none' "

@@ -47,8 +47,13 @@ def add_sampler_args(p) -> None:
     p.add_argument("--damping", choices=["free", "proportional"], default="free",
                    help="damping model: free (c1, c2, c3, c12, c23) or proportional "
                    "(C = ca M + cb K)")
-    p.add_argument("--noise", choices=["ar1", "white"], default="ar1",
-                   help="residual model (default ar1: AR(1) Gaussian per output)")
+    p.add_argument("--noise", default="ar1", metavar="MODEL",
+                   help="residual model: ar1 (AR(1) Gaussian per output), white, arP (e.g. "
+                   "ar4), ar(p1,p2,p3) or ar:auto (orders by BIC)")
+    p.add_argument("--per-record", default="none", metavar="NAME=KIND,...",
+                   help="several DATA records, one physical system: parameters with one "
+                   "value per record, KIND independent or hierarchical, e.g. "
+                   "g_v=hierarchical,v0=hierarchical; none shares every parameter")
     p.add_argument("--walkers", type=int, default=32, help="ensemble size")
     p.add_argument("--steps", type=int, default=5000, help="steps per walker")
     p.add_argument("--burn", type=int, default=None,
@@ -76,8 +81,12 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     if getattr(args, "fresh", False) and ckpt.exists():
         ckpt.unlink()
     try:
+        from ..inference.records import parse_layout
+
+        layout = parse_layout(getattr(args, "per_record", "none"))
         run = sample_posterior(
             exps, model, noise=args.noise, n_walkers=args.walkers,
+            layout=layout if layout.per_record else None,
             n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
             progress=not args.quiet, initial_state=getattr(args, "initial_state", "rest"),
         )

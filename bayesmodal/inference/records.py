@@ -337,6 +337,11 @@ class RecordsLikelihood:
         return None if self.extension is None else self.extension.name
 
     @property
+    def initial_state_names(self) -> tuple[str, ...]:
+        """Estimated initial states: none (records start at rest)."""
+        return ()
+
+    @property
     def n_data(self) -> int:
         return sum(e.n_samples * e.n_outputs for e in self.experiments)
 

@@ -164,9 +164,13 @@ def convergence_diagnostics(
     az = arviz()
     n_steps = chain.shape[0]
     # tol=0: always return the estimate; the length check is ours (below), not emcee's log
-    tau = emcee.autocorr.integrated_time(chain, tol=0) if n_steps > 1 else np.full(
-        chain.shape[-1], np.inf)
+    # a parameter that no walker has moved yet (a very short run) has a zero
+    # autocovariance: its tau is NaN, counted as not converged below, not an error
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tau = emcee.autocorr.integrated_time(chain, tol=0) if n_steps > 1 else np.full(
+            chain.shape[-1], np.inf)
     tau = np.asarray(tau, dtype=float)
+    tau = np.where(np.isnan(tau), np.inf, tau)
     tau_max = float(np.nanmax(tau)) if tau.size else np.inf
     n_over = n_steps / tau_max if tau_max > 0 else np.inf
     import xarray as xr

@@ -49,6 +49,9 @@ class RunRow:
         ``{"log_z", "log_z_err"}`` when the run computed it.
     heldout : dict or None
         ``{"experiments", "lpd", "fit_percent_median"}`` when available.
+    crossval : dict or None
+        Leave-one-record-out: ``{"lpd", "lpd_se", "records": {name: lpd}}`` when the run
+        has it (``[crossval] enabled``).
     """
 
     label: str
@@ -64,6 +67,7 @@ class RunRow:
     weight: float
     evidence: dict | None = None
     heldout: dict | None = None
+    crossval: dict | None = None
 
     @property
     def n_modes(self) -> int:
@@ -103,7 +107,7 @@ class RunComparison:
                 "elpd_diff": r.elpd_diff, "dse": r.dse, "weight": r.weight,
                 "max_pareto_k": c.max_pareto_k, "n_bad_k": c.n_bad_k,
                 "elpd_waic": c.elpd_waic, "se_waic": c.se_waic, "p_waic": c.p_waic,
-                "evidence": r.evidence, "heldout": r.heldout,
+                "evidence": r.evidence, "heldout": r.heldout, "crossval": r.crossval,
                 "converged": r.summary.get("diagnostics", {}).get("converged"),
                 "omega_rad_s": r.summary["omega_rad_s"], "zeta": r.summary["zeta"],
             })
@@ -112,7 +116,8 @@ class RunComparison:
     def to_markdown(self) -> str:
         """The model-choice table, best PSIS-LOO first."""
         head = ("| run | damping | noise | P | elpd LOO (se) | diff (dse) | p_loo | k > 0.7 | "
-                "elpd WAIC (se) | ln Z (err) | held-out lpd | held-out fit % |")
+                "elpd WAIC (se) | ln Z (err) | held-out lpd | held-out fit % | "
+                "leave-one-record-out lpd (se) |")
         out = [head, "|" + "---|" * (head.count("|") - 1)]
         for r in self.rows:
             c = r.criteria
@@ -125,8 +130,37 @@ class RunComparison:
                 f"| {r.label} | {r.damping} | {r.noise} | {r.n_params} | "
                 f"{c.elpd_loo:.1f} ({c.se_loo:.1f}) | {r.elpd_diff:.1f} ({r.dse:.1f}) | "
                 f"{c.p_loo:.1f} | {c.n_bad_k} | {c.elpd_waic:.1f} ({c.se_waic:.1f}) | {ev} | "
-                f"{ho} | {fit} |")
+                f"{ho} | {fit} | {_cv_cell(r.crossval)} |")
         return "\n".join(out)
+
+
+def _cv_cell(cv: dict | None) -> str:
+    return "" if not cv else f"{cv['lpd']:.1f} ({cv['lpd_se']:.1f})"
+
+
+def _crossval_of(summary: dict) -> dict | None:
+    cv = summary.get("crossval")
+    if not cv or not cv.get("records"):
+        return None
+    return {"lpd": cv["total"]["lpd"], "lpd_se": cv["total"]["lpd_se"],
+            "records": {r["name"]: r["lpd"] for r in cv["records"]}}
+
+
+def crossval_difference(a: dict, b: dict) -> tuple[float, float]:
+    """Summed leave-one-record-out lpd of ``a`` minus ``b`` and its standard error, from
+    the paired per-record differences (``sqrt(R) sd(d_r)``, as PSIS-LOO's ``dse``).
+
+    Raises
+    ------
+    ConfigError
+        If the two runs left out different records.
+    """
+    if set(a["records"]) != set(b["records"]):
+        raise ConfigError(f"leave-one-record-out on different records: {sorted(a['records'])} "
+                          f"and {sorted(b['records'])}")
+    d = np.array([a["records"][k] - b["records"][k] for k in a["records"]])
+    se = float(np.sqrt(d.size) * np.std(d, ddof=1)) if d.size > 1 else math.nan
+    return float(d.sum()), se
 
 
 def _labels(paths: list[Path]) -> list[str]:
@@ -257,7 +291,7 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
             elpd_diff=float(table.loc[lab, "elpd_diff"]), dse=float(table.loc[lab, "dse"]),
             weight=float(table.loc[lab, "weight"]),
             evidence=None if ev is None else {"log_z": ev["log_z"], "log_z_err": ev["log_z_err"]},
-            heldout=heldout))
+            heldout=heldout, crossval=_crossval_of(summary)))
     rows.sort(key=lambda r: r.rank)
     pref = {"loo": rows[0].label,
             "waic": max(rows, key=lambda r: r.criteria.elpd_waic).label}
@@ -265,6 +299,8 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
         pref["evidence"] = max(rows, key=lambda r: r.evidence["log_z"]).label
     if all(r.heldout for r in rows):
         pref["heldout"] = max(rows, key=lambda r: r.heldout["lpd"]).label
+    if all(r.crossval for r in rows):
+        pref["crossval"] = max(rows, key=lambda r: r.crossval["lpd"]).label
     return RunComparison(rows=tuple(rows), preferred=pref, verdict=_verdict(rows, pref),
                          notes=notes)
 
@@ -280,6 +316,15 @@ def _verdict(rows, pref: dict) -> str:
                       ("heldout", "the held-out records")):
         if key in pref:
             words.append(f"By {what}: {pref[key]}.")
+    if "crossval" in pref:
+        best_cv = next(r for r in rows if r.label == pref["crossval"])
+        others = [r for r in rows if r is not best_cv]
+        runner_up = max(others, key=lambda r: r.crossval["lpd"])
+        diff, se = crossval_difference(best_cv.crossval, runner_up.crossval)
+        words.append(
+            f"Which model predicts the next experiment (leave-one-record-out, the criterion "
+            f"for that question): {best_cv.label}, ahead of {runner_up.label} by {diff:.1f} "
+            f"nats ({diff / se if se > 0 else math.inf:.1f} standard errors over records).")
     if len(set(pref.values())) == 1:
         words.append("All criteria agree.")
     else:

@@ -1,0 +1,92 @@
+"""Leave-one-record-out validation: scores against closed forms, the study end to end."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy import stats
+from test_inference_records import _records
+
+from bayesmodal._errors import ConfigError, DataError
+from bayesmodal.inference.crossval import CrossvalSpec, crossval
+from bayesmodal.inference.predictive import crps_ensemble, score_samples
+from bayesmodal.runs.compare import crossval_difference
+
+
+def test_crps_of_a_gaussian_ensemble_matches_the_closed_form():
+    """CRPS(N(0, 1), y) = y (2 Phi(y) - 1) + 2 phi(y) - 1/sqrt(pi); the ensemble estimate
+    is unbiased up to E|X - X'| / (2 S) and scatters with its own standard error."""
+    rng = np.random.default_rng(0)
+    y = 0.7
+    exact = y * (2 * stats.norm.cdf(y) - 1) + 2 * stats.norm.pdf(y) - 1 / np.sqrt(np.pi)
+    s = 2000
+    est = np.array([crps_ensemble(rng.standard_normal((s, 1)), np.array([y]))[0]
+                    for _ in range(40)])
+    bias = (2 / np.sqrt(np.pi)) / (2 * s)
+    se = est.std(ddof=1) / np.sqrt(est.size)
+    assert abs(est.mean() - exact) < 4 * se + bias
+    # negative control: a shifted ensemble scores worse by more than that
+    shifted = crps_ensemble(rng.standard_normal((s, 1)) + 3.0, np.array([y]))[0]
+    assert shifted - exact > 4 * se + bias
+
+
+def test_band_coverage_of_a_calibrated_ensemble_is_nominal():
+    rng = np.random.default_rng(1)
+    n, s = 4000, 400
+    y = rng.standard_normal((n, 2))
+    good = score_samples("x", y, rng.standard_normal((s, n, 2)), np.zeros(s))
+    se = np.sqrt(0.9 * 0.1 / n)
+    assert np.all(np.abs(good.coverage_90 - 0.9) < 4 * se + 1.0 / s)
+    assert np.all(np.abs(good.coverage_50 - 0.5) < 4 * np.sqrt(0.25 / n) + 1.0 / s)
+    narrow = score_samples("x", y, 0.3 * rng.standard_normal((s, n, 2)), np.zeros(s))
+    assert np.all(narrow.coverage_90 < 0.9 - 10 * se)  # the control is overconfident
+    assert np.all(narrow.width_90 < good.width_90)
+
+
+def test_paired_difference_of_summed_lpd():
+    a = {"records": {"x": -10.0, "y": -20.0, "z": -30.0}}
+    b = {"records": {"x": -12.0, "y": -21.0, "z": -36.0}}
+    d, se = crossval_difference(a, b)
+    diffs = np.array([2.0, 1.0, 6.0])
+    assert d == diffs.sum()
+    assert se == pytest.approx(np.sqrt(3) * diffs.std(ddof=1))
+    with pytest.raises(ConfigError, match="different records"):
+        crossval_difference(a, {"records": {"x": 0.0, "y": 0.0}})
+
+
+def test_crossval_cli_errors_name_the_fix(tmp_path, capsys):
+    from bayesmodal.cli import main
+    from bayesmodal.data import save_csv
+
+    rec = _records(n=300)[0]
+    save_csv(rec, tmp_path / "one.csv")
+    assert main(["crossval", str(tmp_path / "one.csv"), "--out", str(tmp_path / "o")]) == 2
+    assert "at least 2 records" in capsys.readouterr().err
+    save_csv(rec, tmp_path / "two.csv")
+    assert main(["crossval", str(tmp_path / "one.csv"), str(tmp_path / "two.csv"),
+                 "--per-record", "g_v", "--out", str(tmp_path / "o")]) == 2
+    assert "NAME=KIND" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
+    from bayesmodal.runs.crossval import write_crossval
+
+    recs = _records(n=400)
+    spec = CrossvalSpec(n_walkers=48, n_steps=20, n_predictive=10, noise="white")
+    res = crossval(recs, spec, workers=1)
+    d = json.loads((write_crossval(res, tmp_path)).read_text())
+    assert [r["name"] for r in d["records"]] == [e.name for e in recs]
+    for r in d["records"]:
+        for key in ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps"):
+            assert len(r[key]) == 3
+        assert np.isfinite(r["lpd"])
+    assert d["total"]["lpd"] == pytest.approx(sum(r["lpd"] for r in d["records"]))
+    assert set(d["own_lsq"]) == {e.name for e in recs}
+    assert (tmp_path / "forest.png").is_file()
+    assert (tmp_path / f"heldout_{recs[0].name}.png").is_file()
+    with pytest.raises(DataError, match="at least 2 records"):
+        crossval(recs[:1], spec)
