@@ -197,6 +197,32 @@ def _pack(arrays, lanes: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate(cols, axis=1).T).ravel()
 
 
+def _lane_inputs(lines: list[str], width: int, packed_from: int | None = None) -> list[str]:
+    """Kernel source reading a per-lane input: ``uk = u[k * width + lane]`` in each lane loop.
+
+    The shared-input kernels read ``uk = u[k]`` once per sample (``_head``); their per-lane
+    variants get ``u`` as an ``(N, width)`` block and read the lane's own sample at the top
+    of every ``for b in range(...)`` loop (an unused read is removed by the compiler).  In
+    loops after line ``packed_from`` the lanes are packed slots and ``slot[b]`` is the lane.
+    """
+    out = []
+    for i, line in enumerate(lines):
+        out.append(line)
+        if line.strip().startswith("for b in range("):
+            lane = "slot[b]" if packed_from is not None and i >= packed_from else "b"
+            indent = line[: len(line) - len(line.lstrip())] + "    "
+            out.append(f"{indent}uk = u[k * {width} + {lane}]")
+    return out
+
+
+def _pack_input(u: np.ndarray, lanes: np.ndarray) -> np.ndarray:
+    """Shared input (N,) as is, or the lanes' rows of a per-lane input (nb, N) as a flat
+    lane-innermost ``(N, width)`` block."""
+    if u.ndim == 1:
+        return u
+    return np.ascontiguousarray(u[lanes].T).ravel()
+
+
 def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.ndarray:
     """Run ``kernel(P, X, u, *args, Y)`` over the batch in chunks of lanes.
 
@@ -206,8 +232,9 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.nda
         ``width -> compiled kernel``.
     params, state : list of ndarray, each shape (nb, ...)
         Per-lane parameter and initial-state arrays, packed in this order.
-    u : ndarray, shape (N,)
-        Input samples.
+    u : ndarray, shape (N,) or (nb, N)
+        Input samples, shared by all lanes or one row per lane (the kernel is then
+        ``kernel_for_width(width, per_lane=True)``).
     n_out : int
         Outputs per sample.
     *args
@@ -221,25 +248,31 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.nda
     nb = params[0].shape[0]
     width = padded_width(nb)
     n_chunks = -(-nb // width)
-    kernel = kernel_for_width(width)
-    N = u.shape[0]
+    kernel = kernel_for_width(width) if u.ndim == 1 else kernel_for_width(width, per_lane=True)
+    N = u.shape[-1]
     Y = np.empty((n_chunks, N, n_out, width))
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
-        kernel(_pack(params, lanes), _pack(state, lanes), u, *args, Y[c].reshape(-1))
+        kernel(_pack(params, lanes), _pack(state, lanes), _pack_input(u, lanes), *args,
+               Y[c].reshape(-1))
     y = Y.transpose(0, 3, 1, 2)
     if n_chunks == 1:
         return y[0, :nb]
     return y.reshape(n_chunks * width, N, n_out)[:nb]
 
 
-def _head(signature: str, n_out: int, width: int, state: _Rows) -> list[str]:
-    """Kernel start: the sample loop and the output of the first ``n_out`` state rows."""
+def _head(signature: str, n_out: int, width: int, state: _Rows,
+          per_lane: bool = False) -> list[str]:
+    """Kernel start: the sample loop and the output of the first ``n_out`` state rows.
+
+    With ``per_lane`` the input ``u`` is an ``(N, width)`` block and ``uk`` is not read
+    here (see ``_lane_inputs``)."""
+    loop = [f"    for k in range(u.shape[0] // {width}):"] if per_lane else [
+        "    for k in range(u.shape[0]):", "        uk = u[k]"]
     return [
         f"def kernel({signature}):",
-        "    for k in range(u.shape[0]):",
-        "        uk = u[k]",
+        *loop,
         f"        yo = k * {n_out * width}",
         f"        for b in range({width}):",
     ] + [f"            Y[yo + {i * width} + b] = {state('x', i)}" for i in range(n_out)]
@@ -248,11 +281,13 @@ def _head(signature: str, n_out: int, width: int, state: _Rows) -> list[str]:
 # ---------------------------------------------------------------------------------------
 # linear recursion with a shifted, clipped input per lane (delay, saturation, motor lag)
 @functools.lru_cache(maxsize=32)
-def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, clipped: bool):
+def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, clipped: bool,
+                        per_lane: bool = False):
     """Compiled ``kernel(P, X, up, shift, Y)`` for the recursion (see ``linear_input_run``).
 
     Without ``shifted`` every lane reads the same input sample (and ``B1`` is not used);
-    without ``clipped`` the input is not clipped.
+    without ``clipped`` the input is not clipped.  With ``per_lane`` ``up`` is a flat
+    ``(N_padded, width)`` block, one input column per lane.
     """
     s, w = n_states, width
     P = _Rows("P", w, [("A", s * s), ("B1", s), ("B2", s), ("lo", 1), ("hi", 1)])
@@ -267,16 +302,19 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
     L = [
         "def kernel(P, X, up, shift, Y):",
         "    N = Y.shape[0] // " + str(n_out * w),
-        "    off = up.shape[0] - N",
+        f"    off = up.shape[0] // {w} - N" if per_lane else "    off = up.shape[0] - N",
         "    for k in range(N):",
         f"        yo = k * {n_out * w}",
-        "        uk = up[k + off]",
+        "        uk = up[k + off]" if not per_lane else "        ko = (k + off) * " + str(w),
         f"        for b in range({w}):",
     ]
+    if per_lane:
+        L += ["            uk = up[ko + b]"]
+    lane = f" * {w} + b" if per_lane else ""
     if shifted:
         L += ["            j = k + shift[b]",
-              f"            ua = {clip('up[j]')}",
-              f"            ub = {clip('up[j + 1]')}"]
+              f"            ua = {clip(f'up[j{lane}]')}",
+              f"            ub = {clip(f'up[(j + 1){lane}]')}"]
     else:
         L += [f"            ub = {clip('uk')}"]
     L += [f"            x{i} = {X('x', i)}" for i in range(s)]
@@ -287,7 +325,7 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
             prods.insert(0, (P('B1', i), "ua"))
         L.append(f"            {X('x', i)} = {_fma_sum(P('B2', i) + ' * ub', prods)}")
     return _compile(L, f"<bayesmodal linear-input s={s} o={n_out} w={w} "
-                       f"shift={shifted} clip={clipped}>")
+                       f"shift={shifted} clip={clipped} per_lane={per_lane}>")
 
 
 def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
@@ -297,8 +335,8 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     ----------
     Ad : ndarray, shape (nb, s, s)
     B1, B2 : ndarray, shape (nb, s)
-    u : ndarray, shape (N,)
-        Input, zero before the first sample.
+    u : ndarray, shape (N,) or (nb, N)
+        Input, zero before the first sample; shared or one row per lane.
     x0 : ndarray, shape (nb, s)
     n_out : int
         Number of leading states returned.
@@ -312,23 +350,26 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     ndarray, shape (nb, N, n_out)
     """
     nb, s, _ = Ad.shape
-    N = u.size
+    N = u.shape[-1]
+    per_lane = u.ndim == 2
     shifted = shift is not None or bool(np.any(B1 != 0.0))
     m = np.zeros(nb, np.int64) if shift is None else np.minimum(shift, N).astype(np.int64)
     clipped = level is not None
     lvl = np.full(nb, np.inf) if level is None else np.asarray(level, dtype=float)
     pad = int(m.max()) + 1
-    up = np.concatenate([np.zeros(pad), u])  # up[k + pad - m - 1] = v[k - m - 1]
+    # up[k + pad - m - 1] = v[k - m - 1]
+    up = np.concatenate([np.zeros(u.shape[:-1] + (pad,)), u], axis=-1)
     width = padded_width(nb)
     n_chunks = -(-nb // width)
-    kernel = linear_input_kernel(s, n_out, width, shifted, clipped)
+    kernel = linear_input_kernel(s, n_out, width, shifted, clipped, per_lane)
     Y = np.empty((n_chunks, N, n_out, width))
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)
         P = _pack([Ad, B1, B2, -lvl, lvl], lanes)
         X = _pack([x0], lanes)
-        kernel(P, X, up, np.ascontiguousarray(pad - 1 - m[lanes]), Y[c].reshape(-1))
+        kernel(P, X, _pack_input(up, lanes), np.ascontiguousarray(pad - 1 - m[lanes]),
+               Y[c].reshape(-1))
     y = Y.transpose(0, 3, 1, 2)
     if n_chunks == 1:
         return y[0, :nb]
@@ -600,11 +641,12 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def coulomb_kernel(n: int, width: int, adaptive: bool = True):
+def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
     and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
+    With ``per_lane`` the input is one column per lane (see ``_lane_inputs``).
     """
     w = width
     s = 2 * n
@@ -613,7 +655,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
               ("fs", n)]
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
-    L = _head("P, X, u, n_sub, h, Y", n, w, X)
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    nref = 0", "    nrest = 0"]
 
     def corrected(t, P, X):
@@ -624,6 +666,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16, P, X)
         L += ["    return nref, nrest"]
+        if per_lane:
+            return _compile(_lane_inputs(L, w), f"<bayesmodal coulomb n={n} w={w} per-lane>")
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
@@ -706,6 +750,10 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
           f"                for r in range({X.size}):",
           f"                    X[r * {w} + bj] = XX[r * {g} + j]"]
     L += ["    return nref, nrest"]
+    if per_lane:
+        packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
+        return _compile(_lane_inputs(L, w, packed_from=packed_from),
+                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane>")
     return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive>")
 
 
@@ -803,13 +851,13 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def cubic_kernel(n: int, width: int):
-    """Compiled cubic-spring kernel (see ``cubic_run``)."""
+def cubic_kernel(n: int, width: int, per_lane: bool = False):
+    """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``."""
     s, w = 2 * n, width
     R, C = range(s), range(n)
     P = _Rows("P", w, [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", n)])
     X = _Rows("X", w, [("x", s)])
-    L = _head("P, X, u, n_sub, Y", n, w, X)
+    L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = "                "
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
@@ -823,6 +871,8 @@ def cubic_kernel(n: int, width: int):
     for r in R:
         prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
         L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
+    if per_lane:
+        return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane>")
     return _compile(L, f"<bayesmodal cubic n={n} w={w}>")
 
 
@@ -857,8 +907,8 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0):
 # ---------------------------------------------------------------------------------------
 # backlash between the motor and cart 1
 @functools.lru_cache(maxsize=16)
-def backlash_kernel(n: int, width: int):
-    """Compiled backlash kernel (see ``backlash_run``)."""
+def backlash_kernel(n: int, width: int, per_lane: bool = False):
+    """Compiled backlash kernel (see ``backlash_run``); ``per_lane``: see ``_lane_inputs``."""
     s, w = 2 * n, width
     R = range(s)
     P = _Rows("P", w, [("Ae", s * s), ("be", s), ("Ad", s * s), ("ge", s), ("mt", 1),
@@ -866,13 +916,22 @@ def backlash_kernel(n: int, width: int):
                        ("half", 1)])
     X = _Rows("X", w, [("x", s), ("eng", 1), ("side", 1), ("xm", 1), ("vm", 1),
                        ("fp", 1)])
-    L = _head("P, X, u, n_sub, h, Y", n, w, X)
-    L[1:1] = ["    u_prev = u[0]", "    ih2 = 1.0 / (h * h)"]
-    L += ["        for sub in range(n_sub):",
-          "            uo = u_prev",
-          "            u_prev = uk",
-          f"            for b in range({w}):"]
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     t = "                "
+    if per_lane:
+        # the last sub-step's input: the previous sample's in the first sub-step
+        L[1:1] = ["    ih2 = 1.0 / (h * h)"]
+        L += ["        ko = (k - 1 if k > 0 else 0) * " + str(w),
+              "        for sub in range(n_sub):",
+              f"            for b in range({w}):",
+              f"{t}uk = u[k * {w} + b]",
+              f"{t}uo = u[ko + b] if sub == 0 else uk"]
+    else:
+        L[1:1] = ["    u_prev = u[0]", "    ih2 = 1.0 / (h * h)"]
+        L += ["        for sub in range(n_sub):",
+              "            uo = u_prev",
+              "            u_prev = uk",
+              f"            for b in range({w}):"]
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     f1 = " + ".join(f"{P('ge', j)} * x{j}" for j in R)
     L += [f"{t}engaged = {X('eng')} != 0.0",
@@ -963,7 +1022,7 @@ def backlash_kernel(n: int, width: int):
           f"{t}{X('xm')} = xm",
           f"{t}{X('vm')} = vm",
           f"{t}{X('fp')} = fcon_prev"]
-    return _compile(L, f"<bayesmodal backlash n={n} w={w}>")
+    return _compile(L, f"<bayesmodal backlash n={n} w={w}" + (" per-lane>" if per_lane else ">"))
 
 
 def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0):
