@@ -314,7 +314,7 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
     if shifted:
         L += ["            j = k + shift[b]",
               f"            ua = {clip(f'up[j{lane}]')}",
-              f"            ub = {clip(f'up[(j + 1){lane}]')}"]
+              f"            ub = {clip(f'up[(j + 1){lane}]' if per_lane else 'up[j + 1]')}"]
     else:
         L += [f"            ub = {clip('uk')}"]
     L += [f"            x{i} = {X('x', i)}" for i in range(s)]
@@ -402,7 +402,13 @@ def _sum(products) -> str:
     return " + ".join(f"{a} * {b}" for a, b in products)
 
 
-def _coulomb_load(t, P, X, n) -> list[str]:
+def _kinetic(i: int, d: str, asym: bool) -> str:
+    """Code of cart i's kinetic friction level when sliding in direction ``d`` (+-1): one
+    level ``fc{i}``, or with ``asym`` ``fp{i}`` forwards and ``fn{i}`` backwards."""
+    return f"(fp{i} if {d} > 0.0 else fn{i})" if asym else f"fc{i}"
+
+
+def _coulomb_load(t, P, X, n, asym=False) -> list[str]:
     """Code loading a lane's state and friction parameters into scalars."""
     s = 2 * n
     R, C = range(s), range(n)
@@ -412,10 +418,12 @@ def _coulomb_load(t, P, X, n) -> list[str]:
         L += [f"{t}st{i} = {X('st', i)} != 0.0", f"{t}d{i} = {X('d', i)}",
               f"{t}xs{i} = {X('xs', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}",
               f"{t}gb{i} = {P('gb', i)}", f"{t}mi{i} = {P('mi', i)}"]
+        if asym:
+            L += [f"{t}fp{i} = fc{i}", f"{t}fn{i} = {P('fn', i)}"]
     return L
 
 
-def _coulomb_predict(t, P, n, mats) -> list[str]:
+def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
     """Code of the friction decision at the step start and the state predicted with it
     held over the step (matrices ``mats = (A, B, F, R)`` of the step: input, held and
     ramped force responses), the net forces at the end (``Fe``) and the velocities and
@@ -432,7 +440,7 @@ def _coulomb_predict(t, P, n, mats) -> list[str]:
               f"{t}aF{i} = abs(F{i})",
               f"{t}hold = st{i} & (aF{i} < fs{i})",
               f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} != hold else d{i}",
-              f"{t}f{i} = -F{i} if hold else -fc{i} * d{i}",
+              f"{t}f{i} = -F{i} if hold else -{_kinetic(i, f'd{i}', asym)} * d{i}",
               f"{t}st{i} = hold"]
     for r in R:
         prods = [(P(mats[0], r * s + j), f"x{j}") for j in R]
@@ -464,7 +472,7 @@ def _coulomb_predict(t, P, n, mats) -> list[str]:
     return L
 
 
-def _coulomb_events(t, P, n) -> list[str]:
+def _coulomb_events(t, P, n, asym=False) -> list[str]:
     """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
     L: list[str] = []
     for i in range(n):
@@ -493,7 +501,7 @@ def _coulomb_events(t, P, n) -> list[str]:
               # velocity and displacement gained from the break-away to the end of the
               # step under the net force q(s) less the kinetic level: integrals of
               # (q - Fc) and (1 - s)(q - Fc) over [ab, 1] (antiderivatives J1 and J2)
-              f"{t}p0 = q0 - fc{i}",
+              f"{t}p0 = q0 - {_kinetic(i, 'db', asym)}",
               f"{t}j1 = ab * (p0 + ab * (0.5 * k0 + ab * ({1 / 3!r} * c2 + 0.25 * ab * c3)))",
               f"{t}j2 = ab * ab * (0.5 * p0 + ab * ({1 / 3!r} * k0 + ab * (0.25 * c2"
               f" + 0.2 * ab * c3)))",
@@ -524,7 +532,8 @@ def _coulomb_events(t, P, n) -> list[str]:
               # stick if the net force at the crossing is below Fs, else slide back
               f"{t}stick = rev & (abs(F{i} + a * (Fe - F{i})) < fs{i})",
               f"{t}flip = rev != stick",
-              f"{t}dv = 2.0 * fc{i} * d{i} * mi{i} * tau",
+              # the friction after the crossing, fc(-d) d, instead of -fc(d) d
+              f"{t}dv = {_reversal_levels(i, asym)} * d{i} * mi{i} * tau",
               f"{t}dv = dv if flip else 0.0",
               # distance travelled after the crossing: integral of the interpolant
               f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
@@ -543,9 +552,9 @@ def _coulomb_events(t, P, n) -> list[str]:
               f"{t}ak = ak if brk & (aK > qx) else 1.0",
               f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
               f"{t}tk = (1.0 - ak) * h",
-              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - fc{i}) * mi{i} * tk",
+              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - {_kinetic(i, 'dk', asym)}) * mi{i} * tk",
               f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
-              f" - 0.5 * fc{i})",
+              f" - 0.5 * {_kinetic(i, 'dk', asym)})",
               f"{t}pk = p + dxk",
               f"{t}p = pk if brk else p",
               f"{t}xb = xs{i} + dxb",
@@ -564,6 +573,11 @@ def _coulomb_events(t, P, n) -> list[str]:
     return L
 
 
+def _reversal_levels(i: int, asym: bool) -> str:
+    """Code of ``fc(d) + fc(-d)`` for cart i sliding in direction ``d{i}``."""
+    return f"(fp{i} + fn{i})" if asym else f"2.0 * fc{i}"
+
+
 def _coulomb_store(t, X, n) -> list[str]:
     """Code storing a lane's state."""
     s = 2 * n
@@ -576,7 +590,7 @@ def _coulomb_store(t, X, n) -> list[str]:
     return L
 
 
-def _coulomb_quiet_step(t, P, X, n, mats, step) -> list[str]:
+def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False) -> list[str]:
     """Code of a step without event corrections that counts the lanes needing them.
 
     Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
@@ -589,8 +603,8 @@ def _coulomb_quiet_step(t, P, X, n, mats, step) -> list[str]:
     """
     C, w = range(n), X.width
     L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
-    L += _coulomb_load(t, P, X, n)
-    L += _coulomb_predict(t, P, n, mats)
+    L += _coulomb_load(t, P, X, n, asym)
+    L += _coulomb_predict(t, P, n, mats, asym)
     flags = []
     for i in C:
         v = n + i
@@ -641,34 +655,40 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False):
+def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
+                   asymmetric: bool = False):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
     and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
-    With ``per_lane`` the input is one column per lane (see ``_lane_inputs``).
+    With ``per_lane`` the input is one column per lane (see ``_lane_inputs``); with
+    ``asymmetric`` the kinetic level depends on the direction of sliding (parameter rows
+    ``fc`` forwards, ``fn`` backwards).
     """
+    asym = bool(asymmetric)
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
               ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
-              ("fs", n)]
+              ("fs", n)] + ([("fn", n)] if asym else [])
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    nref = 0", "    nrest = 0"]
 
     def corrected(t, P, X):
-        return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"))
-                + _coulomb_events(t, P, n) + _coulomb_store(t, X, n))
+        return (_coulomb_load(t, P, X, n, asym)
+                + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"), asym)
+                + _coulomb_events(t, P, n, asym) + _coulomb_store(t, X, n))
 
     if not adaptive:
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16, P, X)
         L += ["    return nref, nrest"]
         if per_lane:
-            return _compile(_lane_inputs(L, w), f"<bayesmodal coulomb n={n} w={w} per-lane>")
-        return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
+            return _compile(_lane_inputs(L, w),
+                            f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
+        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{' asym' * asym}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
     # packed (parameters PP, state XX) into groups of g and take the sample again there;
@@ -715,7 +735,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
           "            ev = 0",
           f"            for b in range(g0, g0 + {g}):"]
-    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt")
+    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym)
     L += ["            if ev > 0:",
           f"                for b in range(g0, g0 + {g}):",
           f"                    if S[{X.size * w} + b] != 0.0:",
@@ -740,7 +760,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
           "                ev = 0",
           f"                for b in range({g}):"]
     L += [line.replace("S[", "S2[") for line in
-          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h")]
+          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h", asym)]
     L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
     L += [f"                    for b in range({g}):"]
     L += corrected(" " * 24, PP, XX)
@@ -753,12 +773,12 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     if per_lane:
         packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
         return _compile(_lane_inputs(L, w, packed_from=packed_from),
-                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane>")
-    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive>")
+                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
+    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{' asym' * asym}>")
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
-                adaptive=True):
+                adaptive=True, Fc_backward=None):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
     A step: the friction force of each cart is decided at its start (stuck carts hold the
@@ -813,14 +833,17 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     minv : ndarray, shape (nb, n)
         Inverse masses, 1/kg.
     Fc, Fs : ndarray, shape (nb, n)
-        Kinetic and static friction levels, N.
-    u : ndarray, shape (N,)
+        Kinetic and static friction levels, N (``Fc`` forwards if ``Fc_backward`` is
+        given).
+    u : ndarray, shape (N,) or (nb, N)
     n_sub : int
     h : float
         Sub-step, s.
     x0 : ndarray, shape (nb, s)
     adaptive : bool
         False: every sample in ``n_sub`` corrected sub-steps (slower; for checks).
+    Fc_backward : ndarray, shape (nb, n), optional
+        Kinetic level when sliding in the negative direction, N (default: ``Fc``).
 
     Returns
     -------
@@ -831,7 +854,10 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     v = x0[:, n:]
     state = [x0, v == 0.0, np.sign(v), x0[:, :n]]
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
-    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
+    if Fc_backward is not None:
+        params.append(Fc_backward)
+    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive),
+                               asymmetric=Fc_backward is not None)
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
 
 

@@ -12,7 +12,15 @@ Parameter vectors: the free-damping linear parameters, then the effect's own.
 from __future__ import annotations
 
 import numpy as np
-from reference_sim import RTOL, input_segments, n_linear, rig_matrices
+from reference_sim import (
+    ATOL,
+    MAX_STEP_FRACTION,
+    RTOL,
+    V_EPS,
+    input_segments,
+    n_linear,
+    rig_matrices,
+)
 from scipy.integrate import solve_ivp
 
 #: Radau tolerances of the LuGre reference (stiff; the kernel under test is far coarser).
@@ -124,9 +132,92 @@ def simulate_lugre_ref(springs, theta, u, dt, *, v_offset=0.0, v_dead=0.0):
                       atol=LUGRE_ATOL)
 
 
+def simulate_directional_coulomb_ref(springs, theta, u, dt):
+    """Stick-slip friction with a kinetic level by direction, event-driven.
+
+    Parameters after the linear ones: ``Fcp_i`` (sliding forwards), ``Fcn_i`` (backwards),
+    ``Fs_i``.  A sliding cart in direction ``d`` feels ``-Fc(d) d``; a stuck cart stays
+    while ``|F| < Fs``; at a velocity zero it sticks if ``|F| < Fs`` and otherwise slides
+    along ``F``.  Events are located by ``solve_ivp`` (DOP853, terminal events).
+    """
+    p = n_linear(springs)
+    M, C, K, b = rig_matrices(springs, theta[:p])
+    n = M.shape[0]
+    fcp = np.asarray(theta[p : p + n], float)
+    fcn = np.asarray(theta[p + n : p + 2 * n], float)
+    fs = np.asarray(theta[p + 2 * n : p + 3 * n], float)
+    minv = 1.0 / np.diag(M)
+    t_s = np.arange(len(u)) * dt
+    Y = np.empty((len(u), n))
+    z = np.zeros(2 * n)
+    stuck = np.ones(n, bool)
+    d = np.zeros(n)
+
+    def net(z, v):
+        return b * v - K @ z[:n] - C @ z[n:]
+
+    def rhs(t, z, v):
+        level = np.where(d > 0, fcp, fcn)
+        acc = minv * (net(z, v) - level * d)
+        vel = z[n:].copy()
+        acc[stuck] = 0.0
+        vel[stuck] = 0.0
+        return np.r_[vel, acc]
+
+    def events(v):
+        out = []
+        for i in range(n):
+            if stuck[i]:
+                def e(t, z, *_, i=i):
+                    return abs(net(z, v)[i]) - fs[i]
+                e.direction = 1.0
+            else:
+                def e(t, z, *_, i=i):
+                    return d[i] * z[n + i] + V_EPS
+                e.direction = -1.0
+            e.terminal = True
+            out.append(e)
+        return out
+
+    def release(z, v):
+        F = net(z, v)
+        for i in range(n):
+            if stuck[i] and abs(F[i]) >= fs[i]:
+                stuck[i], d[i] = False, np.sign(F[i])
+
+    Y[0] = z[:n]
+    for t0, t1, val in input_segments(u, dt):
+        t = t0
+        release(z, val)
+        while t < t1:
+            sol = solve_ivp(rhs, (t, t1), z, method="DOP853", args=(val,), events=events(val),
+                            dense_output=True, rtol=RTOL, atol=ATOL,
+                            max_step=MAX_STEP_FRACTION * dt)
+            take = (t_s > t) & (t_s <= sol.t[-1])
+            if take.any():
+                Y[take] = sol.sol(t_s[take])[:n].T
+            z = sol.y[:, -1].copy()
+            if sol.status == 1:
+                i = next(j for j, te in enumerate(sol.t_events) if len(te))
+                F = net(z, val)
+                if stuck[i]:
+                    stuck[i], d[i] = False, np.sign(F[i])
+                else:
+                    z[n + i] = 0.0
+                    if abs(F[i]) < fs[i]:
+                        stuck[i], d[i] = True, 0.0
+                    else:
+                        d[i] = np.sign(F[i])
+                release(z, val)
+                z[n:][stuck] = 0.0
+            t = sol.t[-1]
+    return Y
+
+
 #: References of the new registered effects, by name (same signature as reference_sim's).
 NEW_REFERENCES = {
     "input_offset": simulate_offset_ref,
     "drive_deadband": make_deadband_ref(0.0),
     "lugre_friction": simulate_lugre_ref,
+    "coulomb_directional": simulate_directional_coulomb_ref,
 }

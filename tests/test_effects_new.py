@@ -8,6 +8,7 @@ from reference_effects import (
     LUGRE_RTOL,
     deadband_ref,
     make_deadband_ref,
+    simulate_directional_coulomb_ref,
     simulate_lugre_ref,
     simulate_offset_ref,
 )
@@ -164,3 +165,38 @@ def test_lugre_validation_and_location():
     assert (loc.kind, loc.index) == ("cart", 1)
     w = ext.to_opt(RIG, LUGRE)
     np.testing.assert_allclose(ext.from_opt(RIG, w), LUGRE)
+
+
+DIRECTIONAL = np.array([0.2, 0.25, 0.15, 0.05, 0.1, 0.05, 0.25, 0.3, 0.2])
+
+
+@pytest.mark.slow  # the event-driven reference; test_extensions runs it once by default
+def test_directional_coulomb_matches_event_driven_reference():
+    """Within the friction kernel's accuracy (0.75 count, as coulomb_friction); the levels
+    are unequal on every cart, and the symmetric model with their mean is told apart."""
+    u = _input()
+    theta = np.r_[TABLE3, DIRECTIONAL]
+    y_ref = simulate_directional_coulomb_ref(RIG.springs_n_m, theta, u, DT)
+    y = get_extension("coulomb_directional").simulate(RIG, theta, u, DT)
+    assert np.max(np.abs(y - y_ref)) < 0.75 * COUNT
+    mean = 0.5 * (DIRECTIONAL[:3] + DIRECTIONAL[3:6])
+    y_sym = get_extension("coulomb_friction").simulate(RIG, np.r_[TABLE3, mean,
+                                                                  DIRECTIONAL[6:]], u, DT)
+    assert np.max(np.abs(y_sym - y_ref)) > 10 * 0.75 * COUNT
+
+
+def test_directional_coulomb_with_equal_levels_is_coulomb_friction():
+    u = _input()
+    fc, fs = DIRECTIONAL[:3], DIRECTIONAL[6:]
+    y = get_extension("coulomb_directional").simulate(RIG, np.r_[TABLE3, fc, fc, fs], u, DT)
+    y_c = get_extension("coulomb_friction").simulate(RIG, np.r_[TABLE3, fc, fs], u, DT)
+    scale = np.max(np.abs(y_c))
+    # the same scheme; only the order of the reversal correction's products differs
+    np.testing.assert_allclose(y, y_c, rtol=0, atol=1e-12 * scale)
+    ext = get_extension("coulomb_directional")
+    bad = np.r_[TABLE3, DIRECTIONAL]
+    bad[9 + 6] = 0.15  # Fs1 below Fcp1
+    assert not ext.valid(RIG, bad)
+    w = ext.to_opt(RIG, DIRECTIONAL)
+    assert np.all(w >= 0)
+    np.testing.assert_allclose(ext.from_opt(RIG, w), DIRECTIONAL)

@@ -18,6 +18,7 @@ name                          parameters (after the linear)    acts at
 ``lugre_friction``            ``Fc1..Fcn, Fs1..Fsn`` (N),      each cart
                               ``sigma0`` (N/m), ``sigma1``
                               (N s/m), ``v_stribeck`` (m/s)
+``coulomb_directional``       ``Fcp_i, Fcn_i, Fs_i`` (N)       each cart
 ============================  ===============================  =====================
 
 Effects combine: ``get_extension("coulomb_friction+input_offset")`` (or a list of names)
@@ -40,6 +41,7 @@ from ._base import EffectLocation, Extension, ParamSpec
 from .backlash import Backlash
 from .combined import Combined
 from .coulomb import CoulombFriction
+from .coulomb_directional import DirectionalCoulombFriction
 from .cubic import CubicStiffness
 from .deadband import DriveDeadband
 from .fit import ExtensionFit, fit_extension_lsq
@@ -59,6 +61,7 @@ __all__ = [
     "Combined",
     "CoulombFriction",
     "CubicStiffness",
+    "DirectionalCoulombFriction",
     "DriveDeadband",
     "InputDelay",
     "InputOffset",
@@ -82,6 +85,7 @@ EXTENSIONS: dict[str, Extension] = {
         InputOffset(),
         DriveDeadband(),
         LuGreFriction(),
+        DirectionalCoulombFriction(),
     )
 }
 
