@@ -856,8 +856,9 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
     if Fc_backward is not None:
         params.append(Fc_backward)
-    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive),
-                               asymmetric=Fc_backward is not None)
+    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
+    if Fc_backward is not None:
+        kernel = functools.partial(kernel, asymmetric=True)
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
 
 

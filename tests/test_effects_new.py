@@ -170,7 +170,6 @@ def test_lugre_validation_and_location():
 DIRECTIONAL = np.array([0.2, 0.25, 0.15, 0.05, 0.1, 0.05, 0.25, 0.3, 0.2])
 
 
-@pytest.mark.slow  # the event-driven reference; test_extensions runs it once by default
 def test_directional_coulomb_matches_event_driven_reference():
     """Within the friction kernel's accuracy (0.75 count, as coulomb_friction); the levels
     are unequal on every cart, and the symmetric model with their mean is told apart."""

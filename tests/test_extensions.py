@@ -37,7 +37,7 @@ EFFECTS = {
     "input_offset": [0.15],
     "drive_deadband": [0.3],
     "lugre_friction": [0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005],
-    "coulomb_directional": [0.1, 0.15, 0.08, 0.05, 0.2, 0.12, 0.15, 0.2, 0.12],
+    "coulomb_directional": [0.1, 0.15, 0.08, 0.05, 0.2, 0.05, 0.15, 0.25, 0.2],
 }
 REFERENCES = {**REFERENCES, **NEW_REFERENCES}
 
