@@ -198,20 +198,21 @@ def _pack(arrays, lanes: np.ndarray) -> np.ndarray:
 
 
 def _lane_inputs(lines: list[str], width: int, packed_from: int | None = None) -> list[str]:
-    """Kernel source reading a per-lane input: ``uk = u[k * width + lane]`` in each lane loop.
+    """Kernel source reading a per-lane input: ``uk = u[k * width + b]`` in each lane loop.
 
     The shared-input kernels read ``uk = u[k]`` once per sample (``_head``); their per-lane
     variants get ``u`` as an ``(N, width)`` block and read the lane's own sample at the top
     of every ``for b in range(...)`` loop (an unused read is removed by the compiler).  In
-    loops after line ``packed_from`` the lanes are packed slots and ``slot[b]`` is the lane.
+    loops after line ``packed_from`` the lanes are packed slots whose inputs the kernel
+    copied to ``UU`` (a contiguous read keeps those loops vectorised; a gather did not).
     """
     out = []
     for i, line in enumerate(lines):
         out.append(line)
         if line.strip().startswith("for b in range("):
-            lane = "slot[b]" if packed_from is not None and i >= packed_from else "b"
+            packed = packed_from is not None and i >= packed_from
             indent = line[: len(line) - len(line.lstrip())] + "    "
-            out.append(f"{indent}uk = u[k * {width} + {lane}]")
+            out.append(f"{indent}uk = UU[b]" if packed else f"{indent}uk = u[k * {width} + b]")
     return out
 
 
@@ -772,6 +773,12 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     L += ["    return nref, nrest"]
     if per_lane:
         packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
+        # the packed lanes' inputs, copied where their state is packed
+        pack = next(i for i, line in enumerate(L)
+                    if i > packed_from and line.strip() == "bj = idx[c0 + j]")
+        L.insert(pack + 1, f"                UU[j] = u[k * {w} + bj]")
+        L.insert(1, f"    UU = np.zeros({g})")
+        packed_from += 1
         return _compile(_lane_inputs(L, w, packed_from=packed_from),
                         f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
     return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{' asym' * asym}>")
