@@ -41,11 +41,13 @@ def deadband_ref(v, v_dead, width=0.0):
     return width * (softplus((v - v_dead) / width) - softplus((-v - v_dead) / width))
 
 
-def input_chain_ref(u, *, v_offset=0.0, v_dead=0.0, width=0.0, v_sat=np.inf):
-    """The memoryless input stages in their physical order: offset, dead band, clip."""
+def input_chain_ref(u, *, v_offset=0.0, v_dead=0.0, width=0.0, v_sat=np.inf, kappa=0.0):
+    """The memoryless input stages in their physical order: offset, dead band, clip, and
+    the amplitude-dependent gain ``v + kappa v |v|``."""
     v = np.asarray(u, float) + v_offset
     v = deadband_ref(v, v_dead, width)
-    return np.minimum(np.maximum(v, -v_sat), v_sat)
+    v = np.minimum(np.maximum(v, -v_sat), v_sat)
+    return v + kappa * v * np.abs(v)
 
 
 def _integrate(rhs, z0, u, dt, n_out, *, delay=0.0, method="DOP853", rtol=RTOL, atol=1e-13):
@@ -66,7 +68,7 @@ def _integrate(rhs, z0, u, dt, n_out, *, delay=0.0, method="DOP853", rtol=RTOL, 
 
 
 def simulate_linear_chain_ref(springs, theta_lin, u, dt, *, v_offset=0.0, v_dead=0.0,
-                              width=0.0, v_sat=np.inf, tau=0.0, delay=0.0):
+                              width=0.0, v_sat=np.inf, kappa=0.0, tau=0.0, delay=0.0):
     """Linear rig behind offset, dead band, saturation, a motor lag ``tau`` and a delay.
 
     The lag is the state ``f`` with ``tau f' = g_v v - f`` acting on cart 1 (``tau = 0``:
@@ -76,7 +78,8 @@ def simulate_linear_chain_ref(springs, theta_lin, u, dt, *, v_offset=0.0, v_dead
     n = M.shape[0]
     minv = 1.0 / np.diag(M)
     g_v = b[0]
-    v = input_chain_ref(u, v_offset=v_offset, v_dead=v_dead, width=width, v_sat=v_sat)
+    v = input_chain_ref(u, v_offset=v_offset, v_dead=v_dead, width=width, v_sat=v_sat,
+                        kappa=kappa)
 
     def rhs(z, vin):
         x, xd, f = z[:n], z[n : 2 * n], z[2 * n]
@@ -214,10 +217,17 @@ def simulate_directional_coulomb_ref(springs, theta, u, dt):
     return Y
 
 
+def simulate_amplitude_gain_ref(springs, theta, u, dt):
+    """The motor sees ``v (1 + kappa |v|)``."""
+    p = n_linear(springs)
+    return simulate_linear_chain_ref(springs, theta[:p], u, dt, kappa=float(theta[p]))
+
+
 #: References of the new registered effects, by name (same signature as reference_sim's).
 NEW_REFERENCES = {
     "input_offset": simulate_offset_ref,
     "drive_deadband": make_deadband_ref(0.0),
     "lugre_friction": simulate_lugre_ref,
     "coulomb_directional": simulate_directional_coulomb_ref,
+    "amplitude_gain": simulate_amplitude_gain_ref,
 }

@@ -71,20 +71,23 @@ def test_validity_is_every_effects_rule():
 def test_linear_input_chain_matches_reference():
     """Offset, dead band, saturation, lag and delay on the linear plant: exact ZOH against
     the ODE reference (tolerance from its rtol), whatever the order the effects are named."""
-    names = ["input_delay", "input_saturation", "motor_lag", "drive_deadband", "input_offset"]
+    names = ["input_delay", "input_saturation", "motor_lag", "amplitude_gain",
+             "drive_deadband", "input_offset"]
     ext = get_extension(names)
     own = {"input_offset": 0.2, "drive_deadband": 0.3, "input_saturation": 2.0,
-           "motor_lag": 0.01, "input_delay": 0.0123}
+           "amplitude_gain": 0.03, "motor_lag": 0.01, "input_delay": 0.0123}
     theta = np.r_[TABLE3, [own[n] for n in names]]
     u = _input()
     y = ext.simulate(RIG, theta, u, DT)
     y_ref = simulate_linear_chain_ref(RIG.springs_n_m, TABLE3, u, DT, v_offset=0.2,
-                                      v_dead=0.3, v_sat=2.0, tau=0.01, delay=0.0123)
+                                      v_dead=0.3, v_sat=2.0, kappa=0.03, tau=0.01,
+                                      delay=0.0123)
     np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e3 * RTOL * np.max(np.abs(y_ref)))
     # a negative control: the stages in another order (saturation before the offset)
     # give a different model, which the reference tells apart
     wrong = simulate_linear_chain_ref(RIG.springs_n_m, TABLE3, np.clip(u, -2.0, 2.0), DT,
-                                      v_offset=0.2, v_dead=0.3, tau=0.01, delay=0.0123)
+                                      v_offset=0.2, v_dead=0.3, kappa=0.03, tau=0.01,
+                                      delay=0.0123)
     assert np.max(np.abs(wrong - y_ref)) > 20 * COUNT
     # the same physics with the effects named in another order
     perm = get_extension(sorted(names))

@@ -48,7 +48,8 @@ def _ode_tol(y):
 
 
 def test_every_new_effect_states_physics_and_priors():
-    for name in ("input_offset", "drive_deadband", "lugre_friction"):
+    for name in ("input_offset", "drive_deadband", "lugre_friction", "coulomb_directional",
+                 "amplitude_gain"):
         ext = get_extension(name)
         module = __import__(type(ext).__module__, fromlist=["x"])
         assert "Physics:" in module.__doc__, name

@@ -19,6 +19,7 @@ name                          parameters (after the linear)    acts at
                               ``sigma0`` (N/m), ``sigma1``
                               (N s/m), ``v_stribeck`` (m/s)
 ``coulomb_directional``       ``Fcp_i, Fcn_i, Fs_i`` (N)       each cart
+``amplitude_gain``            ``kappa_per_V`` (1/V)            motor input
 ============================  ===============================  =====================
 
 Effects combine: ``get_extension("coulomb_friction+input_offset")`` (or a list of names)
@@ -38,6 +39,7 @@ Examples
 from __future__ import annotations
 
 from ._base import EffectLocation, Extension, ParamSpec
+from .amplitude_gain import AmplitudeGain
 from .backlash import Backlash
 from .combined import Combined
 from .coulomb import CoulombFriction
@@ -53,6 +55,7 @@ from .saturation import InputSaturation
 
 __all__ = [
     "EXTENSIONS",
+    "AmplitudeGain",
     "EffectLocation",
     "Extension",
     "ExtensionFit",
@@ -86,6 +89,7 @@ EXTENSIONS: dict[str, Extension] = {
         DriveDeadband(),
         LuGreFriction(),
         DirectionalCoulombFriction(),
+        AmplitudeGain(),
     )
 }
 

@@ -147,8 +147,9 @@ class Extension(ABC):
     #: the voltage before the motor force: offset, dead band, saturation, lag, delay).
     side: str = "plant"
     #: Place of an input-side effect in the physical chain offset (0) -> dead band (1) ->
-    #: saturation (2) -> lag (3) -> delay (4); None for plant-side effects.
-    input_stage: int | None = None
+    #: saturation (2) -> amplitude gain (2.5) -> lag (3) -> delay (4); None for plant-side
+    #: effects.
+    input_stage: float | None = None
 
     def transform_input(self, v: np.ndarray, theta_ext: np.ndarray) -> np.ndarray:
         """The voltage after a memoryless input-side effect, one row per parameter set.

@@ -4,9 +4,10 @@ The parameter vector is the nine free-damping linear parameters followed by each
 own parameters, in the order the effects are given.  Whatever that order, a simulation
 follows the physical chain from the command to the carts:
 
-    command v -> offset -> dead band -> saturation -> lag -> delay -> plant
+    command v -> offset -> dead band -> saturation -> amplitude gain -> lag -> delay
+    -> plant
 
-The memoryless input stages (offset, dead band, saturation) give one held input per
+The memoryless input stages (offset, dead band, saturation, amplitude gain) give one held input per
 parameter set, shape (nb, N).  The plant is the linear rig, or one plant-side effect
 (friction, backlash, cubic springs, LuGre friction) whose compiled kernel takes that
 per-lane input.  With the linear plant the lag and the delay stay exact (one linear
@@ -93,7 +94,7 @@ class Combined(Extension):
                 "the lag or delay with the linear plant only")
         stages = [e.input_stage for e in flat if e.side == "input"]
         if any(s is None for s in stages) or len(set(stages)) != len(stages):
-            raise ModelError(f"input-side effects {names} need distinct stages 0..4")
+            raise ModelError(f"input-side effects {names} need distinct stages")
         object.__setattr__(self, "effects", tuple(flat))
 
     # ------------------------------------------------------------------ description
