@@ -197,6 +197,33 @@ def _pack(arrays, lanes: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate(cols, axis=1).T).ravel()
 
 
+def _lane_inputs(lines: list[str], width: int, packed_from: int | None = None) -> list[str]:
+    """Kernel source reading a per-lane input: ``uk = u[k * width + b]`` in each lane loop.
+
+    The shared-input kernels read ``uk = u[k]`` once per sample (``_head``); their per-lane
+    variants get ``u`` as an ``(N, width)`` block and read the lane's own sample at the top
+    of every ``for b in range(...)`` loop (an unused read is removed by the compiler).  In
+    loops after line ``packed_from`` the lanes are packed slots whose inputs the kernel
+    copied to ``UU`` (a contiguous read keeps those loops vectorised; a gather did not).
+    """
+    out = []
+    for i, line in enumerate(lines):
+        out.append(line)
+        if line.strip().startswith("for b in range("):
+            packed = packed_from is not None and i >= packed_from
+            indent = line[: len(line) - len(line.lstrip())] + "    "
+            out.append(f"{indent}uk = UU[b]" if packed else f"{indent}uk = u[k * {width} + b]")
+    return out
+
+
+def _pack_input(u: np.ndarray, lanes: np.ndarray) -> np.ndarray:
+    """Shared input (N,) as is, or the lanes' rows of a per-lane input (nb, N) as a flat
+    lane-innermost ``(N, width)`` block."""
+    if u.ndim == 1:
+        return u
+    return np.ascontiguousarray(u[lanes].T).ravel()
+
+
 def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.ndarray:
     """Run ``kernel(P, X, u, *args, Y)`` over the batch in chunks of lanes.
 
@@ -206,8 +233,9 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.nda
         ``width -> compiled kernel``.
     params, state : list of ndarray, each shape (nb, ...)
         Per-lane parameter and initial-state arrays, packed in this order.
-    u : ndarray, shape (N,)
-        Input samples.
+    u : ndarray, shape (N,) or (nb, N)
+        Input samples, shared by all lanes or one row per lane (the kernel is then
+        ``kernel_for_width(width, per_lane=True)``).
     n_out : int
         Outputs per sample.
     *args
@@ -221,25 +249,31 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.nda
     nb = params[0].shape[0]
     width = padded_width(nb)
     n_chunks = -(-nb // width)
-    kernel = kernel_for_width(width)
-    N = u.shape[0]
+    kernel = kernel_for_width(width) if u.ndim == 1 else kernel_for_width(width, per_lane=True)
+    N = u.shape[-1]
     Y = np.empty((n_chunks, N, n_out, width))
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
-        kernel(_pack(params, lanes), _pack(state, lanes), u, *args, Y[c].reshape(-1))
+        kernel(_pack(params, lanes), _pack(state, lanes), _pack_input(u, lanes), *args,
+               Y[c].reshape(-1))
     y = Y.transpose(0, 3, 1, 2)
     if n_chunks == 1:
         return y[0, :nb]
     return y.reshape(n_chunks * width, N, n_out)[:nb]
 
 
-def _head(signature: str, n_out: int, width: int, state: _Rows) -> list[str]:
-    """Kernel start: the sample loop and the output of the first ``n_out`` state rows."""
+def _head(signature: str, n_out: int, width: int, state: _Rows,
+          per_lane: bool = False) -> list[str]:
+    """Kernel start: the sample loop and the output of the first ``n_out`` state rows.
+
+    With ``per_lane`` the input ``u`` is an ``(N, width)`` block and ``uk`` is not read
+    here (see ``_lane_inputs``)."""
+    loop = [f"    for k in range(u.shape[0] // {width}):"] if per_lane else [
+        "    for k in range(u.shape[0]):", "        uk = u[k]"]
     return [
         f"def kernel({signature}):",
-        "    for k in range(u.shape[0]):",
-        "        uk = u[k]",
+        *loop,
         f"        yo = k * {n_out * width}",
         f"        for b in range({width}):",
     ] + [f"            Y[yo + {i * width} + b] = {state('x', i)}" for i in range(n_out)]
@@ -248,11 +282,13 @@ def _head(signature: str, n_out: int, width: int, state: _Rows) -> list[str]:
 # ---------------------------------------------------------------------------------------
 # linear recursion with a shifted, clipped input per lane (delay, saturation, motor lag)
 @functools.lru_cache(maxsize=32)
-def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, clipped: bool):
+def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, clipped: bool,
+                        per_lane: bool = False):
     """Compiled ``kernel(P, X, up, shift, Y)`` for the recursion (see ``linear_input_run``).
 
     Without ``shifted`` every lane reads the same input sample (and ``B1`` is not used);
-    without ``clipped`` the input is not clipped.
+    without ``clipped`` the input is not clipped.  With ``per_lane`` ``up`` is a flat
+    ``(N_padded, width)`` block, one input column per lane.
     """
     s, w = n_states, width
     P = _Rows("P", w, [("A", s * s), ("B1", s), ("B2", s), ("lo", 1), ("hi", 1)])
@@ -267,16 +303,19 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
     L = [
         "def kernel(P, X, up, shift, Y):",
         "    N = Y.shape[0] // " + str(n_out * w),
-        "    off = up.shape[0] - N",
+        f"    off = up.shape[0] // {w} - N" if per_lane else "    off = up.shape[0] - N",
         "    for k in range(N):",
         f"        yo = k * {n_out * w}",
-        "        uk = up[k + off]",
+        "        uk = up[k + off]" if not per_lane else "        ko = (k + off) * " + str(w),
         f"        for b in range({w}):",
     ]
+    if per_lane:
+        L += ["            uk = up[ko + b]"]
+    lane = f" * {w} + b" if per_lane else ""
     if shifted:
         L += ["            j = k + shift[b]",
-              f"            ua = {clip('up[j]')}",
-              f"            ub = {clip('up[j + 1]')}"]
+              f"            ua = {clip(f'up[j{lane}]')}",
+              f"            ub = {clip(f'up[(j + 1){lane}]' if per_lane else 'up[j + 1]')}"]
     else:
         L += [f"            ub = {clip('uk')}"]
     L += [f"            x{i} = {X('x', i)}" for i in range(s)]
@@ -287,7 +326,7 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
             prods.insert(0, (P('B1', i), "ua"))
         L.append(f"            {X('x', i)} = {_fma_sum(P('B2', i) + ' * ub', prods)}")
     return _compile(L, f"<bayesmodal linear-input s={s} o={n_out} w={w} "
-                       f"shift={shifted} clip={clipped}>")
+                       f"shift={shifted} clip={clipped} per_lane={per_lane}>")
 
 
 def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
@@ -297,8 +336,8 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     ----------
     Ad : ndarray, shape (nb, s, s)
     B1, B2 : ndarray, shape (nb, s)
-    u : ndarray, shape (N,)
-        Input, zero before the first sample.
+    u : ndarray, shape (N,) or (nb, N)
+        Input, zero before the first sample; shared or one row per lane.
     x0 : ndarray, shape (nb, s)
     n_out : int
         Number of leading states returned.
@@ -312,23 +351,26 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     ndarray, shape (nb, N, n_out)
     """
     nb, s, _ = Ad.shape
-    N = u.size
+    N = u.shape[-1]
+    per_lane = u.ndim == 2
     shifted = shift is not None or bool(np.any(B1 != 0.0))
     m = np.zeros(nb, np.int64) if shift is None else np.minimum(shift, N).astype(np.int64)
     clipped = level is not None
     lvl = np.full(nb, np.inf) if level is None else np.asarray(level, dtype=float)
     pad = int(m.max()) + 1
-    up = np.concatenate([np.zeros(pad), u])  # up[k + pad - m - 1] = v[k - m - 1]
+    # up[k + pad - m - 1] = v[k - m - 1]
+    up = np.concatenate([np.zeros(u.shape[:-1] + (pad,)), u], axis=-1)
     width = padded_width(nb)
     n_chunks = -(-nb // width)
-    kernel = linear_input_kernel(s, n_out, width, shifted, clipped)
+    kernel = linear_input_kernel(s, n_out, width, shifted, clipped, per_lane)
     Y = np.empty((n_chunks, N, n_out, width))
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)
         P = _pack([Ad, B1, B2, -lvl, lvl], lanes)
         X = _pack([x0], lanes)
-        kernel(P, X, up, np.ascontiguousarray(pad - 1 - m[lanes]), Y[c].reshape(-1))
+        kernel(P, X, _pack_input(up, lanes), np.ascontiguousarray(pad - 1 - m[lanes]),
+               Y[c].reshape(-1))
     y = Y.transpose(0, 3, 1, 2)
     if n_chunks == 1:
         return y[0, :nb]
@@ -361,7 +403,13 @@ def _sum(products) -> str:
     return " + ".join(f"{a} * {b}" for a, b in products)
 
 
-def _coulomb_load(t, P, X, n) -> list[str]:
+def _kinetic(i: int, d: str, asym: bool) -> str:
+    """Code of cart i's kinetic friction level when sliding in direction ``d`` (+-1): one
+    level ``fc{i}``, or with ``asym`` ``fp{i}`` forwards and ``fn{i}`` backwards."""
+    return f"(fp{i} if {d} > 0.0 else fn{i})" if asym else f"fc{i}"
+
+
+def _coulomb_load(t, P, X, n, asym=False) -> list[str]:
     """Code loading a lane's state and friction parameters into scalars."""
     s = 2 * n
     R, C = range(s), range(n)
@@ -371,10 +419,12 @@ def _coulomb_load(t, P, X, n) -> list[str]:
         L += [f"{t}st{i} = {X('st', i)} != 0.0", f"{t}d{i} = {X('d', i)}",
               f"{t}xs{i} = {X('xs', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}",
               f"{t}gb{i} = {P('gb', i)}", f"{t}mi{i} = {P('mi', i)}"]
+        if asym:
+            L += [f"{t}fp{i} = fc{i}", f"{t}fn{i} = {P('fn', i)}"]
     return L
 
 
-def _coulomb_predict(t, P, n, mats) -> list[str]:
+def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
     """Code of the friction decision at the step start and the state predicted with it
     held over the step (matrices ``mats = (A, B, F, R)`` of the step: input, held and
     ramped force responses), the net forces at the end (``Fe``) and the velocities and
@@ -391,7 +441,7 @@ def _coulomb_predict(t, P, n, mats) -> list[str]:
               f"{t}aF{i} = abs(F{i})",
               f"{t}hold = st{i} & (aF{i} < fs{i})",
               f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} != hold else d{i}",
-              f"{t}f{i} = -F{i} if hold else -fc{i} * d{i}",
+              f"{t}f{i} = -F{i} if hold else -{_kinetic(i, f'd{i}', asym)} * d{i}",
               f"{t}st{i} = hold"]
     for r in R:
         prods = [(P(mats[0], r * s + j), f"x{j}") for j in R]
@@ -423,7 +473,7 @@ def _coulomb_predict(t, P, n, mats) -> list[str]:
     return L
 
 
-def _coulomb_events(t, P, n) -> list[str]:
+def _coulomb_events(t, P, n, asym=False) -> list[str]:
     """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
     L: list[str] = []
     for i in range(n):
@@ -452,7 +502,7 @@ def _coulomb_events(t, P, n) -> list[str]:
               # velocity and displacement gained from the break-away to the end of the
               # step under the net force q(s) less the kinetic level: integrals of
               # (q - Fc) and (1 - s)(q - Fc) over [ab, 1] (antiderivatives J1 and J2)
-              f"{t}p0 = q0 - fc{i}",
+              f"{t}p0 = q0 - {_kinetic(i, 'db', asym)}",
               f"{t}j1 = ab * (p0 + ab * (0.5 * k0 + ab * ({1 / 3!r} * c2 + 0.25 * ab * c3)))",
               f"{t}j2 = ab * ab * (0.5 * p0 + ab * ({1 / 3!r} * k0 + ab * (0.25 * c2"
               f" + 0.2 * ab * c3)))",
@@ -483,7 +533,8 @@ def _coulomb_events(t, P, n) -> list[str]:
               # stick if the net force at the crossing is below Fs, else slide back
               f"{t}stick = rev & (abs(F{i} + a * (Fe - F{i})) < fs{i})",
               f"{t}flip = rev != stick",
-              f"{t}dv = 2.0 * fc{i} * d{i} * mi{i} * tau",
+              # the friction after the crossing, fc(-d) d, instead of -fc(d) d
+              f"{t}dv = {_reversal_levels(i, asym)} * d{i} * mi{i} * tau",
               f"{t}dv = dv if flip else 0.0",
               # distance travelled after the crossing: integral of the interpolant
               f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
@@ -502,9 +553,9 @@ def _coulomb_events(t, P, n) -> list[str]:
               f"{t}ak = ak if brk & (aK > qx) else 1.0",
               f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
               f"{t}tk = (1.0 - ak) * h",
-              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - fc{i}) * mi{i} * tk",
+              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - {_kinetic(i, 'dk', asym)}) * mi{i} * tk",
               f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
-              f" - 0.5 * fc{i})",
+              f" - 0.5 * {_kinetic(i, 'dk', asym)})",
               f"{t}pk = p + dxk",
               f"{t}p = pk if brk else p",
               f"{t}xb = xs{i} + dxb",
@@ -523,6 +574,11 @@ def _coulomb_events(t, P, n) -> list[str]:
     return L
 
 
+def _reversal_levels(i: int, asym: bool) -> str:
+    """Code of ``fc(d) + fc(-d)`` for cart i sliding in direction ``d{i}``."""
+    return f"(fp{i} + fn{i})" if asym else f"2.0 * fc{i}"
+
+
 def _coulomb_store(t, X, n) -> list[str]:
     """Code storing a lane's state."""
     s = 2 * n
@@ -535,7 +591,7 @@ def _coulomb_store(t, X, n) -> list[str]:
     return L
 
 
-def _coulomb_quiet_step(t, P, X, n, mats, step) -> list[str]:
+def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False) -> list[str]:
     """Code of a step without event corrections that counts the lanes needing them.
 
     Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
@@ -548,8 +604,8 @@ def _coulomb_quiet_step(t, P, X, n, mats, step) -> list[str]:
     """
     C, w = range(n), X.width
     L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
-    L += _coulomb_load(t, P, X, n)
-    L += _coulomb_predict(t, P, n, mats)
+    L += _coulomb_load(t, P, X, n, asym)
+    L += _coulomb_predict(t, P, n, mats, asym)
     flags = []
     for i in C:
         v = n + i
@@ -600,31 +656,40 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def coulomb_kernel(n: int, width: int, adaptive: bool = True):
+def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
+                   asymmetric: bool = False):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
     and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
+    With ``per_lane`` the input is one column per lane (see ``_lane_inputs``); with
+    ``asymmetric`` the kinetic level depends on the direction of sliding (parameter rows
+    ``fc`` forwards, ``fn`` backwards).
     """
+    asym = bool(asymmetric)
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
               ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
-              ("fs", n)]
+              ("fs", n)] + ([("fn", n)] if asym else [])
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
-    L = _head("P, X, u, n_sub, h, Y", n, w, X)
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    nref = 0", "    nrest = 0"]
 
     def corrected(t, P, X):
-        return (_coulomb_load(t, P, X, n) + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"))
-                + _coulomb_events(t, P, n) + _coulomb_store(t, X, n))
+        return (_coulomb_load(t, P, X, n, asym)
+                + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"), asym)
+                + _coulomb_events(t, P, n, asym) + _coulomb_store(t, X, n))
 
     if not adaptive:
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16, P, X)
         L += ["    return nref, nrest"]
-        return _compile(L, f"<bayesmodal coulomb n={n} w={w}>")
+        if per_lane:
+            return _compile(_lane_inputs(L, w),
+                            f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
+        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{' asym' * asym}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
     # packed (parameters PP, state XX) into groups of g and take the sample again there;
@@ -671,7 +736,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
     L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
           "            ev = 0",
           f"            for b in range(g0, g0 + {g}):"]
-    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt")
+    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym)
     L += ["            if ev > 0:",
           f"                for b in range(g0, g0 + {g}):",
           f"                    if S[{X.size * w} + b] != 0.0:",
@@ -696,7 +761,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
           "                ev = 0",
           f"                for b in range({g}):"]
     L += [line.replace("S[", "S2[") for line in
-          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h")]
+          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h", asym)]
     L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
     L += [f"                    for b in range({g}):"]
     L += corrected(" " * 24, PP, XX)
@@ -706,11 +771,21 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True):
           f"                for r in range({X.size}):",
           f"                    X[r * {w} + bj] = XX[r * {g} + j]"]
     L += ["    return nref, nrest"]
-    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive>")
+    if per_lane:
+        packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
+        # the packed lanes' inputs, copied where their state is packed
+        pack = next(i for i, line in enumerate(L)
+                    if i > packed_from and line.strip() == "bj = idx[c0 + j]")
+        L.insert(pack + 1, f"                UU[j] = u[k * {w} + bj]")
+        L.insert(1, f"    UU = np.zeros({g})")
+        packed_from += 1
+        return _compile(_lane_inputs(L, w, packed_from=packed_from),
+                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
+    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{' asym' * asym}>")
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
-                adaptive=True):
+                adaptive=True, Fc_backward=None):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
     A step: the friction force of each cart is decided at its start (stuck carts hold the
@@ -765,14 +840,17 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     minv : ndarray, shape (nb, n)
         Inverse masses, 1/kg.
     Fc, Fs : ndarray, shape (nb, n)
-        Kinetic and static friction levels, N.
-    u : ndarray, shape (N,)
+        Kinetic and static friction levels, N (``Fc`` forwards if ``Fc_backward`` is
+        given).
+    u : ndarray, shape (N,) or (nb, N)
     n_sub : int
     h : float
         Sub-step, s.
     x0 : ndarray, shape (nb, s)
     adaptive : bool
         False: every sample in ``n_sub`` corrected sub-steps (slower; for checks).
+    Fc_backward : ndarray, shape (nb, n), optional
+        Kinetic level when sliding in the negative direction, N (default: ``Fc``).
 
     Returns
     -------
@@ -783,7 +861,11 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     v = x0[:, n:]
     state = [x0, v == 0.0, np.sign(v), x0[:, :n]]
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
+    if Fc_backward is not None:
+        params.append(Fc_backward)
     kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
+    if Fc_backward is not None:
+        kernel = functools.partial(kernel, asymmetric=True)
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
 
 
@@ -803,13 +885,13 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def cubic_kernel(n: int, width: int):
-    """Compiled cubic-spring kernel (see ``cubic_run``)."""
+def cubic_kernel(n: int, width: int, per_lane: bool = False):
+    """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``."""
     s, w = 2 * n, width
     R, C = range(s), range(n)
     P = _Rows("P", w, [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", n)])
     X = _Rows("X", w, [("x", s)])
-    L = _head("P, X, u, n_sub, Y", n, w, X)
+    L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = "                "
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
@@ -823,6 +905,8 @@ def cubic_kernel(n: int, width: int):
     for r in R:
         prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
         L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
+    if per_lane:
+        return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane>")
     return _compile(L, f"<bayesmodal cubic n={n} w={w}>")
 
 
@@ -857,8 +941,8 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0):
 # ---------------------------------------------------------------------------------------
 # backlash between the motor and cart 1
 @functools.lru_cache(maxsize=16)
-def backlash_kernel(n: int, width: int):
-    """Compiled backlash kernel (see ``backlash_run``)."""
+def backlash_kernel(n: int, width: int, per_lane: bool = False):
+    """Compiled backlash kernel (see ``backlash_run``); ``per_lane``: see ``_lane_inputs``."""
     s, w = 2 * n, width
     R = range(s)
     P = _Rows("P", w, [("Ae", s * s), ("be", s), ("Ad", s * s), ("ge", s), ("mt", 1),
@@ -866,13 +950,22 @@ def backlash_kernel(n: int, width: int):
                        ("half", 1)])
     X = _Rows("X", w, [("x", s), ("eng", 1), ("side", 1), ("xm", 1), ("vm", 1),
                        ("fp", 1)])
-    L = _head("P, X, u, n_sub, h, Y", n, w, X)
-    L[1:1] = ["    u_prev = u[0]", "    ih2 = 1.0 / (h * h)"]
-    L += ["        for sub in range(n_sub):",
-          "            uo = u_prev",
-          "            u_prev = uk",
-          f"            for b in range({w}):"]
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     t = "                "
+    if per_lane:
+        # the last sub-step's input: the previous sample's in the first sub-step
+        L[1:1] = ["    ih2 = 1.0 / (h * h)"]
+        L += ["        ko = (k - 1 if k > 0 else 0) * " + str(w),
+              "        for sub in range(n_sub):",
+              f"            for b in range({w}):",
+              f"{t}uk = u[k * {w} + b]",
+              f"{t}uo = u[ko + b] if sub == 0 else uk"]
+    else:
+        L[1:1] = ["    u_prev = u[0]", "    ih2 = 1.0 / (h * h)"]
+        L += ["        for sub in range(n_sub):",
+              "            uo = u_prev",
+              "            u_prev = uk",
+              f"            for b in range({w}):"]
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     f1 = " + ".join(f"{P('ge', j)} * x{j}" for j in R)
     L += [f"{t}engaged = {X('eng')} != 0.0",
@@ -963,7 +1056,7 @@ def backlash_kernel(n: int, width: int):
           f"{t}{X('xm')} = xm",
           f"{t}{X('vm')} = vm",
           f"{t}{X('fp')} = fcon_prev"]
-    return _compile(L, f"<bayesmodal backlash n={n} w={w}>")
+    return _compile(L, f"<bayesmodal backlash n={n} w={w}" + (" per-lane>" if per_lane else ">"))
 
 
 def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0):

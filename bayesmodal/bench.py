@@ -5,7 +5,8 @@ against ``scipy.signal.lsim(..., interp=False)`` on the same systems.  Two timin
 reported: through a ``LinearSimulator`` whose output buffer is reused between calls (what a
 likelihood does), and through ``simulate_linear`` allocating a fresh output array each call.
 
-``extensions``: every model extension's ``Extension.simulate`` (validation and
+``extensions``: every model extension's and each of the ``COMBINED`` models'
+``Extension.simulate`` (validation and
 parameter-dependent discretisation included, fresh output) against the linear simulator
 with a reused buffer, on the same input and parameter cloud, and again on a rig-like
 input (``rig_input``: pulses, steps, a sweep).  Timings alternate between
@@ -25,7 +26,7 @@ import scipy.signal
 from .simulate import LinearSimulator, simulate_linear
 from .system import LinearModel, Rig
 
-__all__ = ["EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear", "rig_input",
+__all__ = ["COMBINED", "EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear", "rig_input",
            "time_per_call"]
 
 #: Report Table 3 (free damping), the centre of the benchmark parameter cloud.
@@ -42,7 +43,21 @@ _EFFECTS = {
     "backlash": (3e-4, 0.2),
     "cubic_stiffness": (1e5, -5e4, 1e5),
     "input_saturation": (2.5,),
+    "input_offset": (0.15,),
+    "drive_deadband": (0.3,),
+    "lugre_friction": (0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005),
+    "coulomb_directional": (0.1, 0.15, 0.08, 0.05, 0.2, 0.12, 0.15, 0.2, 0.12),
+    "amplitude_gain": (0.02,),
 }
+
+#: Combined models timed by default after the single effects (``extensions.Combined``): a
+#: plant-side effect behind input stages (per-lane input), and the whole linear input chain.
+COMBINED = (
+    "coulomb_friction+input_offset",
+    "lugre_friction+input_offset",
+    "cubic_stiffness+drive_deadband",
+    "input_offset+drive_deadband+input_saturation+motor_lag+input_delay",
+)
 
 
 def time_per_call(fn: Callable[[], object], *, min_time_s: float = 0.5, repeat: int = 5) -> float:
@@ -198,7 +213,8 @@ def bench_extensions(
     rounds : int, optional
         Alternating rounds (default 3, 1 with ``quick``).
     names : tuple of str, optional
-        Extensions to time (default: all of ``EXTENSIONS``).
+        Extensions to time (default: all of ``EXTENSIONS``, then the ``COMBINED``
+        models); a combined name joins its effects with ``+``.
 
     Returns
     -------
@@ -211,15 +227,17 @@ def bench_extensions(
         ``ratio_to_linear_rig_input``, ``ratio_per_round_rig_input``,
         ``meets_target_rig_input``.
     """
-    from .extensions import EXTENSIONS
+    from .extensions import EXTENSIONS, get_extension
 
     model, theta, u_random = _bench_problem(n_samples, batch, rng)
     rig = model.rig
     min_time = 0.2 if quick else 1.0
     rounds = (1 if quick else 3) if rounds is None else int(rounds)
-    names = tuple(EXTENSIONS) if names is None else tuple(names)
+    names = tuple(EXTENSIONS) + COMBINED if names is None else tuple(names)
+    exts = {name: get_extension(name) for name in names}
     thetas = {
-        name: np.concatenate([theta, np.tile(_EFFECTS[name], (batch, 1))], axis=1)
+        name: np.concatenate(
+            [theta] + [np.tile(_EFFECTS[e], (batch, 1)) for e in name.split("+")], axis=1)
         for name in names
     }
 
@@ -234,7 +252,7 @@ def bench_extensions(
         for _ in range(rounds):
             t_lin.append(time_per_call(linear, min_time_s=min_time, repeat=3))
             for name in names:
-                ext, th = EXTENSIONS[name], thetas[name]
+                ext, th = exts[name], thetas[name]
                 t_ext[name].append(time_per_call(
                     lambda e=ext, t=th: e.simulate(rig, t, u, dt), min_time_s=min_time,
                     repeat=3))
@@ -255,7 +273,7 @@ def bench_extensions(
             "ratio_per_round": [float(r) for r in ratios],
             "meets_target": bool(ratio <= EXTENSION_MAX_RATIO),
             "linear_us_per_eval": float(np.median(lin)) / batch * 1e6,
-            "n_sub": getattr(EXTENSIONS[name], "n_sub", None),
+            "n_sub": getattr(exts[name].plant if "+" in name else exts[name], "n_sub", None),
             "ratio_to_linear_rig_input": ratio_rig,
             "ratio_per_round_rig_input": [float(r) for r in ratios_rig],
             "meets_target_rig_input": bool(ratio_rig <= EXTENSION_MAX_RATIO),

@@ -5,14 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from bayesmodal.bench import EXTENSION_MAX_RATIO, bench_extensions, rig_input
+from bayesmodal.bench import COMBINED, EXTENSION_MAX_RATIO, bench_extensions, rig_input
 from bayesmodal.cli import main
 from bayesmodal.extensions import EXTENSIONS
 
 
 def test_bench_extensions_reports_every_extension_against_the_same_run():
     out = bench_extensions(n_samples=300, batch=4, quick=True, rounds=2)
-    assert set(out) == set(EXTENSIONS)
+    assert set(out) == set(EXTENSIONS) | set(COMBINED)
     for name, r in out.items():
         assert r["us_per_eval"] > 0 and r["linear_us_per_eval"] > 0, name
         assert len(r["ratio_per_round"]) == 2
@@ -34,7 +34,7 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
                 "lsim_us_per_eval", "speedup", "speedup_fresh_output",
                 "max_rel_diff_vs_lsim"):
         assert key in out["linear"]
-    assert set(out["extensions"]) == set(EXTENSIONS)
+    assert set(out["extensions"]) == set(EXTENSIONS) | set(COMBINED)
     for r in out["extensions"].values():
         assert {"us_per_eval", "ratio_to_linear", "meets_target"} <= set(r)
         assert isinstance(r["meets_target"], bool)

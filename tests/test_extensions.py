@@ -4,6 +4,7 @@ simulators of tests/reference_sim.py, validation, and the least-squares fit."""
 import numpy as np
 import pytest
 from conftest import TABLE3
+from reference_effects import NEW_REFERENCES
 from reference_sim import REFERENCES, simulate_linear_ref
 
 from bayesmodal import ModelError
@@ -33,7 +34,13 @@ EFFECTS = {
     "backlash": [3e-4, 0.2],
     "cubic_stiffness": [1e5, -5e4, 1e5],
     "input_saturation": [2.5],
+    "input_offset": [0.15],
+    "drive_deadband": [0.3],
+    "lugre_friction": [0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005],
+    "coulomb_directional": [0.1, 0.15, 0.08, 0.05, 0.2, 0.05, 0.15, 0.25, 0.2],
+    "amplitude_gain": [0.03],
 }
+REFERENCES = {**REFERENCES, **NEW_REFERENCES}
 
 
 def _input(N=700):
@@ -98,7 +105,9 @@ def test_reference_simulator_matches_the_linear_closed_form():
     np.testing.assert_allclose(y_ref, y, atol=1e-9)
 
 
-@pytest.mark.parametrize("name", sorted(EXTENSIONS))
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.slow) if n == "lugre_friction" else n  # stiff reference
+    for n in sorted(EXTENSIONS)])
 def test_agrees_with_independent_reference(name):
     """Exact extensions to the ODE tolerance; the others to well below one encoder count.
 

@@ -379,7 +379,7 @@ BAD = [
     ("prior of an extension that is not sampled",
      _toml(model='extensions = ["motor_lag"]', priors="Fc1 = [0.0, 1.0]"),
      "[priors.Fc1]"),
-    ("two extensions in one run",
+    ("a motor lag with a nonlinear plant effect",
      _toml(model='extensions = ["coulomb_friction", "motor_lag"]'), "[model.extensions]"),
     ("extension without free damping",
      _toml(model='damping = "proportional"\nextensions = ["motor_lag"]'), "[model.damping]"),

@@ -46,7 +46,9 @@ def run(args) -> int:
             for name, r in out["extensions"].items():
                 flags = ["ok" if r[k] else "TOO SLOW"
                          for k in ("meets_target", "meets_target_rig_input")]
-                print(f"  {name:18s} {r['us_per_eval']:8.1f} us/eval  "
+                print(f"  {name:18s}\n  {'':18s}" if len(name) > 18 else f"  {name:18s}",
+                      end="")
+                print(f" {r['us_per_eval']:8.1f} us/eval  "
                       f"{r['ratio_to_linear']:5.1f}x {flags[0]:8s} | "
                       f"{r['ratio_to_linear_rig_input']:5.1f}x {flags[1]}")
     return 0

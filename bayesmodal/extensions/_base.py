@@ -143,6 +143,30 @@ class Extension(ABC):
     description: str = ""
     exact: bool = False
     validity_rule: str = "linear part admissible, extension parameters finite and >= 0"
+    #: ``"plant"`` (acts on the carts: friction, backlash, springs) or ``"input"`` (acts on
+    #: the voltage before the motor force: offset, dead band, saturation, lag, delay).
+    side: str = "plant"
+    #: Place of an input-side effect in the physical chain offset (0) -> dead band (1) ->
+    #: saturation (2) -> amplitude gain (2.5) -> lag (3) -> delay (4); None for plant-side
+    #: effects.
+    input_stage: float | None = None
+
+    def transform_input(self, v: np.ndarray, theta_ext: np.ndarray) -> np.ndarray:
+        """The voltage after a memoryless input-side effect, one row per parameter set.
+
+        Parameters
+        ----------
+        v : ndarray, shape (N,) or (nb, N)
+            Voltage before the effect, V, held over each sample.
+        theta_ext : ndarray, shape (nb, n_ext)
+            The effect's own parameters.
+
+        Returns
+        -------
+        ndarray, shape (nb, N)
+            Voltage after the effect, V.
+        """
+        raise NotImplementedError(f"{self.name} is not a memoryless input-side effect")
 
     # ------------------------------------------------------------------ parameters
     @staticmethod

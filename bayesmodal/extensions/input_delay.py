@@ -39,6 +39,8 @@ class InputDelay(Extension):
     name = "input_delay"
     description = "pure time delay delay_s of the motor input (sub-sample, exact)"
     exact = True
+    side = "input"
+    input_stage = 4
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         return (ParamSpec("delay_s", "s", (0.0, 0.03), 0.0,

@@ -35,6 +35,8 @@ class MotorLag(Extension):
     name = "motor_lag"
     description = "first-order lag tau_s between motor voltage and force"
     exact = True
+    side = "input"
+    input_stage = 3
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         return (ParamSpec("tau_s", "s", (0.0, 0.05), 0.0,

@@ -32,6 +32,12 @@ class InputSaturation(Extension):
     description = "motor voltage (force) clipped at +-v_sat"
     exact = True
     validity_rule = "linear part admissible, v_sat > 0 (inf allowed)"
+    side = "input"
+    input_stage = 2
+
+    def transform_input(self, v, theta_ext):
+        level = theta_ext[:, :1]
+        return np.clip(np.atleast_2d(v), -level, level)
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         return (ParamSpec("v_sat", "V", (0.5, 10.0), np.inf,

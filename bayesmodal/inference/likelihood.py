@@ -486,7 +486,8 @@ def resolve_extension(extension, model: LinearModel):
         return None
     from ..extensions import Extension, get_extension
 
-    ext = get_extension(extension) if isinstance(extension, str) else extension
+    ext = (get_extension(extension) if isinstance(extension, (str, list, tuple))
+           else extension)
     if not isinstance(ext, Extension):
         raise ModelError(
             f"extension must be a name in bayesmodal.extensions.EXTENSIONS or an Extension, "

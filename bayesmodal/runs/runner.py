@@ -154,8 +154,8 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         Naming the file and the key: unreadable data (``[data.files]``), outputs that do
         not match the rig (``[rig.springs_n_m]``), priors the sampler cannot use
         (``[priors.NAME]``), too few or an odd number of walkers (``[sampler.walkers]``),
-        more than one model extension (``[model.extensions]``) or an extension without
-        free damping (``[model.damping]``).
+        model extensions that cannot be combined (``[model.extensions]``) or an extension
+        without free damping (``[model.damping]``).
     """
     from ..inference import default_priors
 
@@ -178,13 +178,15 @@ def prepare_run(config: RunConfig) -> PreparedRun:
                 f"{model.n_carts} carts, but {e.source or e.name} has {e.n_outputs} measured "
                 "outputs")
     extension = None
-    if len(cfg.extensions) > 1:
-        raise ConfigError(
-            f"{src}: [model.extensions] one extension per run (the sampler samples one "
-            f"extended model), got {list(cfg.extensions)}; make one configuration per "
-            "extension")
     if cfg.extensions:
-        extension = cfg.extensions[0]
+        # several effects make one combined model, named "a+b" (extensions.Combined)
+        extension = "+".join(cfg.extensions)
+        try:
+            from ..extensions import get_extension
+
+            get_extension(extension)
+        except ValueError as exc:
+            raise ConfigError(f"{src}: [model.extensions] {exc}") from exc
         if cfg.damping != "free":
             raise ConfigError(
                 f"{src}: [model.damping] the {extension} extension is built on free "
