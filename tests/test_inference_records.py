@@ -197,3 +197,19 @@ def test_predicting_a_record_with_its_own_population_covers_it():
     assert np.all(good.coverage_90 > bad.coverage_90)
     assert good.lpd > bad.lpd
     assert d["g_v[r0]"] > 0
+
+
+def test_offset_per_record_through_the_input_offset_effect(records):
+    """With a model extension the record's v0 is the input_offset effect's v_offset; on the
+    linear plant it predicts what the linear model predicts for v + v0."""
+    lik = RecordsLikelihood(MODEL, records, "white", extension="input_offset")
+    assert "v_offset[r1]" in lik.names and "mu_v_offset" in lik.names
+    c = records_start(lik, np.r_[THETA, 0.0])
+    c[lik.names.index("v_offset[r1]")] = -0.02
+    full, _ = lik.record_theta(c[None], 1)
+    th = full[0, :9]
+    direct = simulate_linear(MODEL, th, records[1].v_volt - 0.02, DT)
+    got = lik.predict_record(c[None], 1)[0]
+    tol = records[1].n_samples * EPS * np.max(np.abs(direct))
+    assert np.max(np.abs(got - direct)) <= tol
+    assert np.isfinite(record_priors(lik).log_prior(c))

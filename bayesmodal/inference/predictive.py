@@ -35,6 +35,7 @@ from .._errors import DataError
 from ..data import Experiment
 from ..metrics import fit_percent
 from .likelihood import Likelihood, residual_loglik, simulate_noise
+from .records import SIGNED
 
 __all__ = ["PredictiveScores", "new_record_parameters", "predict_new_record", "score_samples",
            "crps_ensemble"]
@@ -144,7 +145,7 @@ def new_record_parameters(lik, theta: np.ndarray, rng) -> tuple[np.ndarray, np.n
             continue
         mu, tau = lik.population(theta, p)
         z = rng.standard_normal(s)
-        value = mu + tau * z if p == "v0" else mu * np.exp(tau * z)
+        value = mu + tau * z if p in SIGNED else mu * np.exp(tau * z)
         if p == "v0":
             v0 = value
         else:

@@ -268,9 +268,13 @@ class RecordsLikelihood:
                     f"{list(mech) + ['v0']}")
         ext = singles[0].extension
         if "v0" in layout.per_record and ext is not None:
-            raise ConfigError(
-                "an input offset per record (v0) is built for the linear model; with a model "
-                "extension add the input_offset effect and declare its parameter per record")
+            if "v_offset" not in mech:
+                raise ConfigError(
+                    "an input offset per record (v0) with a model extension needs the "
+                    "input_offset effect: extensions = [..., 'input_offset']")
+            # the effect's offset is the record's v0: one parameter, not two
+            per = {("v_offset" if k == "v0" else k): v for k, v in layout.per_record.items()}
+            layout = RecordLayout(per, layout.noise_per_record)
         object.__setattr__(self, "experiments", exps)
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "extension", ext)
@@ -401,7 +405,7 @@ class RecordsLikelihood:
                     continue
                 mu, tau = theta[:, g["mu"]], theta[:, g["tau"]]
                 x = theta[:, g["records"]]
-                if p != "v0" and _positive(p):
+                if _positive(p):
                     z = (np.log(x) - np.log(mu)[:, None]) / tau[:, None]
                     dens = -0.5 * z**2 - np.log(tau)[:, None] - np.log(x)
                 else:
@@ -612,10 +616,14 @@ class RecordsLikelihood:
         return np.r_[sig, np.mean(s[:, n:], axis=0)]
 
 
+#: Signed per-record parameters (normal populations): the input offsets, V.
+SIGNED = ("v0", "v_offset")
+
+
 def _positive(name: str) -> bool:
     """Parameters sampled on a log scale when per record: the gain, masses, dampers and
-    positive extension levels (everything but the input offset)."""
-    return name != "v0"
+    positive extension levels (everything but the input offsets)."""
+    return name not in SIGNED
 
 
 def _noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
@@ -663,8 +671,8 @@ def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None
             if m.group(1) == "mu":
                 pr, tr = table[p]
             else:
-                scale = TAU_SCALE["v0"] if p == "v0" else TAU_SCALE["log"]
-                if p != "v0" and table[p][1] != "log":
+                scale = TAU_SCALE["v0"] if p in SIGNED else TAU_SCALE["log"]
+                if p not in SIGNED and table[p][1] != "log":
                     raise ConfigError(
                         f"hierarchical {p}: a population needs a parameter sampled on a log "
                         f"scale (positive); declare {p} independent instead")
@@ -722,7 +730,7 @@ def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
         x = values[p]
         out[g["records"]] = x
         if g["kind"] == "hierarchical":
-            if p == "v0":
+            if p in SIGNED:
                 out[g["mu"]], out[g["tau"]] = np.mean(x), max(np.std(x), 0.005)
             else:
                 out[g["mu"]] = np.exp(np.mean(np.log(x)))
