@@ -213,3 +213,27 @@ def test_offset_per_record_through_the_input_offset_effect(records):
     tol = records[1].n_samples * EPS * np.max(np.abs(direct))
     assert np.max(np.abs(got - direct)) <= tol
     assert np.isfinite(record_priors(lik).log_prior(c))
+
+
+def test_process_noise_through_the_records_likelihood(records):
+    """Process noise: the record likelihood is the Kalman filter's (checked against a dense
+    reference in test_noise_kalman.py), per record with its own gain; the refusals name
+    the fix."""
+    from bayesmodal.inference.noise import kalman_loglik
+
+    lik = RecordsLikelihood(MODEL, records, "process", layout=RecordLayout({"g_v": "independent"}))
+    assert lik.names[-6:] == ("q_1", "q_2", "q_3", "sigma_1", "sigma_2", "sigma_3")
+    c = records_start(lik, THETA)
+    per = lik.record_loglik(c[None])[0]
+    for r, e in enumerate(records):
+        full, _ = lik.record_theta(c[None], r)
+        ref = kalman_loglik(MODEL, full[:, :9], full[:, 9:12], full[:, 12:], e.v_volt, e.y_m,
+                            e.dt, initial="rest")[0]
+        assert per[r] == ref
+    parts = lik.pointwise(c[None])
+    assert all(np.all(np.isfinite(p)) for p in parts)
+    with pytest.raises(ConfigError, match="declare only g_v"):
+        RecordsLikelihood(MODEL, records, "process")
+    with pytest.raises(ConfigError, match="linear model"):
+        RecordsLikelihood(MODEL, records, "process", extension="motor_lag",
+                          layout=RecordLayout({}))

@@ -189,6 +189,16 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     mech, v0, noise = new_record_parameters(lik, theta, rng)
     y_hat = _predict_mech(lik, mech, v0, experiment)
     R = experiment.y_m[:, :, None] - np.moveaxis(y_hat, 0, -1)
+    if getattr(lik, "noise", "") == "process":  # the random force goes through the dynamics
+        from .noise import kalman_loglik, simulate_process_noise
+
+        n = lik.n_outputs
+        q, sig = noise[:, :n], noise[:, n:]
+        y_pred = simulate_process_noise(lik.model, mech, q, sig, experiment.v_volt,
+                                        experiment.dt, rng)
+        ll = kalman_loglik(lik.model, mech, q, sig, experiment.v_volt, experiment.y_m,
+                           experiment.dt, initial="rest")
+        return y_hat, y_pred, np.where(np.isfinite(ll), ll, -np.inf)
     if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
         e = lik.noise_simulate(noise, experiment.n_samples, rng)
         with np.errstate(all="ignore"):

@@ -96,6 +96,10 @@ def resolve_noise(noise, n_outputs: int):
         return WhiteNoise()
     if text == "ar1":
         return AR1Noise()
+    if text == "process":
+        from .noise import ProcessNoise
+
+        return ProcessNoise()
     m = re.fullmatch(r"ar(\d+)|ar\((\d+(?:,\d+)*)\)", text)
     if m:
         orders = ((int(m.group(1)),) * n_outputs if m.group(1)
@@ -105,8 +109,8 @@ def resolve_noise(noise, n_outputs: int):
         return model
     raise ConfigError(
         f"noise model {noise!r}: use 'white', 'ar1', 'arP' (e.g. 'ar4', the same order on "
-        "every output), 'ar(p1,...,pn)' or 'ar:auto' (order chosen by BIC on the "
-        "least-squares residuals)")
+        "every output), 'ar(p1,...,pn)', 'ar:auto' (order chosen by BIC on the "
+        "least-squares residuals) or 'process' (a random force on each cart, Kalman filter)")
 
 
 #: Largest AR order ``"ar:auto"`` considers.  On the measured ECP 210 residuals BIC keeps
@@ -275,6 +279,17 @@ class RecordsLikelihood:
             # the effect's offset is the record's v0: one parameter, not two
             per = {("v_offset" if k == "v0" else k): v for k, v in layout.per_record.items()}
             layout = RecordLayout(per, layout.noise_per_record)
+        if noise_model.name == "process":
+            if ext is not None:
+                raise ConfigError(
+                    "process noise is built for the linear model: the Kalman filter's "
+                    "prediction step is linear (friction, backlash and the other effects "
+                    "would need an extended filter); use noise 'ar1' or 'arP' with "
+                    "extensions")
+            if "v0" in layout.per_record:
+                raise ConfigError(
+                    "process noise with a per-record input offset v0 is not built; declare "
+                    "only g_v per record (per_record = { g_v = ... })")
         object.__setattr__(self, "experiments", exps)
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "extension", ext)
@@ -492,7 +507,9 @@ class RecordsLikelihood:
         return self.noise_model.loglik(R, params)
 
     def noise_simulate(self, params: np.ndarray, n_samples: int, rng) -> np.ndarray:
-        """Residual draws, shape (nb, n_samples, n_out), from noise parameter rows."""
+        """Residual draws, shape (nb, n_samples, n_out), from noise parameter rows
+        (not for process noise, whose draws go through the dynamics: see
+        ``predictive.predict_new_record``)."""
         if self.noise in ("white", "ar1"):
             n = self.n_outputs
             return simulate_noise(params[:, :n],
@@ -516,6 +533,11 @@ class RecordsLikelihood:
                 if self.noise in ("white", "ar1"):
                     sigma, phi = self._noise(full)
                     t = white_terms(r_, sigma) if phi is None else ar1_terms(r_, sigma, phi)
+                elif self.noise == "process":
+                    from .noise import kalman_pointwise
+
+                    mech, q, sig = self._process_split(full)
+                    t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt)
                 else:
                     t = self.noise_model.pointwise(r_, full[:, len(self.mech_names):])
             out[r][ok] = np.where(np.isfinite(t), t, -np.inf)
@@ -535,11 +557,26 @@ class RecordsLikelihood:
                 params = full[:, len(self.mech_names):]
                 if self.noise in ("white", "ar1"):
                     ll = self._basic_loglik(e, full, v0, params)
+                elif self.noise == "process":
+                    ll = self._process_loglik(e, full)
                 else:
                     yh = self.predict_record(th, r)
                     ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params)
                 out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
         return out
+
+    def _process_split(self, full):
+        n_mech = len(self.mech_names)
+        n = self.n_outputs
+        return full[:, :n_mech], full[:, n_mech : n_mech + n], full[:, n_mech + n :]
+
+    def _process_loglik(self, e: Experiment, full) -> np.ndarray:
+        """Kalman-filter innovations likelihood (exact start from rest)."""
+        from .noise import kalman_loglik
+
+        mech, q, sigma = self._process_split(full)
+        return kalman_loglik(self.model, mech, q, sigma, e.v_volt, e.y_m, e.dt,
+                             initial="rest")
 
     def _basic_loglik(self, e: Experiment, full, v0, params) -> np.ndarray:
         """White or AR(1) log-likelihood of one record from compiled residual sums (the
@@ -594,6 +631,13 @@ class RecordsLikelihood:
         out = []
         for r, e in enumerate(self.experiments):
             full = self.record_theta(theta, r)[0]
+            if self.noise == "process":  # what the random force adds to the prediction
+                from .noise import simulate_process_noise
+
+                mech, q, sig = self._process_split(full)
+                y = simulate_process_noise(self.model, mech, q, sig, e.v_volt, e.dt, rng)
+                out.append(y - simulate_linear(self.model, mech, e.v_volt, e.dt))
+                continue
             out.append(self.noise_simulate(full[:, len(self.mech_names):], e.n_samples, rng))
         return out
 
@@ -605,8 +649,15 @@ class RecordsLikelihood:
             mech = full[0, : len(self.mech_names)]
             e = self.experiments[r]
             res = e.y_m - self.predict_mech(mech[None], v0, e)[0]
-            starts.append(_noise_moments(res, self.noise) if self.noise in ("white", "ar1")
-                          else self.noise_model.start(res))
+            if self.noise in ("white", "ar1"):
+                starts.append(_noise_moments(res, self.noise))
+            elif self.noise == "process":
+                # a small random force (N^2 s) and the residual RMS as measurement noise:
+                # the posterior-mode refinement moves both
+                starts.append(np.r_[np.full(self.n_outputs, 1e-6),
+                                    np.sqrt(np.mean(res**2, axis=0))])
+            else:
+                starts.append(self.noise_model.start(res))
         if self.layout.noise_per_record:
             return np.concatenate(starts)
         # shared: pool the per-record moments (RMS of sigma, mean of the coefficients)
