@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# Install bayesmodal and run the main job on the default input (the measured ECP 210
-# records in ../shared/data or $BAYESMODAL_DATA):
-#   1. reproduce the reference report's tables and plots  -> out/report/
-#   2. sample the free-damping posterior of data_impulses -> runs/impulses_free/report.html
+# Install bayesmodal (in .venv) and run the main job on the default input (the measured
+# ECP 210 records in ../shared/data or $BAYESMODAL_DATA):
+#   1. reproduce the reference report's tables and plots               -> out/report/
+#   2. fit the four records together (shared masses and dampers, a drive gain and an
+#      input offset per record from their populations) and check the intervals by leaving
+#      each record out in turn                                            -> runs/records_free/
 # A finished run is kept (--resume is a no-op then); delete the folder to sample again.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/_venv.sh
 ensure_venv ""
 bayesmodal report --out out/report "$@"
-bayesmodal run runs/impulses_free.toml --resume
-echo "open runs/impulses_free/report.html in a browser (e.g. xdg-open runs/impulses_free/report.html)"
+bayesmodal run runs/records_free.toml --resume
+echo "open runs/records_free/report.html in a browser (e.g. xdg-open runs/records_free/report.html)"
