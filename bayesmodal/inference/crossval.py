@@ -46,7 +46,8 @@ class CrossvalSpec:
     layout : RecordLayout
         Per-record parameters (default :data:`~.records.DEFAULT_LAYOUT`).
     n_walkers, n_steps, burn : int
-        Ensemble size, steps per walker, burn-in (default ``n_steps // 2``).
+        Ensemble size (raised to twice the number of parameters of a fold if smaller),
+        steps per walker, burn-in (default ``n_steps // 2``).
     n_predictive : int
         Posterior draws used to predict each held-out record.
     seed : int
@@ -221,9 +222,11 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     lik = RecordsLikelihood(model, tuple(train), noise, spec.extension, spec.layout)
     priors = record_priors(lik)
     burn = spec.n_steps // 2 if spec.burn is None else spec.burn
+    # at least two walkers per parameter (emcee's requirement), even
+    walkers = max(spec.n_walkers, 2 * len(lik.names))
     run = sample_posterior(train, model, noise=lik.noise_model if lik.noise not in
                            ("ar1", "white") else lik.noise, extension=spec.extension,
-                           layout=spec.layout, priors=priors, n_walkers=spec.n_walkers,
+                           layout=spec.layout, priors=priors, n_walkers=walkers,
                            n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
                            progress=progress, temperature=spec.temperature)
     rng = np.random.default_rng(seed + 7)
