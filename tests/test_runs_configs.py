@@ -22,6 +22,8 @@ SHIPPED = {
     "steps": ("free", (), ["data_steps"]),
     "sweeps": ("free", (), ["data_sine_sweep_fast", "data_sine_sweep_slow"]),
     "impulses_friction": ("free", ("coulomb_friction",), ["data_impulses"]),
+    "records_free": ("free", (), ["data_impulses", "data_steps", "data_sine_sweep_fast",
+                                  "data_sine_sweep_slow"]),
 }
 
 

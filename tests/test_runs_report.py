@@ -107,7 +107,7 @@ def _render(tmp_path, s):
 def test_report_opens_with_the_verdict_and_shows_crossval(tmp_path):
     s = _summary(n_fail=7)
     s["crossval"] = {"method": "each of 3 records left out in turn", "records": [
-        {"name": "rec_a", "coverage_90": [0.61, 0.64, 0.66], "width_90": [2e-3] * 3,
+        {"name": "rec_a", "coverage_90": [0.61, 0.64, 0.66], "width_90": [0.73] * 3,
          "fit_percent": [71.0, 70.0, 69.0]},
         {"name": "rec_b", "coverage_90": [0.9, 0.92, 0.88], "width_90": [3e-3] * 3,
          "fit_percent": [80.0, 81.0, 82.0]}]}
@@ -121,7 +121,7 @@ def test_report_opens_with_the_verdict_and_shows_crossval(tmp_path):
     assert page.index("Leave-one-record-out") < first
     for name, cov in (("rec_a", "61"), ("rec_b", "92")):
         assert page.index(name) < first and f">{cov}</span>" in page
-    assert "left out" in page and "2.000" in page  # band width in mm
+    assert "left out" in page and "0.73" in page  # band width / record sd
     # leaving records out changes the third answer
     assert "leaving one record out, the 90 % band covers 61-92 %" in v.intervals.text
     assert "class='verdict big bad'" in page

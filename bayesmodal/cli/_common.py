@@ -83,14 +83,18 @@ def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
     rig = load_rig(args) if getattr(args, "rig", None) else None
     opts = reader_options(args)
-    if rig is not None and getattr(args, "m_per_count", None) is None:
-        # encoder files in counts: the rig's sensor scale unless --m-per-count says otherwise
-        scales = {s.m_per_unit for s in rig.sensors if s.unit == "count"}
-        if len(scales) == 1:
-            from dataclasses import replace
+    exps = []
+    for p in paths:
+        o = opts
+        if (rig is not None and getattr(args, "m_per_count", None) is None
+                and Path(p).suffix.lower() in (".mat", ".txt")):
+            # encoder files in counts: the rig's sensor scale unless --m-per-count says so
+            scales = {s.m_per_unit for s in rig.sensors if s.unit == "count"}
+            if len(scales) == 1:
+                from dataclasses import replace
 
-            opts = replace(opts, m_per_count=scales.pop())
-    exps = [load_experiment(Path(p), options=opts) for p in paths]
+                o = replace(opts, m_per_count=scales.pop())
+        exps.append(load_experiment(Path(p), options=o))
     for e in exps:  # before any output folder is made
         if rig is not None and e.n_outputs != rig.n_outputs:
             raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the rig "

@@ -356,6 +356,11 @@ class RecordsLikelihood:
         return None if self.extension is None else self.extension.name
 
     @property
+    def initial_state(self) -> str:
+        """Records start at rest (free decays are single-record, ``Likelihood``)."""
+        return "rest"
+
+    @property
     def initial_state_names(self) -> tuple[str, ...]:
         """Estimated initial states: none (records start at rest)."""
         return ()
