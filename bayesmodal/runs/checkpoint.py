@@ -101,11 +101,14 @@ class AtomicCheckpoint(emcee.backends.Backend):
                     setattr(self, "_" + k, v.decode() if isinstance(v, bytes) else v)
 
     def reset(self, nwalkers, ndim):
+        """Clear the chain (emcee's ``Backend.reset``) and the configuration tags."""
         super().reset(nwalkers, ndim)
         for k in [k for k in vars(self) if k.startswith(_TAG)]:
             delattr(self, k)
 
     def save_step(self, state, accepted):
+        """Store one step (emcee's ``Backend.save_step``), then checkpoint if it is the last
+        step of the ``run_mcmc`` call (compressed) or ``every_s`` has passed."""
         super().save_step(state, accepted)
         last = self.iteration == len(self.chain)
         if last:
