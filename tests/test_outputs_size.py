@@ -151,3 +151,56 @@ def test_outputs_pointwise_loglik_key():
     assert on.hash() == off.hash()   # storage only: the posterior is the same
     with pytest.raises(ConfigError, match="outputs.pointwise_loglik"):
         parse_config({**base, "outputs": {"pointwise_loglik": "no"}}, check_files=False)
+
+
+RUN_CONFIG = """\
+[data]
+files = ["fit.csv"]
+
+[sampler]
+walkers = 30
+steps = 200
+burn = 100
+thin = 5
+seed = 3
+
+[outputs]
+plots = false
+report = false
+ema = false
+predictive_draws = 20
+pointwise_loglik = {pointwise}
+"""
+
+
+@pytest.mark.slow
+def test_run_without_pointwise_loglik_compares_like_the_full_run(tmp_path):
+    """Two runs of one configuration, with and without the stored pointwise terms: the
+    same chain (storage is not in the hash), a smaller posterior.nc, and the same PSIS-LOO
+    when ``compare_runs`` rebuilds the terms."""
+    from bayesmodal.data import save_csv
+    from bayesmodal.runs import compare_runs, run_config
+
+    model = LinearModel(Rig(), "free")
+    dt, n = 0.005, 600
+    t = np.arange(n) * dt
+    v = np.where((t >= 0.1) & (t < 0.15), 3.0, 0.0)
+    theta = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.0, 0.0])
+    y = simulate_linear(model, theta, v, dt)
+    y = y + simulate_noise(np.full((1, 3), 2e-5), np.full((1, 3), 0.8), n, rng=1)[0]
+    save_csv(Experiment(t, v, y, name="fit"), tmp_path / "fit.csv")
+    dirs = {}
+    for flag in ("true", "false"):
+        cfg = tmp_path / f"pw_{flag}.toml"
+        cfg.write_text(RUN_CONFIG.format(pointwise=flag))
+        dirs[flag] = run_config(cfg, out_root=tmp_path / "out").out_dir
+    full, lean = (load_idata(dirs[f] / "posterior.nc") for f in ("true", "false"))
+    assert "log_likelihood" in full.groups() and "log_likelihood" not in lean.groups()
+    assert np.array_equal(full.posterior["m1"].values, lean.posterior["m1"].values)
+    assert (dirs["false"] / "posterior.nc").stat().st_size < \
+        (dirs["true"] / "posterior.nc").stat().st_size
+    comp = compare_runs([dirs["true"], dirs["false"]])
+    a, b = (r.criteria for r in comp.rows)
+    assert a.elpd_loo == b.elpd_loo and a.n_bad_k == b.n_bad_k
+    with h5py.File(dirs["false"] / "chain.h5", "r") as f:
+        assert f["mcmc/chain"].compression == "gzip"
