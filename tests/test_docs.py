@@ -12,9 +12,10 @@ Markers (space-separated; quote values with spaces):
 
 ``cwd=repo``
     Run in a scratch copy of the repository root (``docs/``, ``runs/*.toml``, ``scripts/``,
-    ``benchmarks/``, ``data/`` copied; ``bayesmodal/`` linked) with ``../shared/data``
-    beside it pointing at the measured data, so paths written relative to the repository
-    root work and nothing is written into the checkout.
+    ``benchmarks/``, ``data/``, ``README.md``, ``pyproject.toml`` copied; ``bayesmodal/``
+    and ``tests/`` linked) with ``../shared/data`` beside it pointing at the measured data,
+    so paths written relative to the repository root work and nothing is written into the
+    checkout.  Without the marker a block runs in an empty temporary folder.
 ``slow``
     Marked ``@pytest.mark.slow`` (run by ``pytest -m slow``, which CI runs too).
 ``data``
