@@ -51,6 +51,8 @@ problem in a file is collected and reported at once, each naming the file and th
     predictive_draws = 200
     ema = true                  # LSCE cross-check (bayesmodal.ema) in the report
     checkpoint_every_s = 5.0    # seconds between atomic checkpoint writes
+    pointwise_loglik = true     # false leaves the pointwise log-likelihood out of
+                                # posterior.nc (most of its size); LOO rebuilds it
 
     [evidence]                  # optional nested-sampling evidence (dynesty), slow
     enabled = false
@@ -91,7 +93,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
                 "moves": str, "restart": int},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
-                "ema": bool, "checkpoint_every_s": (int, float)},
+                "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool},
     "evidence": {"enabled": bool, "nlive": int, "dlogz": (int, float)},
 }
 
@@ -132,6 +134,7 @@ class RunConfig:
     heldout_files: tuple[str, ...] = ()
     ema: bool = True
     checkpoint_every_s: float = 5.0
+    pointwise_loglik: bool = True
     evidence: bool = False
     evidence_nlive: int = 250
     evidence_dlogz: float = 0.5
@@ -194,7 +197,7 @@ class RunConfig:
         """SHA-256 of the canonical JSON of everything that affects the result."""
         d = self.to_dict()
         for k in ("source", "name", "out_dir", "plots", "report", "ema",
-                  "checkpoint_every_s"):
+                  "checkpoint_every_s", "pointwise_loglik"):
             d.pop(k)
         if d["restart"] is None:  # keeps the hashes of configs written before the key
             d.pop("restart")
@@ -407,7 +410,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         if pp.is_absolute() or Path(out).is_absolute() or ".." in pp.parts or not out.strip():
             err("outputs.dir", f"must be a relative folder inside the output root, got {out!r}")
         kw["out_dir"] = out
-    for key in ("plots", "report", "ema"):
+    for key in ("plots", "report", "ema", "pointwise_loglik"):
         if ("outputs", key) in values:
             kw[key] = values[("outputs", key)]
     ck = values.get(("outputs", "checkpoint_every_s"))

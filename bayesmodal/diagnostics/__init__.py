@@ -6,19 +6,19 @@ frozen ``Diagnostic(name, statistic, p_value, threshold, detected, suggests, loc
 summary, detail)``; ``suggests`` names the model extensions
 (``bayesmodal.extensions.EXTENSIONS``) the evidence points to.
 
-==========================  ====================================  =======================
-function                    looks for                             suggests
-==========================  ====================================  =======================
-``whiteness``               structure left after AR whitening     (anything)
-``input_residual_correlation``  misfit locked to the input        input_delay, motor_lag
-``friction_signature``      force residual ~ -Fc sign(velocity)   coulomb_friction
-``decay_envelope``          linear (not exponential) free decay   coulomb_friction
-``amplitude_dependence``    frequency changing with amplitude     cubic_stiffness
-``stick_detection``         carts at rest off equilibrium         coulomb_friction
-``residual_spectrum``       peaks away from the modelled modes    unmodelled_mode
-``gain_error``              residual proportional to prediction   sensor_gain, input_gain
-``cross_experiment_consistency``  fits that do not transfer       nonlinear effects
-==========================  ====================================  =======================
+================================  ===================================  =======================
+function                          looks for                            suggests
+================================  ===================================  =======================
+``whiteness``                     structure left after AR whitening    (anything)
+``input_residual_correlation``    misfit locked to the input           input_delay, motor_lag
+``friction_signature``            force residual ~ -Fc sign(velocity)  coulomb_friction
+``decay_envelope``                linear (not exponential) free decay  coulomb_friction
+``amplitude_dependence``          frequency changing with amplitude    cubic_stiffness
+``stick_detection``               carts at rest off equilibrium        coulomb_friction
+``residual_spectrum``             peaks away from the modelled modes   unmodelled_mode
+``gain_error``                    residual proportional to prediction  sensor_gain, input_gain
+``cross_experiment_consistency``  fits that do not transfer            nonlinear effects
+================================  ===================================  =======================
 
 ``RESIDUAL_DIAGNOSTICS`` lists the single-experiment ones by name, all with the signature
 ``f(res, **options) -> Diagnostic``.

@@ -1,13 +1,13 @@
 """Synthetic test cases of lecture 11d: a three-mode system with two close modes.
 
-The lecture identifies the eigenvalues
+The lecture identifies the eigenvalues::
 
     lambda_1,2 = -0.0389 +- 0.6172 j,   lambda_3,4 = -0.0754 +- 1.4140 j,
     lambda_5,6 = -0.0607 +- 1.6138 j    (1/s)
 
 from two impulse responses ``h11`` and ``h12`` sampled at ``dt = 1 s`` on
 ``0 <= t < 100 s`` with 5 % Gaussian noise.  The lecture does not give the residues.
-Here the mode shapes (column ``l = 1`` of the residue matrices, rows ``i = 1, 2``) are
+Here the mode shapes (column ``l = 1`` of the residue matrices, rows ``i = 1, 2``) are::
 
     u_k = a_k (1, r_k),   r = (0.8, 0.5, -1.0),   a_k = sqrt(nu_k |mu_k| / (nu_1 |mu_1|)),
 

@@ -1,7 +1,7 @@
 """Frequency response functions from input/output records, and the signal tools around them.
 
 Estimators (lecture 11, "system identification" stage).  With auto and cross spectra
-``S_uu``, ``S_yu = E[Y U*]``, ``S_yy`` averaged over records or Welch segments,
+``S_uu``, ``S_yu = E[Y U*]``, ``S_yy`` averaged over records or Welch segments::
 
     H1 = S_yu / S_uu          (unbiased for noise on the output),
     H2 = S_yy / S_uy          (unbiased for noise on the input),
@@ -660,7 +660,7 @@ def frf_from_experiment(experiment, *, method: str = "auto", **kwargs) -> FRF:
 
 # --------------------------------------------------------------------------- IRF
 def frequency_grid(n_samples: int, dt: float) -> np.ndarray:
-    """The one-sided FFT grid ``2 pi k / (n_samples dt)``, ``k = 0 .. n_samples // 2``, rad/s."""
+    """The one-sided FFT grid ``2 pi k / (n_samples dt)``, k from 0 to ``n_samples // 2``, rad/s."""
     return 2 * np.pi * np.fft.rfftfreq(int(n_samples), dt)
 
 

@@ -2,7 +2,7 @@
 
 A mode ``k`` of an underdamped system is the conjugate pole pair
 ``lambda_k = mu_k +- j nu_k`` with residues ``A_k[i]`` (lecture 11, one column of the FRF
-matrix measured with ``s`` sensors).  Its undamped natural frequency and damping ratio are
+matrix measured with ``s`` sensors).  Its undamped natural frequency and damping ratio are::
 
     omega_k = |lambda_k|,        zeta_k = -mu_k / |lambda_k|,
 

@@ -37,6 +37,7 @@ from .idata import (
     priors_from_idata,
     save_idata,
     to_inference_data,
+    with_pointwise_loglik,
 )
 from .likelihood import NOISE_MODELS, Likelihood, ar1_terms, simulate_noise, white_terms
 from .priors import LogUniform, Normal, PriorSet, Uniform, default_priors, noise_names
@@ -122,6 +123,7 @@ __all__ = [
     "simulate_noise",
     "summary_dict",
     "to_inference_data",
+    "with_pointwise_loglik",
     "white_terms",
     "write_run",
 ]

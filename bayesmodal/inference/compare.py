@@ -97,11 +97,12 @@ def information_criteria(idata) -> InformationCriteria:
     """PSIS-LOO and WAIC from the ``log_likelihood`` group (variable ``y``).
 
     ArviZ's warnings (large Pareto k, WAIC variance) are recorded in ``notes`` and
-    summarised by ``max_pareto_k`` / ``n_bad_k`` rather than raised.
+    summarised by ``max_pareto_k`` / ``n_bad_k`` rather than raised.  A run saved without
+    the group (``pointwise=False``) has it rebuilt from its draws
+    (:func:`~.idata.with_pointwise_loglik`).
     """
     az = arviz()
-    if "log_likelihood" not in idata.groups():
-        raise ConfigError("InferenceData has no log_likelihood group (pointwise=False?)")
+    idata = _as_idata(idata)
     loo, n1 = _recorded(az.loo, idata, pointwise=True, var_name="y")
     waic, n2 = _recorded(az.waic, idata, var_name="y")
     k = np.asarray(loo.pareto_k).ravel()
@@ -646,9 +647,10 @@ class ElpdChange:
 
 
 def _as_idata(run_or_idata):
+    from .idata import to_inference_data, with_pointwise_loglik
+
     if hasattr(run_or_idata, "groups"):
-        return run_or_idata
-    from .idata import to_inference_data
+        return with_pointwise_loglik(run_or_idata)
 
     return to_inference_data(run_or_idata, n_predictive=0)
 

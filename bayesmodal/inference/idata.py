@@ -13,7 +13,9 @@ Groups written by :func:`to_inference_data`:
     ``obs`` dimension runs over the samples of all experiments, with coordinates
     ``experiment`` and ``t_s``.  Stored as float32 (with some 20 000 observations and
     1000 draws it is the bulk of the file); PSIS-LOO and WAIC from float32 and float64
-    terms agree to better than 1e-6 relative on the rig data.
+    terms agree to better than 1e-6 relative on the rig data.  It can be left out
+    (``pointwise=False``) and rebuilt later, bit for bit, from the posterior draws and the
+    observed data with :func:`with_pointwise_loglik`.
 ``posterior_predictive``
     ``y`` (replicated measurements: model output plus a draw of the noise model) and
     ``y_hat`` (noise-free model output), dims ``(chain, draw, obs, output)``, for a subset
@@ -46,6 +48,7 @@ __all__ = [
     "to_inference_data",
     "save_idata",
     "load_idata",
+    "with_pointwise_loglik",
     "posterior_matrix",
     "model_from_idata",
     "extension_from_idata",
@@ -136,6 +139,28 @@ def _chunks(n: int, size: int):
         yield slice(i, min(i + size, n))
 
 
+def _pointwise_group(lik, draws: np.ndarray, obs: dict, attrs: dict):
+    """The ``log_likelihood`` group: pointwise terms of every draw, float32.
+
+    ``draws`` has shape (chain, draw, P); ``obs`` are the observation coordinates.
+    """
+    import xarray as xr
+
+    n_chain, n_draw, n_par = draws.shape
+    flat = draws.reshape(-1, n_par)
+    n_obs = sum(e.n_samples for e in lik.experiments)
+    n_out = lik.experiments[0].n_outputs
+    ll = np.empty((flat.shape[0], n_obs, n_out))
+    for sl in _chunks(flat.shape[0], 64):
+        ll[sl] = np.concatenate(lik.pointwise(flat[sl]), axis=1)
+    cd = {"chain": np.arange(n_chain), "draw": np.arange(n_draw)}
+    return xr.Dataset(
+        {"y": (("chain", "draw", "obs", "output"),
+               ll.reshape(n_chain, n_draw, n_obs, n_out).astype(np.float32))},
+        coords={**cd, **obs}, attrs=attrs,
+    )
+
+
 def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, rng=None):
     """Assemble an ``arviz.InferenceData`` from a :class:`~.sampling.PosteriorRun`.
 
@@ -146,7 +171,9 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
         Approximate number of draws (over all chains) for the posterior predictive group;
         0 leaves the group out.
     pointwise : bool
-        Compute the ``log_likelihood`` group (one simulation per retained draw).
+        Compute the ``log_likelihood`` group (one simulation per retained draw).  With
+        False the group is left out (it is most of the file: draws x observations x
+        outputs float32 terms); :func:`with_pointwise_loglik` rebuilds it exactly.
     rng : numpy.random.Generator or int, optional
         For the noise draws of the posterior predictive.
 
@@ -196,16 +223,8 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
         "constant_data": constant,
     }
 
-    flat = draws.reshape(-1, n_par)
     if pointwise:
-        ll = np.empty((flat.shape[0], y_obs.shape[0], n_out))
-        for sl in _chunks(flat.shape[0], 64):
-            ll[sl] = np.concatenate(lik.pointwise(flat[sl]), axis=1)
-        groups["log_likelihood"] = xr.Dataset(
-            {"y": (("chain", "draw", "obs", "output"),
-                   ll.reshape(n_chain, n_draw, y_obs.shape[0], n_out).astype(np.float32))},
-            coords={**cd, **obs}, attrs=attrs,
-        )
+        groups["log_likelihood"] = _pointwise_group(lik, draws, obs, attrs)
 
     if n_predictive > 0:
         step = max(1, round(n_chain * n_draw / n_predictive))
@@ -321,8 +340,47 @@ def likelihood_from_idata(idata, experiments=None):
                       extension_from_idata(idata), a.get("initial_state", "rest"))
 
 
+def with_pointwise_loglik(idata):
+    """InferenceData with its ``log_likelihood`` group, rebuilt if it was left out.
+
+    The terms are recomputed from the posterior draws (stored in float64) and the observed
+    data with the run's model, extension and noise (:func:`likelihood_from_idata`), by the
+    same code as :func:`to_inference_data`, so they equal the terms a run with
+    ``pointwise=True`` stores, bit for bit.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A run's InferenceData (from :func:`to_inference_data` or :func:`load_idata`).
+
+    Returns
+    -------
+    arviz.InferenceData
+        ``idata`` itself when it has the group, else a copy with the group added.
+    """
+    if "log_likelihood" in idata.groups():
+        return idata
+    lik = likelihood_from_idata(idata)
+    group = _pointwise_group(lik, posterior_matrix(idata), _obs_coords(lik.experiments),
+                             dict(idata.posterior.attrs))
+    out = idata.copy()
+    out.add_groups({"log_likelihood": group})
+    return out
+
+
+#: NetCDF compression of every numeric variable: zlib level 4 after the HDF5 byte
+#: shuffle (on the float32 pointwise log-likelihood it gives about 25 % less than zlib
+#: alone; levels above 4 gain under 1 %).  Lossless.
+NETCDF_COMPRESSION = {"zlib": True, "complevel": 4, "shuffle": True}
+
+
 def save_idata(idata, path: str | os.PathLike) -> Path:
-    """Write InferenceData to NetCDF atomically (temporary file, then rename).
+    """Write InferenceData to compressed NetCDF atomically (temporary file, then rename).
+
+    Every numeric variable is compressed losslessly (:data:`NETCDF_COMPRESSION`); the
+    dtypes are those of ``idata`` (the large groups, ``log_likelihood`` and
+    ``posterior_predictive``, are float32 from :func:`to_inference_data`; the posterior
+    draws stay float64).
 
     Returns
     -------
@@ -342,7 +400,17 @@ def save_idata(idata, path: str | os.PathLike) -> Path:
     if free < need:
         raise OSError(errno.ENOSPC, f"cannot write {path}: {os.strerror(errno.ENOSPC)} (needs "
                       f"about {need} bytes, {free} are free)")
-    idata.to_netcdf(str(tmp))
+    # ArviZ's own ``compress`` sets zlib only; with it off, xarray takes each variable's
+    # ``encoding``, set here on shallow copies so the caller's object is not changed
+    groups = {}
+    for g in idata.groups():
+        ds = idata[g].copy(deep=False)
+        for var in ds.variables.values():
+            if np.issubdtype(var.dtype, np.number) and var.ndim > 0:
+                var.encoding = {**var.encoding, **NETCDF_COMPRESSION}
+        groups[g] = ds
+    out = arviz().InferenceData(attrs=dict(getattr(idata, "attrs", {}) or {}), **groups)
+    out.to_netcdf(str(tmp), compress=False)
     os.replace(tmp, path)
     return path
 

@@ -12,7 +12,7 @@ transform ``theta_i = f_i(z_i)`` to an unbounded (or half-bounded) sampling coor
   ``z -> -inf`` for a damper that is not there, and the walkers would need ever longer to
   come back.
 
-The sampler works with the density of ``z``,
+The sampler works with the density of ``z``::
 
     log p_z(z) = sum_i [ log p_i(f_i(z_i)) + log |f_i'(z_i)| ],
 

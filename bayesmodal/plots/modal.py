@@ -97,7 +97,7 @@ def plot_bode(omega, H, *, ax=None, bands=None, phase_bands=None, labels=None,
     ax : sequence of two matplotlib Axes, optional
         Magnitude and phase axes (new figure if omitted).
     bands : tuple (lo, hi) of ndarray, shape like H, optional
-        Credible band of the magnitude |H| (linear, in ``unit``), shaded.
+        Credible band of the magnitude ``|H|`` (linear, in ``unit``), shaded.
     phase_bands : tuple (lo, hi) of ndarray, shape like H, optional
         Credible band of the phase, degrees, shaded.
     labels : sequence of str, optional

@@ -171,7 +171,7 @@ def _labels(paths: list[Path]) -> list[str]:
 
 
 def _load_run(path: Path):
-    from ..inference import load_idata
+    from ..inference import load_idata, with_pointwise_loglik
 
     if not path.is_dir():
         raise ConfigError(f"{path}: not a run folder")
@@ -184,9 +184,8 @@ def _load_run(path: Path):
     if not sp.is_file():
         raise ConfigError(f"{path}: no summary.json (not a finished run folder)")
     summary = json.loads(sp.read_text(encoding="utf-8"))
-    idata = load_idata(path / "posterior.nc")
-    if "log_likelihood" not in idata.groups():
-        raise ConfigError(f"{path}: posterior.nc has no pointwise log-likelihood")
+    # a run saved with [outputs] pointwise_loglik = false: the terms are rebuilt exactly
+    idata = with_pointwise_loglik(load_idata(path / "posterior.nc"))
     return summary, idata
 
 

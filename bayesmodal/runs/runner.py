@@ -580,7 +580,8 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
-            idata = to_inference_data(run, n_predictive=cfg.predictive_draws, rng=cfg.seed)
+            idata = to_inference_data(run, n_predictive=cfg.predictive_draws, rng=cfg.seed,
+                                      pointwise=cfg.pointwise_loglik)
         with stages.stage("outputs"):
             summary = write_run(idata, folder.path, plots=cfg.plots)
         with stages.stage("cross-checks"):
