@@ -38,9 +38,16 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
     for r in out["extensions"].values():
         assert {"us_per_eval", "ratio_to_linear", "meets_target"} <= set(r)
         assert isinstance(r["meets_target"], bool)
+    s = out["sampler"]
+    assert s["n_samples"] == 300
+    # the emcee run does all a likelihood call does and more, which does all a bare
+    # simulation does and more: the rates must come out in that order
+    assert s["sampler_evals_per_s"] < s["simulator_evals_per_s"]
+    assert s["sampler_fraction"] == s["sampler_evals_per_s"] / s["simulator_evals_per_s"]
     assert main(["bench", "--json", "--quick", "--samples", "300", "--batch", "4",
-                 "--no-extensions"]) == 0
-    assert "extensions" not in json.loads(capsys.readouterr().out)
+                 "--no-extensions", "--no-sampler"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert "extensions" not in out and "sampler" not in out
 
 
 def test_rig_input_has_pulses_steps_and_a_sweep():

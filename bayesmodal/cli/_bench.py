@@ -22,6 +22,8 @@ def register(sub) -> None:
                    help="fewer timing rounds (faster, noisier)")
     p.add_argument("--no-extensions", action="store_true",
                    help="skip the model-extension simulators")
+    p.add_argument("--no-sampler", action="store_true",
+                   help="skip the sampler-throughput benchmark (emcee run vs bare simulator)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.set_defaults(func=run)
 
@@ -30,6 +32,10 @@ def run(args) -> int:
     out = {"linear": bench_linear(args.samples, args.batch, quick=args.quick)}
     if not args.no_extensions:
         out["extensions"] = bench_extensions(args.samples, args.batch, quick=args.quick)
+    if not args.no_sampler:
+        from ..bench_sampler import bench_sampler
+
+        out["sampler"] = bench_sampler(args.samples, quick=args.quick)
     if args.json:
         print_json(out)
     else:
@@ -51,4 +57,15 @@ def run(args) -> int:
                 print(f" {r['us_per_eval']:8.1f} us/eval  "
                       f"{r['ratio_to_linear']:5.1f}x {flags[0]:8s} | "
                       f"{r['ratio_to_linear_rig_input']:5.1f}x {flags[1]}")
+        if "sampler" in out:
+            from ..bench_sampler import SAMPLER_MIN_FRACTION
+
+            r = out["sampler"]
+            print(f"sampler throughput, N={r['n_samples']} samples, {r['n_walkers']} walkers "
+                  f"(likelihood evaluations per second; target >= "
+                  f"{SAMPLER_MIN_FRACTION:g} of the bare simulator):")
+            print(f"  bare simulator {r['simulator_evals_per_s']:.0f}/s, likelihood "
+                  f"{r['likelihood_evals_per_s']:.0f}/s, emcee run "
+                  f"{r['sampler_evals_per_s']:.0f}/s = {r['sampler_fraction']:.2f} of the "
+                  f"simulator ({'ok' if r['meets_target'] else 'TOO SLOW'})")
     return 0
