@@ -166,8 +166,12 @@ def _model(s: dict) -> Answer:
     if n_fail == 0:
         return Answer(q, "ok", f"As far as tested: all {n_all} residual checks pass"
                       + fits + ".")
+    counts = {nm: names.count(nm) for nm in dict.fromkeys(names)}
+    n_rec = len(res)
+    listed = ", ".join(nm if c == 1 or n_rec < 2 else f"{nm} ({c} of {n_rec} records)"
+                       for nm, c in counts.items())
     return Answer(q, "bad", f"{n_fail} of {n_all} residual checks fail ("
-                  + ", ".join(names) + ")" + fits
+                  + listed + ")" + fits
                   + ". The residuals contain effects the model leaves out.")
 
 
@@ -286,8 +290,18 @@ def run_verdict(summary: dict) -> RunVerdict:
     if c.status == "bad":
         third = "the intervals below are conditional on this model"
         mins = [m for m in (held_min, cv_min) if m is not None]
-        if mins and min(mins) < prob - COVERAGE_TOLERANCE:
+        covs = _flat([r.get("coverage_90", []) for r in
+                      _heldout_records(summary) + _crossval_records(summary)])
+        narrow = bool(mins) and min(mins) < prob - COVERAGE_TOLERANCE
+        wide = bool(covs) and max(covs) > min(1.0, prob + COVERAGE_TOLERANCE)
+        if narrow and wide:
+            third += (" and their predictive band is too narrow for some records and wider "
+                      f"than needed on others ({cov_txt})")
+        elif narrow:
             third += f" and are too narrow for the next record ({cov_txt})"
+        elif wide:
+            third += (" and their predictive band reaches its coverage only by being wider "
+                      f"than needed ({cov_txt})")
         else:
             third += " and understate the uncertainty"
     elif c.status == "ok":
