@@ -25,7 +25,6 @@ import argparse
 import json
 import sys
 import time
-import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -34,55 +33,7 @@ import numpy as np
 _ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(_ROOT / "tests"))
 
-QUANTITIES = ("m1", "m2", "m3", "omega_1", "omega_2", "omega_3", "zeta_1", "zeta_2",
-              "zeta_3", "mu_gv")
-
-
-def _inside(draws, truth):
-    lo, hi = np.quantile(draws, [0.05, 0.95])
-    return bool(lo <= truth <= hi)
-
-
-def replicate(seed: int, *, n_samples: int = 2000, steps: int = 3000, walkers: int = 48
-              ) -> dict:
-    """One replicate: which of ``QUANTITIES`` each analysis's 90 % interval contains."""
-    import records_truth as rt
-
-    from bayesmodal.inference import sample_posterior
-    from bayesmodal.inference.propagate import propagate_modes
-    from bayesmodal.inference.records import DEFAULT_LAYOUT
-    from bayesmodal.system import LinearModel, Rig
-
-    rng = np.random.default_rng(seed)
-    recs, truth = rt.make_replicate(rng, n_samples)
-    omega, zeta = rt.true_modes()
-    model = LinearModel(Rig(rt.SPRINGS), "free")
-    t_true = {"m1": rt.PHYSICS[0], "m2": rt.PHYSICS[1], "m3": rt.PHYSICS[2],
-              "mu_gv": rt.MU_GV,
-              **{f"omega_{i + 1}": omega[i] for i in range(3)},
-              **{f"zeta_{i + 1}": zeta[i] for i in range(3)}}
-    out = {"seed": seed, "truth_gains": truth["g_v"]}
-    for label, exps, layout in (("joint", recs, DEFAULT_LAYOUT), ("single", recs[:1], None)):
-        t0 = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            run = sample_posterior(exps, model, noise="ar1", layout=layout,
-                                   n_walkers=walkers, n_steps=steps, burn=steps // 2,
-                                   rng=seed, warn=False)
-        d = run.flat_draws
-        names = run.names
-        mech = run.likelihood.split(d)[0]
-        ms = propagate_modes(model, mech, methods=("eig",))
-        got = {nm: d[:, names.index(nm)] for nm in ("m1", "m2", "m3")}
-        got["mu_gv"] = d[:, names.index("mu_g_v" if layout else "g_v")]
-        for i in range(3):
-            got[f"omega_{i + 1}"] = ms.omega_rad_s[:, i]
-            got[f"zeta_{i + 1}"] = ms.zeta[:, i]
-        out[label] = {q: _inside(got[q], t_true[q]) for q in QUANTITIES}
-        out[label + "_diag"] = {"max_rhat": float(run.diagnostics.max_rhat),
-                                "min_ess": float(run.diagnostics.min_ess),
-                                "seconds": time.perf_counter() - t0}
-    return out
+from records_truth import QUANTITIES, replicate  # noqa: E402
 
 
 def summarise(reps: list[dict]) -> dict:
