@@ -55,3 +55,98 @@ def free_model():
 @pytest.fixture
 def prop_model():
     return LinearModel(Rig(), "proportional")
+
+
+# ----------------------------------------------------------------------------- tolerances
+# A tolerance comes from the computation's own error (docs/testing.md, "Tolerances"):
+# these helpers give first-order bounds for the shared numerical kernels.
+
+#: Unit roundoff of float64 (2.2e-16).
+EPS = np.finfo(float).eps
+
+
+def solve_tol(A) -> float:
+    """Relative error bound of a backward-stable solve ``A x = b``: ``cond(A) n eps``.
+
+    ``A`` may be a stack, shape (..., n, n); the bound of the worst member is returned.
+    """
+    A = np.asarray(A)
+    return float(np.max(np.linalg.cond(A))) * A.shape[-1] * EPS
+
+
+def eig_rtol(M, K, lam, *, backward=None) -> np.ndarray:
+    """Relative error bound of eigenvalues ``lam`` of the definite pencil ``K u = lam M u``.
+
+    A method with relative backward error ``b`` (default ``n eps``, a backward-stable
+    solver such as ``eigh``) returns the exact eigenvalues of ``(K + E, M + F)``,
+    ``||E|| <= b ||K||``, ``||F|| <= b ||M||``; to first order each eigenvalue then moves by
+    at most ``b (||K|| + lam ||M||) ||M^-1||`` (2-norms), returned relative to ``lam``.
+    The bound on ``omega = sqrt(lam)`` is half of it, so it serves for both.
+    """
+    M = np.asarray(M, float)
+    K = np.asarray(K, float)
+    lam = np.asarray(lam, float)
+    b = M.shape[-1] * EPS if backward is None else backward
+    norm_m = np.linalg.norm(M, 2, axis=(-2, -1))[..., None]
+    norm_k = np.linalg.norm(K, 2, axis=(-2, -1))[..., None]
+    norm_minv = 1.0 / np.linalg.eigvalsh(M).min(axis=-1)[..., None]
+    return b * (norm_k + lam * norm_m) * norm_minv / lam
+
+
+def eig_angle_tol(M, K, lam, *, backward=None) -> np.ndarray:
+    """Bound on the sine of the M-angle between computed and exact mode shapes.
+
+    The eigenvalue perturbation of :func:`eig_rtol` (absolute) divided by the gap from
+    each ``lam`` to its nearest neighbour (Davis-Kahan); ``inf`` gap for a single mode.
+    """
+    lam = np.asarray(lam, float)
+    shift = eig_rtol(M, K, lam, backward=backward) * lam
+    dist = np.abs(lam[..., :, None] - lam[..., None, :])
+    dist = np.where(np.eye(lam.shape[-1], dtype=bool), np.inf, dist)
+    return shift / np.min(dist, axis=-1)
+
+
+def angle_tol(M, K, lam, *, backward=None) -> np.ndarray:
+    """Bound on the sine of the plain (Euclidean) angle between computed and exact shapes:
+    :func:`eig_angle_tol` scaled by ``sqrt(cond(M))`` (M-angle to plain angle), plus the
+    rounding ``n eps`` of the shape's own entries."""
+    M = np.asarray(M, float)
+    s = eig_angle_tol(M, K, lam, backward=backward) * np.sqrt(np.linalg.cond(M))[..., None]
+    return s + M.shape[-1] * EPS
+
+
+def mac_tol(M, K, lam, *, backward=None) -> np.ndarray:
+    """Bound on ``1 - MAC`` between computed and exact shapes: the squared sine of
+    :func:`angle_tol` plus the rounding of the MAC itself, ``n eps``."""
+    return angle_tol(M, K, lam, backward=backward) ** 2 + np.shape(M)[-1] * EPS
+
+
+def nonsym_eig_atol(A) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute error bound of each eigenvalue of a general matrix ``A``, shape (..., n, n).
+
+    A backward-stable eigensolver perturbs A by ``n eps ||A||``; eigenvalue ``i`` moves by
+    that times its condition number ``1 / |y_i^H x_i|`` (unit left and right vectors).
+    Returns the eigenvalues (``scipy.linalg.eig`` order) and their bounds, shape (..., n)
+    each.  Use through :func:`match_eigs`.
+    """
+    import scipy.linalg
+
+    A = np.asarray(A, float)
+    flat = A.reshape(-1, *A.shape[-2:])
+    out = []
+    for a in flat:
+        w, vl, vr = scipy.linalg.eig(a, left=True, right=True)
+        kappa = 1.0 / np.abs(np.sum(vl.conj() * vr, axis=0))
+        out.append((w, a.shape[-1] * EPS * np.linalg.norm(a, 2) * kappa))
+    w = np.array([o[0] for o in out]).reshape(A.shape[:-1])
+    tol = np.array([o[1] for o in out]).reshape(A.shape[:-1])
+    return w, tol
+
+
+def match_eigs(A, lam) -> np.ndarray:
+    """The error bound of :func:`nonsym_eig_atol` for each eigenvalue in ``lam`` (shape
+    (..., k)), taken from the nearest eigenvalue of A."""
+    w, tol = nonsym_eig_atol(A)
+    lam = np.asarray(lam)
+    idx = np.argmin(np.abs(lam[..., :, None] - w[..., None, :]), axis=-1)
+    return np.take_along_axis(tol, idx, axis=-1)
