@@ -175,3 +175,11 @@ def zoh_rtol(A, dt, *, phase=True) -> float:
     rounding = s * EPS * np.linalg.cond(V) * (1.0 + memory)
     drift = dt * np.max(dl, axis=-1) * memory if phase else 0.0
     return float(np.max(rounding + drift))
+
+
+def ode_atol(n_steps, rtol, atol, scale, cond_v=1.0) -> float:
+    """Global error bound of an adaptive integrator run at ``rtol``, ``atol`` over
+    ``n_steps`` accepted steps on a stable system: each step's local error is held below
+    ``rtol |y| + atol`` (``scale`` = max |y|); a stable system does not amplify them beyond
+    the conditioning ``cond_v`` of its eigenbasis, so at most they add up."""
+    return float(cond_v * n_steps * (rtol * scale + atol))
