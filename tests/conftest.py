@@ -187,3 +187,32 @@ def ode_atol(n_steps, rtol, atol, scale, cond_v=1.0) -> float:
     ``rtol |y| + atol`` (``scale`` = max |y|); a stable system does not amplify them beyond
     the conditioning ``cond_v`` of its eigenbasis, so at most they add up."""
     return float(cond_v * n_steps * (rtol * scale + atol))
+
+
+def modal_backward(method, K):
+    """Relative backward error of a modal method (function or name) at its default
+    settings, read from its signature: ``eigh`` is backward stable (``None``, i.e. n eps
+    in :func:`eig_rtol`); ``rayleigh_modes`` guarantees a backward error below
+    ``1000 tol``; matrix iteration works on ``D = K^-1 M``, formed with a solve
+    (:func:`solve_tol`), and stops when the shape changes by less than ``tol``."""
+    import inspect
+
+    from bayesmodal.modal import matrix_iteration, rayleigh_modes
+
+    name = getattr(method, "__name__", str(method))
+    if "rayleigh" in name:
+        return 1000 * inspect.signature(rayleigh_modes).parameters["tol"].default
+    if "iteration" in name:
+        return solve_tol(K) + inspect.signature(matrix_iteration).parameters["tol"].default
+    return None
+
+
+def shape_atol(method, M, K, omega2, U):
+    """Bound on the entries of shapes normalised on cart 1 (columns of U, shape (..., n, n))
+    from ``method`` against exact or ``eigh`` shapes, both errors together: a shape turned
+    by an angle with sine s moves perpendicularly by s ||u|| and, after renormalising
+    u_1 = 1, by at most s ||u|| (1 + max|u|).  Broadcast to the shape of U."""
+    s = angle_tol(M, K, omega2, backward=modal_backward(method, K)) + angle_tol(M, K, omega2)
+    norm = np.linalg.norm(U, axis=-2)
+    return np.broadcast_to((s * norm * (1 + np.max(np.abs(U), axis=-2)))[..., None, :],
+                           np.shape(U))

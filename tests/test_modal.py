@@ -17,7 +17,16 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 import scipy.signal as ss
-from conftest import EPS, TABLE3, angle_tol, eig_rtol, mac_tol, match_eigs, solve_tol
+from conftest import (
+    EPS,
+    TABLE3,
+    eig_rtol,
+    mac_tol,
+    match_eigs,
+    modal_backward,
+    shape_atol,
+    solve_tol,
+)
 
 from bayesmodal import ModelError
 from bayesmodal.cli import main
@@ -42,39 +51,15 @@ METHODS = [undamped_modes, rayleigh_modes, matrix_iteration]
 METHOD_IDS = ["eigen", "rayleigh", "iteration"]
 
 
-def backward_error(method, M, K):
-    """Relative backward error of each method at its default settings (docs/testing.md):
-    eigh is backward stable (n eps, the default of eig_rtol); rayleigh_modes guarantees a
-    backward error below 1000 tol (tol = 1e-14); matrix iteration works on D = K^-1 M,
-    formed with a solve (cond(K) n eps), and stops when the shape changes by less than
-    tol = 1e-13."""
-    if method is rayleigh_modes:
-        return 1000 * 1e-14
-    if method is matrix_iteration:
-        return solve_tol(K) + 1e-13
-    return None
-
-
-def shape_atol(method, M, K, omega2, U):
-    """Bound on the entries of shapes normalised on cart 1 (columns of U), the method's
-    and the reference's errors together: a shape turned by an angle with sine s moves
-    perpendicularly by s ||u|| and, after renormalising u_1 = 1, by at most
-    s ||u|| (1 + max|u|), shape (n, n) (broadcast over rows)."""
-    s = angle_tol(M, K, omega2, backward=backward_error(method, M, K)) + angle_tol(M, K, omega2)
-    norm = np.linalg.norm(U, axis=-2)
-    return np.broadcast_to((s * norm * (1 + np.max(np.abs(U), axis=-2)))[..., None, :],
-                           np.shape(U))
-
-
 def freq_rtol(method, M, K, omega2):
     """Relative error bound on the frequencies of ``method`` for the pencil (M, K), the
     worst over the modes."""
-    return float(np.max(eig_rtol(M, K, omega2, backward=backward_error(method, M, K))))
+    return float(np.max(eig_rtol(M, K, omega2, backward=modal_backward(method, K))))
 
 
 def shape_mac_tol(method, M, K, omega2):
     """Bound on 1 - MAC between the shapes of ``method`` and the exact ones (worst mode)."""
-    return float(np.max(mac_tol(M, K, omega2, backward=backward_error(method, M, K))))
+    return float(np.max(mac_tol(M, K, omega2, backward=modal_backward(method, K))))
 
 #: Report Table 4 (proportional damping), in LinearModel("proportional").names order.
 TABLE4 = np.array([6.223, 1.565, 1.461, 1.146, 1.528, 8.583e-05])
@@ -574,7 +559,7 @@ def test_batch_equals_loop():
     # A batch and a loop may take different kernels; each is within its own error bound of
     # the exact answer, so they agree to twice that bound (per member).
     w2 = batched["undamped_modes"].omega_rad_s ** 2
-    rtol = {f.__name__: 2 * eig_rtol(M, K, w2, backward=backward_error(f, M, K))
+    rtol = {f.__name__: 2 * eig_rtol(M, K, w2, backward=modal_backward(f, K))
             for f in METHODS}
     atol = {f.__name__: shape_atol(f, M, K, w2, batched["undamped_modes"].shapes)
             for f in METHODS}
@@ -616,7 +601,7 @@ def test_batched_methods_agree_and_are_fast():
     assert elapsed < 5.0
     w2 = ref.omega_rad_s**2
     for method, modes in ((matrix_iteration, it), (rayleigh_modes, ray)):
-        rtol = eig_rtol(M, K, w2, backward=backward_error(method, M, K)) + eig_rtol(M, K, w2)
+        rtol = eig_rtol(M, K, w2, backward=modal_backward(method, K)) + eig_rtol(M, K, w2)
         np.testing.assert_array_less(np.abs(modes.omega_rad_s / ref.omega_rad_s - 1), rtol)
         np.testing.assert_array_less(np.abs(modes.shapes - ref.shapes),
                                      shape_atol(method, M, K, w2, ref.shapes))
