@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import EPS
 
 from bayesmodal._errors import DataError
 from bayesmodal.ema import (
@@ -15,6 +16,39 @@ from bayesmodal.ema import (
     stabilization_diagram,
 )
 from bayesmodal.plots.ema import plot_error_curve, plot_stabilization
+
+
+def lsce_bounds(records, dt, poles, M=None, P=None):
+    """Error bounds of noise-free LSCE, from its own two least-squares problems.
+
+    The prediction coefficients solve a zero-residual least-squares problem with the
+    Hankel matrix B (rows ``h[k .. k + 2n - 1]`` of every IRF, reversed): relative error
+    ``cond(B) 2n eps``, plus ``2n eps`` of the roots' companion matrix.  A root z_i of the
+    polynomial alpha moves by ``||d alpha|| ||(z_i^k)|| / |alpha'(z_i)|`` and the pole
+    ``ln(z) / dt`` by that over ``|z_i| dt``.  The residues solve the Vandermonde system
+    V (P samples of ``z^k``): relative error ``cond(V) (P eps + P dt max|d lambda| k)``.
+    Returns the absolute bound per pole (order of ``poles``, positive imaginary part)
+    and the relative bound of the residues.
+    """
+    recs = [np.asarray(r, float).reshape(len(r), -1) for r in records]
+    lam = np.r_[poles, np.conj(poles)]
+    order = lam.size
+    z = np.exp(lam * dt)
+    rows = []
+    for h in recs:
+        m = h.shape[0] - order if M is None else M
+        idx = order - 1 - np.arange(order)[None, :] + np.arange(m)[:, None]
+        rows += [h[idx, i] for i in range(h.shape[1])]
+    B = np.vstack(rows)
+    alpha = np.poly(z)
+    d_alpha = order * EPS * (np.linalg.cond(B) + 1) * np.linalg.norm(alpha)
+    powers = np.linalg.norm(z[:, None] ** np.arange(order + 1)[None, :], axis=1)
+    deriv = np.abs(np.polyval(np.polyder(alpha), z))
+    d_lam = d_alpha * powers / deriv / (np.abs(z) * dt)
+    p = max(len(h) for h in recs) if P is None else P
+    V = z[None, :] ** np.arange(p)[:, None]
+    d_res = np.linalg.cond(V) * p * (EPS + dt * np.max(d_lam))
+    return d_lam[: len(poles)], d_res
 
 
 def _matched(poles, truth, rtol_imag=0.03, rtol_real=0.30):
@@ -32,20 +66,25 @@ def _matched(poles, truth, rtol_imag=0.03, rtol_real=0.30):
 def test_single_damped_sine_is_exact():
     # h = exp(-0.1 t) sin(2 t) = sum of residues -+ j/2 at -0.1 +- 2j
     t = np.arange(200) * 0.1
-    res = lsce(np.exp(-0.1 * t) * np.sin(2.0 * t), 0.1, 1)
-    np.testing.assert_allclose(res.estimate.poles, [-0.1 + 2j], rtol=1e-10)
-    np.testing.assert_allclose(res.estimate.residues, [[-0.5j]], atol=1e-10)
+    h = np.exp(-0.1 * t) * np.sin(2.0 * t)
+    res = lsce(h, 0.1, 1)
+    d_lam, d_res = lsce_bounds([h], 0.1, np.array([-0.1 + 2j]))
+    np.testing.assert_array_less(np.abs(res.estimate.poles - (-0.1 + 2j)), d_lam)
+    np.testing.assert_allclose(res.estimate.residues, [[-0.5j]], rtol=d_res)
     assert res.error < 1e-20
 
 
 def test_noise_free_lecture_system_exact_with_residues_and_shapes():
     sys = lecture_system()
     t = np.arange(100.0)
-    res = lsce(sys.irf(t), 1.0, 3, M=40, P=40)
-    np.testing.assert_allclose(res.estimate.poles, LECTURE_POLES, rtol=1e-8)
-    np.testing.assert_allclose(res.estimate.residues, sys.residues, rtol=1e-6)
-    # shapes normalised on output 1 are the chosen u_k[2] / u_k[1]
-    np.testing.assert_allclose(res.estimate.mode_shapes[:, 1].real, [0.8, 0.5, -1.0], rtol=1e-6)
+    h = sys.irf(t)
+    res = lsce(h, 1.0, 3, M=40, P=40)
+    d_lam, d_res = lsce_bounds([h], 1.0, LECTURE_POLES, M=40, P=40)
+    np.testing.assert_array_less(np.abs(res.estimate.poles - LECTURE_POLES), d_lam)
+    np.testing.assert_allclose(res.estimate.residues, sys.residues, rtol=d_res)
+    # shapes normalised on output 1 are the chosen u_k[2] / u_k[1]: a ratio of residues
+    np.testing.assert_allclose(res.estimate.mode_shapes[:, 1].real, [0.8, 0.5, -1.0],
+                               rtol=2 * d_res)
 
 
 def test_lecture_example_n3_does_not_resolve_close_modes():
@@ -131,8 +170,10 @@ def test_free_decays_with_different_amplitudes_share_shapes():
 
     recs = [record(np.array([1.0 + 0.5j, 0.3j])), record(np.array([-0.4, 2.0 - 1.0j]))]
     res = lsce(recs, 0.2, 2)
-    np.testing.assert_allclose(res.estimate.poles, lam, rtol=1e-8)
-    np.testing.assert_allclose(res.estimate.mode_shapes.real, shapes, rtol=1e-6)
+    d_lam, d_res = lsce_bounds(recs, 0.2, lam)
+    np.testing.assert_array_less(np.abs(res.estimate.poles - lam), d_lam)
+    # shapes: ratios of amplitudes, after the SVD over records (another n eps)
+    np.testing.assert_allclose(res.estimate.mode_shapes.real, shapes, rtol=2 * d_res + 4 * EPS)
     assert res.amplitudes.shape == (2, 4, 2)
 
 

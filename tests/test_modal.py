@@ -17,7 +17,16 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 import scipy.signal as ss
-from conftest import TABLE3
+from conftest import (
+    EPS,
+    TABLE3,
+    eig_rtol,
+    mac_tol,
+    match_eigs,
+    modal_backward,
+    shape_atol,
+    solve_tol,
+)
 
 from bayesmodal import ModelError
 from bayesmodal.cli import main
@@ -40,6 +49,17 @@ from bayesmodal.system import LinearModel, Rig
 
 METHODS = [undamped_modes, rayleigh_modes, matrix_iteration]
 METHOD_IDS = ["eigen", "rayleigh", "iteration"]
+
+
+def freq_rtol(method, M, K, omega2):
+    """Relative error bound on the frequencies of ``method`` for the pencil (M, K), the
+    worst over the modes."""
+    return float(np.max(eig_rtol(M, K, omega2, backward=modal_backward(method, K))))
+
+
+def shape_mac_tol(method, M, K, omega2):
+    """Bound on 1 - MAC between the shapes of ``method`` and the exact ones (worst mode)."""
+    return float(np.max(mac_tol(M, K, omega2, backward=modal_backward(method, K))))
 
 #: Report Table 4 (proportional damping), in LinearModel("proportional").names order.
 TABLE4 = np.array([6.223, 1.565, 1.461, 1.146, 1.528, 8.583e-05])
@@ -80,7 +100,8 @@ def min_mac_diag(a, b):
 @pytest.mark.parametrize("method", METHODS, ids=METHOD_IDS)
 def test_single_dof(method):
     modes = method([[2.0]], [[800.0]])
-    assert modes.omega_rad_s == pytest.approx([20.0], rel=1e-14)
+    rtol = freq_rtol(method, [[2.0]], [[800.0]], 400.0)
+    assert modes.omega_rad_s == pytest.approx([20.0], rel=rtol)
     assert modes.shapes.tolist() == [[1.0]]
     assert modes.modal_mass == pytest.approx([2.0])
     assert modes.modal_stiffness == pytest.approx([800.0])
@@ -97,16 +118,25 @@ def test_two_dof_closed_form(method):
     lam = np.sort([(-b - np.sqrt(b * b - 4 * a * c)) / (2 * a),
                    (-b + np.sqrt(b * b - 4 * a * c)) / (2 * a)])
     modes = method(M, K)
-    assert modes.omega_rad_s == pytest.approx(np.sqrt(lam), rel=1e-12)
-    assert modes.shapes[1] == pytest.approx((k1 + k2 - lam * m1) / k2, rel=1e-10)
-    assert modes.modal_stiffness / modes.modal_mass == pytest.approx(lam, rel=1e-12)
+    rtol = freq_rtol(method, M, K, lam)
+    assert modes.omega_rad_s == pytest.approx(np.sqrt(lam), rel=np.max(rtol))
+    # the ratio u_2 / u_1 = tan(phi) of a shape turned by an angle dphi moves by
+    # (1 + u_2^2) dphi; dphi^2 <= 1 - MAC
+    u2 = (k1 + k2 - lam * m1) / k2
+    assert modes.shapes[1] == pytest.approx(
+        u2, abs=np.max((1 + u2**2) * np.sqrt(shape_mac_tol(method, M, K, lam))))
+    assert modes.modal_stiffness / modes.modal_mass == pytest.approx(lam, rel=np.max(rtol))
 
 
 @pytest.mark.parametrize("method", METHODS, ids=METHOD_IDS)
 def test_two_equal_masses(method):
     modes = method(np.eye(2), [[2.0, -1.0], [-1.0, 2.0]])
-    assert modes.omega_rad_s == pytest.approx([1.0, np.sqrt(3.0)], rel=1e-13)
-    assert modes.shapes == pytest.approx(np.array([[1.0, 1.0], [1.0, -1.0]]), abs=1e-12)
+    M, K, lam = np.eye(2), np.array([[2.0, -1.0], [-1.0, 2.0]]), np.array([1.0, 3.0])
+    assert modes.omega_rad_s == pytest.approx(np.sqrt(lam),
+                                              rel=np.max(freq_rtol(method, M, K, lam)))
+    # ratios +-1: (1 + 1) dphi
+    assert modes.shapes == pytest.approx(np.array([[1.0, 1.0], [1.0, -1.0]]),
+                                         abs=2 * np.sqrt(shape_mac_tol(method, M, K, lam)))
 
 
 @pytest.mark.parametrize("method", METHODS, ids=METHOD_IDS)
@@ -131,10 +161,14 @@ def test_random_pencils_match_scipy_and_truth(method, n):
         M, K, U = known_pencil(rng, omega2)
         modes = method(M, K)
         w_ref, v_ref = scipy.linalg.eigh(K, M)
-        assert modes.omega_rad_s == pytest.approx(np.sqrt(w_ref), rel=1e-10)
-        assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=1e-10)
-        assert min_mac_diag(modes.shapes, v_ref) > 1 - 1e-10
-        assert min_mac_diag(modes.shapes, U) > 1 - 1e-10
+        # both sides carry an error: the reference that of eigh, the truth the rounding
+        # in forming K (a backward error of n eps as well)
+        rtol = freq_rtol(method, M, K, omega2) + eig_rtol(M, K, omega2)
+        mtol = shape_mac_tol(method, M, K, omega2) + np.max(mac_tol(M, K, omega2))
+        assert modes.omega_rad_s == pytest.approx(np.sqrt(w_ref), rel=np.max(rtol))
+        assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=np.max(rtol))
+        assert min_mac_diag(modes.shapes, v_ref) > 1 - mtol
+        assert min_mac_diag(modes.shapes, U) > 1 - mtol
 
 
 def test_matrix_iteration_accurate_or_raises_on_unstructured_spectra():
@@ -152,8 +186,10 @@ def test_matrix_iteration_accurate_or_raises_on_unstructured_spectra():
             assert np.max(omega2[:-1] / omega2[1:]) ** 3000 > 1e-13
             continue
         n_ok += 1
-        assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=1e-10)
-        assert min_mac_diag(modes.shapes, U) > 1 - 1e-10
+        rtol = freq_rtol(matrix_iteration, M, K, omega2) + eig_rtol(M, K, omega2)
+        mtol = shape_mac_tol(matrix_iteration, M, K, omega2) + np.max(mac_tol(M, K, omega2))
+        assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=np.max(rtol))
+        assert min_mac_diag(modes.shapes, U) > 1 - mtol
     assert n_ok > 0 and n_raised > 0  # both branches exercised
 
 
@@ -164,8 +200,9 @@ def test_masses_differing_1000x(method):
     M, K, U = known_pencil(rng, omega2, mass_scale=np.array([1.0, 1000.0, 1.0, 1000.0]))
     assert np.max(np.diag(M)) / np.min(np.diag(M)) > 300
     modes = method(M, K)
-    assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=1e-10)
-    assert modes.shapes == pytest.approx(U, rel=1e-8, abs=1e-9)
+    rtol = freq_rtol(method, M, K, omega2) + np.max(eig_rtol(M, K, omega2))
+    assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=rtol)
+    np.testing.assert_array_less(np.abs(modes.shapes - U), shape_atol(method, M, K, omega2, U))
 
 
 def test_nearly_repeated_frequencies():
@@ -174,9 +211,11 @@ def test_nearly_repeated_frequencies():
     M, K, U = known_pencil(rng, omega2)
     for method in (undamped_modes, rayleigh_modes):
         modes = method(M, K)
-        assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=1e-11)
+        rtol = freq_rtol(method, M, K, omega2) + np.max(eig_rtol(M, K, omega2))
+        assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=rtol)
         # shapes of a nearly repeated pair are ill-conditioned (error ~ eps / gap)
-        assert min_mac_diag(modes.shapes, U) > 1 - 1e-8
+        mtol = shape_mac_tol(method, M, K, omega2) + np.max(mac_tol(M, K, omega2))
+        assert min_mac_diag(modes.shapes, U) > 1 - mtol
     # power iteration would need ~1e7 steps: it must refuse rather than return garbage
     with pytest.raises(ConvergenceError, match="nearly repeated"):
         matrix_iteration(M, K)
@@ -184,8 +223,10 @@ def test_nearly_repeated_frequencies():
     omega2[2] = 101.0
     M, K, U = known_pencil(rng, omega2)
     modes = matrix_iteration(M, K)
-    assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=1e-11)
-    assert min_mac_diag(modes.shapes, U) > 1 - 1e-12
+    rtol = freq_rtol(matrix_iteration, M, K, omega2) + np.max(eig_rtol(M, K, omega2))
+    mtol = shape_mac_tol(matrix_iteration, M, K, omega2) + np.max(mac_tol(M, K, omega2))
+    assert modes.omega_rad_s == pytest.approx(np.sqrt(omega2), rel=rtol)
+    assert min_mac_diag(modes.shapes, U) > 1 - mtol
     assert modes.n_iterations.max() > 500
 
 
@@ -196,7 +237,10 @@ def test_matrix_iteration_nan_for_failed_batch_members():
     M = np.stack([good[0], bad[0]])
     K = np.stack([good[1], bad[1]])
     modes = matrix_iteration(M, K, on_fail="nan")
-    assert modes.omega_rad_s[0] == pytest.approx(np.sqrt([1.0, 5.0, 9.0]), rel=1e-11)
+    lam = np.array([1.0, 5.0, 9.0])
+    rtol = freq_rtol(matrix_iteration, good[0], good[1], lam)
+    assert modes.omega_rad_s[0] == pytest.approx(np.sqrt(lam), rel=rtol + np.max(
+        eig_rtol(good[0], good[1], lam)))
     assert np.all(np.isnan(modes.omega_rad_s[1]))
 
 
@@ -253,8 +297,11 @@ def test_three_methods_agree(free_model, prop_model):
         ref = undamped_modes(M, K)
         for method in (rayleigh_modes, matrix_iteration):
             modes = method(M, K)
-            assert modes.omega_rad_s == pytest.approx(ref.omega_rad_s, rel=1e-8)
-            assert np.max(np.abs(modes.shapes - ref.shapes)) < 1e-8
+            w2 = ref.omega_rad_s**2
+            rtol = freq_rtol(method, M, K, w2) + np.max(eig_rtol(M, K, w2))
+            assert modes.omega_rad_s == pytest.approx(ref.omega_rad_s, rel=rtol)
+            np.testing.assert_array_less(np.abs(modes.shapes - ref.shapes),
+                                         shape_atol(method, M, K, w2, ref.shapes))
 
 
 def test_rayleigh_classification_and_quotient(free_model):
@@ -262,7 +309,10 @@ def test_rayleigh_classification_and_quotient(free_model):
     modes = rayleigh_modes(M, K)
     assert modes.kind.tolist() == ["min", "saddle", "max"]
     a, b = modes.shapes[1], modes.shapes[2]
-    assert rayleigh_quotient(M, K, a, b) == pytest.approx(modes.omega_rad_s**2, rel=1e-13)
+    # the quotient of the method's own shapes: the same arithmetic up to the rounding of
+    # the two quadratic forms (a backward error of n eps)
+    w2 = modes.omega_rad_s**2
+    assert rayleigh_quotient(M, K, a, b) == pytest.approx(w2, rel=np.max(eig_rtol(M, K, w2)))
     # vectorised over grids, and a stationary value: R is flat to first order
     A, B = np.meshgrid(a[0] + np.array([-1e-4, 0, 1e-4]), b[0] + np.array([-1e-4, 0, 1e-4]))
     R = rayleigh_quotient(M, K, A, B)
@@ -345,9 +395,18 @@ def test_state_space_agrees_with_proportional_formula(prop_model):
     um = undamped_modes(M, K)
     md = proportional_modal_damping(um.omega_rad_s, theta[:, 4], theta[:, 5])
     cm = state_space_modes(prop_model, theta)
-    assert cm.omega_rad_s == pytest.approx(um.omega_rad_s, rel=1e-10)
-    assert cm.zeta == pytest.approx(md.zeta, rel=1e-9)
-    assert cm.damped_rad_s == pytest.approx(md.damped_rad_s, rel=1e-10)
+    # each side's own error: the state matrix's eigenvalues move by match_eigs (n eps ||A||
+    # times their condition number), the pencil's by eig_rtol; omega = |l| and
+    # damped = Im l move by |dl|, zeta = -Re l / |l| by at most 2 |dl| / |l|
+    A, _ = prop_model.state_space(theta)
+    dl = match_eigs(A, cm.eigenvalues)
+    w2 = um.omega_rad_s**2
+    sym = eig_rtol(M, K, w2)
+    assert np.all(np.abs(cm.omega_rad_s / um.omega_rad_s - 1) <= dl / cm.omega_rad_s + sym)
+    assert np.all(np.abs(cm.zeta / md.zeta - 1)
+                  <= 2 * dl / (cm.omega_rad_s * md.zeta) + sym)
+    assert np.all(np.abs(cm.damped_rad_s / md.damped_rad_s - 1)
+                  <= dl / cm.damped_rad_s + sym)
     # proportional damping has real (classical) modes
     assert np.max(np.abs(cm.shapes.imag)) < 1e-10
     assert cm.shapes.real == pytest.approx(um.shapes, abs=1e-9)
@@ -358,9 +417,10 @@ def test_complex_modes_single_dof_closed_form():
     cm = complex_modes([[0.0, 1.0], [-k / m, -c / m]])
     wn = np.sqrt(k / m)
     zeta = c / (2 * np.sqrt(k * m))
-    assert cm.omega_rad_s == pytest.approx([wn], rel=1e-13)
-    assert cm.zeta == pytest.approx([zeta], rel=1e-12)
-    assert cm.damped_rad_s == pytest.approx([wn * np.sqrt(1 - zeta**2)], rel=1e-13)
+    dl = match_eigs([[0.0, 1.0], [-k / m, -c / m]], cm.eigenvalues)[0]
+    assert cm.omega_rad_s == pytest.approx([wn], rel=dl / wn)
+    assert cm.zeta == pytest.approx([zeta], rel=2 * dl / (wn * zeta))
+    assert cm.damped_rad_s == pytest.approx([wn * np.sqrt(1 - zeta**2)], rel=dl / wn)
     assert cm.eigenvalues[0] == pytest.approx(complex(-c / (2 * m), wn * np.sqrt(1 - zeta**2)))
 
 
@@ -426,25 +486,38 @@ def test_transfer_function_matches_scipy_freqresp(damping):
             _, h = ss.freqresp(ss.StateSpace(A, B[:, None], C, np.zeros((1, 1))), w)
         assert np.max(np.abs(h - H[:, i])) < 1e-9 * np.max(np.abs(h))
     Hf = transfer_function(model, theta, w, input="force")
-    assert Hf == pytest.approx(H / theta[0], rel=1e-12)
+    # the same solves with the right-hand side scaled by g_v: within their own rounding
+    M, C, K, _ = model.matrices(theta)
+    Z = K - w[:, None, None] ** 2 * M + 1j * w[:, None, None] * C
+    assert Hf == pytest.approx(H / theta[0], rel=solve_tol(Z))
 
 
 def test_transfer_function_static_gain_and_sdof(free_model):
-    M, _, K, b = free_model.matrices(TABLE3)
-    H0 = transfer_function(free_model, TABLE3, [0.0, 1e-6])
-    assert H0[0] == pytest.approx(np.linalg.solve(K, b), rel=1e-12)
-    assert H0[1] == pytest.approx(np.linalg.solve(K, b), rel=1e-6)
+    M, C, K, b = free_model.matrices(TABLE3)
+    w_small = 1e-6
+    H0 = transfer_function(free_model, TABLE3, [0.0, w_small])
+    static = np.linalg.solve(K, b)
+    assert H0[0] == pytest.approx(static, rel=2 * solve_tol(K))
+    # H(w) = H(0) - j w K^-1 C H(0) + O(w^2), in norm
+    first_order = w_small * np.linalg.norm(np.linalg.solve(K, C), 2) * np.linalg.norm(static)
+    assert H0[1] == pytest.approx(static, abs=first_order, rel=2 * solve_tol(K))
+    assert H0[1] != pytest.approx(static, abs=0.01 * first_order)  # and it does move
     # report eq. 13: series springs
     k1, k2, k3 = Rig().springs_n_m
     g = TABLE3[0]
     eq13 = g * np.array([(k1 * k2 + k3 * k2 + k3 * k1) / (k1 * k2 * k3), (k2 + k3) / (k2 * k3),
                          1 / k3])
-    assert H0[0].real == pytest.approx(eq13, rel=1e-12)
+    # eq. 13 itself: about ten roundings
+    assert H0[0].real == pytest.approx(eq13, rel=solve_tol(K) + 10 * EPS)
     # one cart: X/F = 1 / (k - m w^2 + j c w)
     sdof = LinearModel(Rig((500.0,)), "free")
     w = np.array([1.0, 15.0, 100.0])
     Hf = transfer_function(sdof, [2.0, 2.2, 1.5], w, input="force")[:, 0]
-    assert Hf == pytest.approx(1 / (500.0 - 2.2 * w**2 + 1j * 1.5 * w), rel=1e-13)
+    # rounding of the 1x1 solve and of the closed form: a few eps of the terms, relative
+    # to the denominator they cancel to near resonance (15 rad/s)
+    den = 500.0 - 2.2 * w**2 + 1j * 1.5 * w
+    terms = 500.0 + 2.2 * w**2 + 1.5 * w
+    assert np.all(np.abs(Hf * den - 1) <= 8 * EPS * terms / np.abs(den))
 
 
 def test_transfer_function_validation(free_model):
@@ -457,9 +530,12 @@ def test_transfer_function_validation(free_model):
 # --------------------------------------------------------------------------- MAC
 def test_mac():
     phi = np.array([[1.0, 1.0], [1.0, -1.0]])
-    np.testing.assert_allclose(mac(phi, phi), np.eye(2), atol=1e-15)
+    # |a^H b|^2 / (a^H a b^H b): the rounding of three inner products of length n and
+    # four more operations
+    atol = (3 * phi.shape[0] + 4) * EPS
+    np.testing.assert_allclose(mac(phi, phi), np.eye(2), atol=atol)
     scaled = phi * np.array([2.0 - 3.0j, -0.5j])  # complex multiples of each column
-    np.testing.assert_allclose(mac(phi, scaled), np.eye(2), atol=1e-15)
+    np.testing.assert_allclose(mac(phi, scaled), np.eye(2), atol=atol)
     assert mac(phi, np.array([[1.0], [0.0]])).shape == (2, 1)
     assert mac(phi[:, 0], np.array([1.0, 0.0]))[0, 0] == pytest.approx(0.5)
     with pytest.raises(ModelError, match="same number of DOFs"):
@@ -480,19 +556,34 @@ def test_batch_equals_loop():
     H = transfer_function(free, theta, w)
     mm = modal_matrices(M, C, K, batched["undamped_modes"].shapes)
     assert batched["matrix_iteration"].omega_rad_s.shape == (n_batch, 3)
+    # A batch and a loop may take different kernels; each is within its own error bound of
+    # the exact answer, so they agree to twice that bound (per member).
+    w2 = batched["undamped_modes"].omega_rad_s ** 2
+    rtol = {f.__name__: 2 * eig_rtol(M, K, w2, backward=modal_backward(f, K))
+            for f in METHODS}
+    atol = {f.__name__: shape_atol(f, M, K, w2, batched["undamped_modes"].shapes)
+            for f in METHODS}
+    A, _ = free.state_space(theta)
+    zeta_rtol = 4 * match_eigs(A, cm.eigenvalues) / (cm.omega_rad_s * cm.zeta)
+    Z = K[:, None] - w[:, None, None] ** 2 * M[:, None] + 1j * w[:, None, None] * C[:, None]
+    h_rtol = 2 * np.max(np.linalg.cond(Z), axis=1) * 3 * EPS
+    # U^T C U: 2n roundings of each entry, relative to ||U||^2 ||C||
+    U = batched["undamped_modes"].shapes
+    d_atol = 4 * 3 * EPS * np.linalg.norm(U, 2, axis=(1, 2)) ** 2 * np.linalg.norm(C, 2,
+                                                                                  axis=(1, 2))
     for i in range(n_batch):
         for f in METHODS:
             one = f(M[i], K[i])
             np.testing.assert_allclose(batched[f.__name__].omega_rad_s[i], one.omega_rad_s,
-                                       rtol=1e-12)
-            np.testing.assert_allclose(batched[f.__name__].shapes[i], one.shapes,
-                                       rtol=1e-9, atol=1e-10)
+                                       rtol=np.max(rtol[f.__name__][i]))
+            np.testing.assert_array_less(np.abs(batched[f.__name__].shapes[i] - one.shapes),
+                                         atol[f.__name__][i])
         one = state_space_modes(free, theta[i])
-        np.testing.assert_allclose(cm.zeta[i], one.zeta, rtol=1e-10)
+        np.testing.assert_allclose(cm.zeta[i], one.zeta, rtol=np.max(zeta_rtol[i]))
         np.testing.assert_allclose(cm.shapes[i], one.shapes, rtol=1e-8, atol=1e-10)
-        np.testing.assert_allclose(H[i], transfer_function(free, theta[i], w), rtol=1e-12)
+        np.testing.assert_allclose(H[i], transfer_function(free, theta[i], w), rtol=h_rtol[i])
         one_mm = modal_matrices(M[i], C[i], K[i], batched["undamped_modes"].shapes[i])
-        np.testing.assert_allclose(mm.damping[i], one_mm.damping, rtol=1e-12)
+        np.testing.assert_allclose(mm.damping[i], one_mm.damping, rtol=0, atol=d_atol[i])
         assert mm.coupling[i] == pytest.approx(float(one_mm.coupling), rel=1e-10)
 
 
@@ -508,9 +599,12 @@ def test_batched_methods_agree_and_are_fast():
     elapsed = time.perf_counter() - t0
     ray = rayleigh_modes(M, K)
     assert elapsed < 5.0
-    for modes in (it, ray):
-        np.testing.assert_allclose(modes.omega_rad_s, ref.omega_rad_s, rtol=1e-8)
-        assert np.max(np.abs(modes.shapes - ref.shapes)) < 1e-8
+    w2 = ref.omega_rad_s**2
+    for method, modes in ((matrix_iteration, it), (rayleigh_modes, ray)):
+        rtol = eig_rtol(M, K, w2, backward=modal_backward(method, K)) + eig_rtol(M, K, w2)
+        np.testing.assert_array_less(np.abs(modes.omega_rad_s / ref.omega_rad_s - 1), rtol)
+        np.testing.assert_array_less(np.abs(modes.shapes - ref.shapes),
+                                     shape_atol(method, M, K, w2, ref.shapes))
     assert np.all(ray.hessian_index == np.arange(3))
 
 
