@@ -90,3 +90,24 @@ def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
     assert (tmp_path / f"heldout_{recs[0].name}.png").is_file()
     with pytest.raises(DataError, match="at least 2 records"):
         crossval(recs[:1], spec)
+
+
+def test_crossval_takes_a_rig_description(tmp_path):
+    """--rig reaches the folds' model (a two-cart preset: two outputs, its own names)."""
+    from bayesmodal.cli import build_parser
+    from bayesmodal.cli._crossval import spec_from_args
+    from bayesmodal.inference.records import RecordsLikelihood
+    from bayesmodal.rigs import load_rig
+    from bayesmodal.system import LinearModel
+
+    args = build_parser().parse_args(["crossval", "a.csv", "b.csv", "--rig", "ecp210-2cart"])
+    spec = spec_from_args(args)
+    assert spec.rig == load_rig("ecp210-2cart")
+    model = LinearModel(spec.rig, spec.damping)
+    t = np.arange(100) * 0.005
+    from bayesmodal.data import Experiment
+
+    exps = [Experiment(t, np.ones(100), np.zeros((100, 2)) + t[:, None], name=n)
+            for n in "ab"]
+    lik = RecordsLikelihood(model, exps, "ar1")
+    assert lik.n_outputs == 2 and lik.names[-4:] == ("sigma_1", "sigma_2", "phi_1", "phi_2")

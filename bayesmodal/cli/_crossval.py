@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._common import add_data_args, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
 def register(sub) -> None:
@@ -21,6 +21,7 @@ def register(sub) -> None:
                     "into --out.",
     )
     add_data_args(p, many=True)
+    add_rig_argument(p)
     p.add_argument("--config", default=None, metavar="FILE",
                    help="run configuration (TOML) whose [model], [likelihood], [records] and "
                         "[sampler] settings are used (default: the options below)")
@@ -62,7 +63,8 @@ def spec_from_args(args):
 
         cfg = load_config(args.config, check_files=False)
         return cfg.crossval_spec()
-    return CrossvalSpec(damping=args.damping, noise=args.noise,
+    rig = load_rig(args) if getattr(args, "rig", None) else None
+    return CrossvalSpec(damping=args.damping, noise=args.noise, rig=rig,
                         layout=parse_layout(args.per_record), n_walkers=args.walkers,
                         n_steps=args.steps, n_predictive=args.draws, seed=args.seed,
                         temperature=args.temperature)

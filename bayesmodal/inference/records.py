@@ -138,7 +138,7 @@ def choose_noise(experiments, model, start, *, extension=None, max_p: int = AUTO
     from .noise import ARpNoise, choose_order
 
     theta = np.asarray(getattr(start, "theta", start), dtype=float)
-    orders = np.ones(model.n_carts, int)
+    orders = np.ones(model.n_outputs, int)
     for e in experiments:
         if extension is None:
             yh = simulate_linear(model, theta, e.v_volt, e.dt)
@@ -251,7 +251,7 @@ class RecordsLikelihood:
         exps = (self.experiments,) if isinstance(self.experiments, Experiment) else tuple(
             self.experiments)
         # one single-record likelihood per record: it validates outputs, noise, extension
-        noise_model = resolve_noise(self.noise, self.model.n_carts)
+        noise_model = resolve_noise(self.noise, self.model.n_outputs)
         basic = self.noise if self.noise in ("white", "ar1") else "white"
         # one single-record likelihood per record: it validates outputs and the extension
         singles = tuple(Likelihood(self.model, (e,), basic, self.extension) for e in exps)
@@ -340,7 +340,7 @@ class RecordsLikelihood:
 
     @property
     def n_outputs(self) -> int:
-        return self.model.n_carts
+        return self.model.n_outputs
 
     @property
     def n_records(self) -> int:
