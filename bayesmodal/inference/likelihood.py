@@ -146,21 +146,10 @@ def residual_loglik(R: np.ndarray, sigma: np.ndarray, phi: np.ndarray | None) ->
         Equal to the sum over samples and outputs of :func:`white_terms` or
         :func:`ar1_terms`.
     """
-    s = sigma.T  # (n_out, nb)
-    n = R.shape[0]
-    if phi is None:
-        ss = np.einsum("kjb,kjb->jb", R, R)
-        t = -n * (_HALF_LOG_2PI + np.log(s)) - 0.5 * ss / s**2
-    else:
-        p = phi.T
-        s00 = np.einsum("kjb,kjb->jb", R[1:], R[1:])
-        s01 = np.einsum("kjb,kjb->jb", R[1:], R[:-1])
-        s11 = s00 - R[-1] ** 2 + R[0] ** 2
-        ss = s00 - 2 * p * s01 + p**2 * s11
-        one_m_p2 = 1.0 - p**2
-        t = (-n * (_HALF_LOG_2PI + np.log(s)) + 0.5 * np.log(one_m_p2)
-             - 0.5 * R[0] ** 2 * one_m_p2 / s**2 - 0.5 * ss / s**2)
-    return t.sum(axis=0)
+    # the sums of ``_resid_kernels.ar1_sums``, here from an array of residuals
+    s00 = np.einsum("kjb,kjb->jb", R[1:], R[1:])
+    s01 = np.einsum("kjb,kjb->jb", R[1:], R[:-1])
+    return loglik_from_sums(s00, s01, R[0], R[-1], R.shape[0], sigma, phi)
 
 
 def loglik_from_sums(s00, s01, r0, rl, n: int, sigma: np.ndarray,
@@ -464,12 +453,21 @@ class Likelihood:
             [e.y_m - yh[0] for e, yh in zip(self.experiments,
                                              self.predict(theta_mech[None]), strict=True)]
         )
-        if self.noise == "white":
-            return np.sqrt(np.mean(r**2, axis=0))
-        phi = np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0)
-        phi = np.clip(phi, -0.9999, 0.9999)
-        sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
-        return np.r_[sigma, phi]
+        return noise_moments(r, self.noise)
+
+
+def noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
+    """Moment estimates of white or AR(1) noise parameters from residuals ``r`` (N, n_out).
+
+    Returns ``sigma`` (RMS residual for white noise; RMS innovation for AR(1)) followed,
+    for AR(1), by the lag-1 autocorrelation ``phi`` (clipped inside (-1, 1)).
+    """
+    if noise == "white":
+        return np.sqrt(np.mean(r**2, axis=0))
+    phi = np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0)
+    phi = np.clip(phi, -0.9999, 0.9999)
+    sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
+    return np.r_[sigma, phi]
 
 
 def resolve_extension(extension, model: LinearModel):

@@ -48,6 +48,7 @@ from .likelihood import (
     Likelihood,
     ar1_terms,
     loglik_from_sums,
+    noise_moments,
     residual_loglik,
     simulate_noise,
     white_terms,
@@ -655,7 +656,7 @@ class RecordsLikelihood:
             e = self.experiments[r]
             res = e.y_m - self.predict_mech(mech[None], v0, e)[0]
             if self.noise in ("white", "ar1"):
-                starts.append(_noise_moments(res, self.noise))
+                starts.append(noise_moments(res, self.noise))
             elif self.noise == "process":
                 # a small random force (N^2 s) and the residual RMS as measurement noise:
                 # the posterior-mode refinement moves both
@@ -680,15 +681,6 @@ def _positive(name: str) -> bool:
     """Parameters sampled on a log scale when per record: the gain, masses, dampers and
     positive extension levels (everything but the input offsets)."""
     return name not in SIGNED
-
-
-def _noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
-    if noise == "white":
-        return np.sqrt(np.mean(r**2, axis=0))
-    phi = np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0)
-    phi = np.clip(phi, -0.9999, 0.9999)
-    sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
-    return np.r_[sigma, phi]
 
 
 def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None = None

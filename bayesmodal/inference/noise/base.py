@@ -190,22 +190,15 @@ class AR1Noise(NoiseModel):
         return _sigma_ok(params[:, :n]) & np.all(np.isfinite(phi) & (np.abs(phi) < 1), axis=-1)
 
     def loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
-        # same sufficient statistics as Likelihood.__call__ (see its docstring)
+        from ..likelihood import residual_loglik  # the sufficient-statistics form
+
         R = np.asarray(R, dtype=float)
         n_out = R.shape[1]
         params = self._params(params, n_out)
         ok = self.valid(params)
         safe = np.where(ok[:, None], params, np.r_[np.ones(n_out), np.zeros(n_out)])
-        s, p = safe[:, :n_out].T, safe[:, n_out:].T
-        n = R.shape[0]
-        s00 = np.einsum("kjb,kjb->jb", R[1:], R[1:])
-        s01 = np.einsum("kjb,kjb->jb", R[1:], R[:-1])
-        s11 = s00 - R[-1] ** 2 + R[0] ** 2
-        ss = s00 - 2 * p * s01 + p**2 * s11
-        one_m_p2 = 1.0 - p**2
-        t = (-n * (HALF_LOG_2PI + np.log(s)) + 0.5 * np.log(one_m_p2)
-             - 0.5 * R[0] ** 2 * one_m_p2 / s**2 - 0.5 * ss / s**2)
-        return np.where(ok, t.sum(axis=0), -np.inf)
+        ll = residual_loglik(R, safe[:, :n_out], safe[:, n_out:])
+        return np.where(ok, ll, -np.inf)
 
     def pointwise(self, r: np.ndarray, params: np.ndarray) -> np.ndarray:
         r = np.asarray(r, dtype=float)
