@@ -349,8 +349,9 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     per = values.get(("records", "per_record"))
     if per is not None:
         for pname, kind in per.items():
-            if kind not in ("independent", "hierarchical"):
-                err(f"records.per_record.{pname}", "must be 'independent' or 'hierarchical', "
+            if kind not in ("independent", "hierarchical", "shared"):
+                err(f"records.per_record.{pname}", "must be 'independent', 'hierarchical' or "
+                    "'shared', "
                     f"got {kind!r}")
         kw["per_record"] = {str(k): str(v) for k, v in per.items()}
     if ("records", "noise_per_record") in values:

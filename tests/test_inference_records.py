@@ -237,3 +237,23 @@ def test_process_noise_through_the_records_likelihood(records):
     with pytest.raises(ConfigError, match="linear model"):
         RecordsLikelihood(MODEL, records, "process", extension="motor_lag",
                           layout=RecordLayout({}))
+
+
+def test_a_shared_offset_is_one_parameter_for_every_record(records):
+    lik = RecordsLikelihood(MODEL, records, "white",
+                            layout=RecordLayout({"g_v": "hierarchical", "v0": "shared"}))
+    assert lik.names.count("v0") == 1 and not any(n.startswith("v0[") for n in lik.names)
+    c = records_start(lik, THETA)
+    v0 = c[lik.names.index("v0")]
+    assert v0 == pytest.approx(np.mean([o for _, o in TRUTH]), abs=1e-3)
+    for r, e in enumerate(records):
+        full, off = lik.record_theta(c[None], r)
+        assert off[0] == v0
+        direct = simulate_linear(MODEL, full[0, :9], e.v_volt + v0, DT)
+        tol = e.n_samples * EPS * np.max(np.abs(direct))
+        assert np.max(np.abs(lik.predict_record(c[None], r)[0] - direct)) <= tol
+    assert np.isfinite(record_priors(lik).log_prior(c))
+    assert lik.log_population(c[None])[0] == pytest.approx(
+        RecordsLikelihood(MODEL, records, "white",
+                          layout=RecordLayout({"g_v": "hierarchical"})).log_population(
+            np.delete(c, lik.names.index("v0"))[None])[0])

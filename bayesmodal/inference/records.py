@@ -6,6 +6,11 @@ the ECP 210 (about 6.1 N/V on the steps, 5.5 on the impulses, 4.5-5.2 on the swe
 the amplifier has an input offset ``v0`` (V).  A :class:`RecordLayout` says which
 parameters are per record and how:
 
+``"shared"``
+    One value for all records: meant for the input offset ``v0``, which is not a
+    parameter of the single-record model (a model parameter is shared anyway when it is
+    not listed).  When the records agree on their offset, a hierarchy of it has a
+    population spread near zero, a funnel the ensemble sampler crosses slowly.
 ``"independent"``
     Each record ``r`` has its own value ``p[r]`` with the parameter's default prior.
 ``"hierarchical"``
@@ -68,7 +73,7 @@ __all__ = [
     "DEFAULT_LAYOUT",
 ]
 
-PER_RECORD_KINDS = ("independent", "hierarchical")
+PER_RECORD_KINDS = ("independent", "hierarchical", "shared")
 
 #: Scale of the half-normal prior of a population spread ``tau_p``: relative for a
 #: log-sampled parameter (0.1 = 10 %), V for the input offset.
@@ -165,7 +170,7 @@ class RecordLayout:
 
     Parameters
     ----------
-    per_record : mapping of str to {"independent", "hierarchical"}
+    per_record : mapping of str to {"independent", "hierarchical", "shared"}
         Model parameter names (``g_v``, a mass, a damper, an extension parameter) or
         ``"v0"`` (the input offset, V), e.g. ``{"g_v": "hierarchical", "v0":
         "hierarchical"}``.  Empty: every parameter is shared, as in a single-record run.
@@ -314,6 +319,11 @@ class RecordsLikelihood:
                 g["mu"] = len(names)
                 g["tau"] = len(names) + 1
                 names += [f"mu_{p}", f"tau_{p}"]
+            if kind == "shared":  # one value for every record (the input offset)
+                g["records"] = [len(names)] * len(self.record_keys)
+                names.append(p)
+                groups[p] = g
+                continue
             g["records"] = list(range(len(names), len(names) + len(self.record_keys)))
             names += [f"{p}[{k}]" for k in self.record_keys]
             groups[p] = g
@@ -776,7 +786,7 @@ def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
     out[ix["shared_pos"]] = theta_mech[ix["shared"]]
     for p, g in ix["groups"].items():
         x = values[p]
-        out[g["records"]] = x
+        out[g["records"]] = np.mean(x) if g["kind"] == "shared" else x
         if g["kind"] == "hierarchical":
             if p in SIGNED:
                 out[g["mu"]], out[g["tau"]] = np.mean(x), max(np.std(x), 0.005)
