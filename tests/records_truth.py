@@ -106,7 +106,7 @@ def replicate(seed: int, *, n_samples: int = 2000, steps: int = 3000, walkers: i
 
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.propagate import propagate_modes
-    from bayesmodal.inference.records import DEFAULT_LAYOUT
+    from bayesmodal.inference.records import RecordLayout
     from bayesmodal.system import LinearModel, Rig
 
     rng = np.random.default_rng(seed)
@@ -118,7 +118,9 @@ def replicate(seed: int, *, n_samples: int = 2000, steps: int = 3000, walkers: i
               **{f"omega_{i + 1}": omega[i] for i in range(3)},
               **{f"zeta_{i + 1}": zeta[i] for i in range(3)}}
     out = {"seed": seed, "truth_gains": truth["g_v"]}
-    for label, exps, layout in (("joint", recs, DEFAULT_LAYOUT), ("single", recs[:1], None)):
+    # the truth draws a gain and an offset per record: both from populations
+    hier = RecordLayout({"g_v": "hierarchical", "v0": "hierarchical"})
+    for label, exps, layout in (("joint", recs, hier), ("single", recs[:1], None)):
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

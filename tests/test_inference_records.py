@@ -25,6 +25,8 @@ MODEL = LinearModel(Rig(), "free")
 THETA = np.array([5.5, 1.5, 1.45, 1.15, 3.0, 2.0, 1.5, 0.5, 0.5])
 TRUTH = [(5.5, 0.01), (6.0, -0.02), (5.0, 0.0)]  # (g_v, v0) per record
 DT = 0.005
+#: Gain and offset per record from populations (the truth above has both).
+HIER = RecordLayout({"g_v": "hierarchical", "v0": "hierarchical"})
 
 
 def _records(noise_m=1e-5, n=1500, seed=0):
@@ -64,7 +66,7 @@ def test_names_follow_the_layout(records):
 
 
 def test_input_offset_by_superposition_equals_simulating_the_offset_input(records):
-    lik = RecordsLikelihood(MODEL, records, "ar1")
+    lik = RecordsLikelihood(MODEL, records, "ar1", layout=HIER)
     centre = records_start(lik, THETA)
     for r, e in enumerate(records):
         full, v0 = lik.record_theta(centre[None], r)
@@ -77,7 +79,7 @@ def test_input_offset_by_superposition_equals_simulating_the_offset_input(record
 
 def test_start_solves_gains_and_offsets_in_closed_form():
     exact = _records(noise_m=0.0)
-    lik = RecordsLikelihood(MODEL, exact, "white")
+    lik = RecordsLikelihood(MODEL, exact, "white", layout=HIER)
     c = dict(zip(lik.names, records_start(lik, THETA), strict=True))
     for k, (g, v0) in enumerate(TRUTH):
         # a least-squares solve of an exactly consistent system: error ~ cond * eps
@@ -92,7 +94,7 @@ def test_start_solves_gains_and_offsets_in_closed_form():
 
 
 def test_pointwise_terms_sum_to_the_total(records):
-    lik = RecordsLikelihood(MODEL, records, "ar1")
+    lik = RecordsLikelihood(MODEL, records, "ar1", layout=HIER)
     c = records_start(lik, THETA)
     x = np.stack([c, c * np.r_[np.full(lik.n_params - 6, 1.001), np.ones(6)]])
     total = lik(x)
@@ -103,7 +105,7 @@ def test_pointwise_terms_sum_to_the_total(records):
 
 
 def test_population_density_matches_scipy(records):
-    lik = RecordsLikelihood(MODEL, records, "white")
+    lik = RecordsLikelihood(MODEL, records, "white", layout=HIER)
     c = records_start(lik, THETA)
     d = dict(zip(lik.names, c, strict=True))
     gs = [d[f"g_v[r{k}]"] for k in range(3)]
@@ -145,14 +147,14 @@ def test_layout_round_trips_through_a_dict():
 def test_ar_p_noise_with_order_one_is_the_ar1_likelihood(records):
     from bayesmodal.inference.noise import ARpNoise
 
-    ar1 = RecordsLikelihood(MODEL, records, "ar1")
-    arp = RecordsLikelihood(MODEL, records, ARpNoise((1, 1, 1)))
+    ar1 = RecordsLikelihood(MODEL, records, "ar1", layout=HIER)
+    arp = RecordsLikelihood(MODEL, records, ARpNoise((1, 1, 1)), layout=HIER)
     assert arp.names[-3:] == ("pacf1_1", "pacf1_2", "pacf1_3")
     c = records_start(ar1, THETA)
     # two implementations of the exact AR(1) density: sufficient statistics lose ~3
     # digits (see residual_loglik), so agree to n_data * 1e3 eps
     np.testing.assert_allclose(arp(c[None]), ar1(c[None]), rtol=ar1.n_data * 1e3 * EPS)
-    ar3 = RecordsLikelihood(MODEL, records, "ar3")
+    ar3 = RecordsLikelihood(MODEL, records, "ar3", layout=HIER)
     c3 = records_start(ar3, THETA)
     parts = sum(p.sum(axis=(1, 2)) for p in ar3.pointwise(c3[None]))
     np.testing.assert_allclose(parts, ar3(c3[None]), rtol=ar3.n_data * 1e3 * EPS)
@@ -176,7 +178,7 @@ def test_predicting_a_record_with_its_own_population_covers_it():
     from bayesmodal.inference.predictive import predict_new_record, score_samples
 
     recs = _records(noise_m=2e-5, n=1200, seed=3)
-    lik = RecordsLikelihood(MODEL, recs[:2], "white")
+    lik = RecordsLikelihood(MODEL, recs[:2], "white", layout=HIER)
     c = records_start(lik, THETA)
     d = dict(zip(lik.names, c, strict=True))
     rng = np.random.default_rng(11)
@@ -202,7 +204,7 @@ def test_predicting_a_record_with_its_own_population_covers_it():
 def test_offset_per_record_through_the_input_offset_effect(records):
     """With a model extension the record's v0 is the input_offset effect's v_offset; on the
     linear plant it predicts what the linear model predicts for v + v0."""
-    lik = RecordsLikelihood(MODEL, records, "white", extension="input_offset")
+    lik = RecordsLikelihood(MODEL, records, "white", extension="input_offset", layout=HIER)
     assert "v_offset[r1]" in lik.names and "mu_v_offset" in lik.names
     c = records_start(lik, np.r_[THETA, 0.0])
     c[lik.names.index("v_offset[r1]")] = -0.02

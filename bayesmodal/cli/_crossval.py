@@ -30,10 +30,10 @@ def register(sub) -> None:
     p.add_argument("--noise", default="ar1", metavar="MODEL",
                    help="residual model: ar1, white, arP (e.g. ar4), ar(p1,p2,p3) or ar:auto "
                    "(orders by BIC on each fold's training records) (default ar1)")
-    p.add_argument("--per-record", default="g_v=hierarchical,v0=hierarchical",
+    p.add_argument("--per-record", default="g_v=hierarchical,v0=shared",
                    metavar="NAME=KIND,...",
-                   help="per-record parameters, KIND independent or hierarchical, or 'none' "
-                        "(default g_v=hierarchical,v0=hierarchical)")
+                   help="per-record parameters, KIND independent, hierarchical or shared (v0), "
+                        "or 'none' (default %(default)s)")
     p.add_argument("--walkers", type=int, default=48, help="ensemble size (default 48)")
     p.add_argument("--steps", type=int, default=4000, help="steps per walker (default 4000)")
     p.add_argument("--draws", type=int, default=200,
