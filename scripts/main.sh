@@ -2,9 +2,9 @@
 # Install bayesmodal (in .venv) and run the main job on the default input (the measured
 # ECP 210 records in ../shared/data or $BAYESMODAL_DATA):
 #   1. reproduce the reference report's tables and plots               -> out/report/
-#   2. fit the four records together (shared masses and dampers, a drive gain and an
-#      input offset per record from their populations) and check the intervals by leaving
-#      each record out in turn                                            -> runs/records_free/
+#   2. fit the four records together (shared masses, dampers and input offset, a drive
+#      gain per record from its population) and check the intervals by leaving each
+#      record out in turn                                                 -> runs/records_free/
 # A finished run is kept (--resume is a no-op then); delete the folder to sample again.
 set -euo pipefail
 cd "$(dirname "$0")/.."
