@@ -177,26 +177,24 @@ def _model(spec: CrossvalSpec):
     return LinearModel(rig, spec.damping)
 
 
-def _estimates(run, lik, draws: np.ndarray, key: str | None, rng) -> dict:
-    """Posterior g_v, omega and zeta: medians and 90 % intervals."""
+def _interval(x: np.ndarray) -> dict:
+    """Median and 90 % equal-tailed interval along the first axis, as lists."""
+    lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95], axis=0)
+    return {"median": np.atleast_1d(med).tolist(), "lo": np.atleast_1d(lo).tolist(),
+            "hi": np.atleast_1d(hi).tolist()}
+
+
+def _estimates(lik, draws: np.ndarray, *, new_record: bool, rng) -> dict:
+    """Posterior g_v (at the population centre, or drawn for a new record), omega and
+    zeta: medians and 90 % intervals."""
     from .predictive import new_record_parameters
     from .propagate import propagate_modes
 
-    mech = lik.split(draws)[0] if key is None else new_record_parameters(lik, draws, rng)[0]
-    if key is not None and key != "population":
-        j = lik.names.index(f"g_v[{key}]")
-        g = draws[:, j]
-    else:
-        g = mech[:, 0]
-    model = lik.model
-    ms = propagate_modes(model, lik.split(draws)[0][:, : model.n_params], methods=("eig",))
-
-    def iv(x):
-        lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95], axis=0)
-        return {"median": np.atleast_1d(med).tolist(), "lo": np.atleast_1d(lo).tolist(),
-                "hi": np.atleast_1d(hi).tolist()}
-
-    return {"g_v": iv(g), "omega_rad_s": iv(ms.omega_rad_s), "zeta": iv(ms.zeta)}
+    centre = lik.split(draws)[0]
+    g = (new_record_parameters(lik, draws, rng)[0] if new_record else centre)[:, 0]
+    ms = propagate_modes(lik.model, centre[:, : lik.model.n_params], methods=("eig",))
+    return {"g_v": _interval(g), "omega_rad_s": _interval(ms.omega_rad_s),
+            "zeta": _interval(ms.zeta)}
 
 
 def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int | None,
@@ -239,19 +237,17 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
                   converged=bool(d.converged), elapsed_s=float(run.elapsed_s),
                   evaluations_per_s=float(run.evaluations_per_s))
     if heldout is None:
-        est = _estimates(run, run.likelihood, draws, None, rng)
-        for k in run.likelihood.record_keys if hasattr(run.likelihood, "record_keys") else ():
+        est = _estimates(run.likelihood, draws, new_record=False, rng=rng)
+        for k in getattr(run.likelihood, "record_keys", ()):
             if f"g_v[{k}]" in run.names:
-                x = draws[:, run.names.index(f"g_v[{k}]")]
-                lo, med, hi = np.quantile(x, [0.05, 0.5, 0.95])
-                est[f"g_v[{k}]"] = {"median": [med], "lo": [lo], "hi": [hi]}
+                est[f"g_v[{k}]"] = _interval(draws[:, run.names.index(f"g_v[{k}]")])
         return FoldResult(None, tuple(e.name for e in train), None, est, **common)
     target = exps[heldout]
     y_hat, y_pred, ll = predict_new_record(run.likelihood, draws, target, rng=rng)
     scores = score_samples(target.name, target.y_m, y_pred, ll)
     q = np.quantile(y_pred, [0.05, 0.5, 0.95], axis=0)
     band = {"t_s": target.t_s, "y": target.y_m, "q05": q[0], "q50": q[1], "q95": q[2]}
-    est = _estimates(run, run.likelihood, draws, "population", rng)
+    est = _estimates(run.likelihood, draws, new_record=True, rng=rng)
     return FoldResult(target.name, tuple(e.name for e in train), scores, est, band=band,
                       **common)
 

@@ -302,7 +302,6 @@ class RecordsLikelihood:
         object.__setattr__(self, "experiments", exps)
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "extension", ext)
-        object.__setattr__(self, "_singles", singles)
         object.__setattr__(self, "noise_model", noise_model)
         object.__setattr__(self, "noise", self.noise if isinstance(self.noise, str) and
                            self.noise in ("white", "ar1") else noise_model.name)
@@ -500,29 +499,35 @@ class RecordsLikelihood:
             return self.extension.simulate(self.model.rig, mech, e.v_volt, e.dt)
         if not np.any(v0):
             return simulate_linear(self.model, mech, e.v_volt, e.dt)
-        # linear in g_v and in the input: y = g_v (S1(v) + v0 S1(1)) with unit-gain S1
-        unit = mech.copy()
-        g = unit[:, 0].copy()
-        unit[:, 0] = 1.0
-        a = simulate_linear(self.model, unit, e.v_volt, e.dt)
-        b = simulate_linear(self.model, unit, np.ones(e.n_samples), e.dt)
+        a, b = self._unit_responses(mech, e)
+        g = mech[:, 0]
         return g[:, None, None] * (a + v0[:, None, None] * b)
+
+    def _unit_responses(self, mech: np.ndarray, e: Experiment):
+        """Unit-gain responses ``a = S1(v)`` and ``b = S1(1)``, each (nb, N, n_out), m/V.
+
+        The linear model is linear in ``g_v`` and in the input, so a record with gain
+        ``g`` and input offset ``v0`` predicts ``g (a + v0 b)``.
+        """
+        unit = mech.copy()
+        unit[:, 0] = 1.0
+        return (simulate_linear(self.model, unit, e.v_volt, e.dt),
+                simulate_linear(self.model, unit, np.ones(e.n_samples), e.dt))
+
+    def _sigma_phi(self, params: np.ndarray):
+        """``(sigma, phi)`` of white (phi None) or AR(1) noise from noise parameter rows."""
+        n = self.n_outputs
+        return params[:, :n], (params[:, n : 2 * n] if self.noise == "ar1" else None)
 
     def _noise(self, full: np.ndarray):
         """``(sigma, phi)`` of white or AR(1) noise from single-record rows."""
-        p = len(self.mech_names)
-        n = self.n_outputs
-        sigma = full[:, p : p + n]
-        phi = full[:, p + n : p + 2 * n] if self.noise == "ar1" else None
-        return sigma, phi
+        return self._sigma_phi(full[:, len(self.mech_names):])
 
     def noise_loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
         """Log density, shape (nb,), of residuals ``R`` (N, n_out, nb) under the noise model
         with parameter rows ``params`` (nb, n_noise)."""
         if self.noise in ("white", "ar1"):  # the sufficient-statistics path
-            n = self.n_outputs
-            return residual_loglik(R, params[:, :n],
-                                   params[:, n : 2 * n] if self.noise == "ar1" else None)
+            return residual_loglik(R, *self._sigma_phi(params))
         return self.noise_model.loglik(R, params)
 
     def noise_simulate(self, params: np.ndarray, n_samples: int, rng) -> np.ndarray:
@@ -530,10 +535,7 @@ class RecordsLikelihood:
         (not for process noise, whose draws go through the dynamics: see
         ``predictive.predict_new_record``)."""
         if self.noise in ("white", "ar1"):
-            n = self.n_outputs
-            return simulate_noise(params[:, :n],
-                                  params[:, n : 2 * n] if self.noise == "ar1" else None,
-                                  n_samples, rng)
+            return simulate_noise(*self._sigma_phi(params), n_samples, rng)
         return self.noise_model.simulate(params, n_samples, rng)
 
     def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
@@ -600,19 +602,13 @@ class RecordsLikelihood:
     def _basic_loglik(self, e: Experiment, full, v0, params) -> np.ndarray:
         """White or AR(1) log-likelihood of one record from compiled residual sums (the
         per-record gain and offset applied inside the kernel, no temporaries)."""
-        n = self.n_outputs
-        sigma = params[:, :n]
-        phi = params[:, n : 2 * n] if self.noise == "ar1" else None
         mech = full[:, : len(self.mech_names)]
         if self.extension is not None or not np.any(v0):
             sums = ar1_sums(e.y_m, self.predict_mech(mech, v0, e))
         else:
-            unit = mech.copy()
-            unit[:, 0] = 1.0
-            a = simulate_linear(self.model, unit, e.v_volt, e.dt)
-            b = simulate_linear(self.model, unit, np.ones(e.n_samples), e.dt)
+            a, b = self._unit_responses(mech, e)
             sums = ar1_sums_affine(e.y_m, a, b, mech[:, 0], v0)
-        return loglik_from_sums(*sums, e.n_samples, sigma, phi)
+        return loglik_from_sums(*sums, e.n_samples, *self._sigma_phi(params))
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Total log-likelihood over the records, shape (nb,)."""

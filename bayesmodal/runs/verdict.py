@@ -175,11 +175,12 @@ def _model(s: dict) -> Answer:
                   + ". The residuals contain effects the model leaves out.")
 
 
-def _coverage_phrase(records: list[dict]) -> tuple[str, float | None]:
+def _coverage_phrase(records: list[dict]) -> tuple[str, float | None, float | None]:
+    """The coverage span in words, and the smallest and largest coverage (or None)."""
     cov = _flat([r.get("coverage_90", []) for r in records])
     if not cov:
-        return "", None
-    return _span(cov, scale=100.0), min(cov)
+        return "", None, None
+    return _span(cov, scale=100.0), min(cov), max(cov)
 
 
 def _intervals(s: dict, model: Answer) -> Answer:
@@ -213,8 +214,8 @@ def _intervals(s: dict, model: Answer) -> Answer:
         if n_tot:
             parts.append(f"{n_tot - n_in} of {n_tot} model-free LSCE estimates of "
                          "frequency and damping lie outside them")
-    held_txt, held_min = _coverage_phrase(_heldout_records(s))
-    cv_txt, cv_min = _coverage_phrase(_crossval_records(s))
+    held_txt, held_min, _ = _coverage_phrase(_heldout_records(s))
+    cv_txt, cv_min, _ = _coverage_phrase(_crossval_records(s))
     if held_txt:
         parts.append(f"the {pct} predictive band covers {held_txt} of the held-out "
                      "record(s)")
@@ -267,8 +268,8 @@ def run_verdict(summary: dict) -> RunVerdict:
     c = _intervals(summary, b)
     prob = float(summary.get("prob", 0.9))
     pct = f"{100 * prob:.0f} %"
-    held_txt, held_min = _coverage_phrase(_heldout_records(summary))
-    cv_txt, cv_min = _coverage_phrase(_crossval_records(summary))
+    held_txt, held_min, held_max = _coverage_phrase(_heldout_records(summary))
+    cv_txt, cv_min, cv_max = _coverage_phrase(_crossval_records(summary))
     cov_txt = ""
     if held_txt:
         cov_txt = f"held-out {pct} band covers {held_txt}"
@@ -290,10 +291,9 @@ def run_verdict(summary: dict) -> RunVerdict:
     if c.status == "bad":
         third = "the intervals below are conditional on this model"
         mins = [m for m in (held_min, cv_min) if m is not None]
-        covs = _flat([r.get("coverage_90", []) for r in
-                      _heldout_records(summary) + _crossval_records(summary)])
+        maxs = [m for m in (held_max, cv_max) if m is not None]
         narrow = bool(mins) and min(mins) < prob - COVERAGE_TOLERANCE
-        wide = bool(covs) and max(covs) > min(1.0, prob + COVERAGE_TOLERANCE)
+        wide = bool(maxs) and max(maxs) > min(1.0, prob + COVERAGE_TOLERANCE)
         if narrow and wide:
             third += (" and their predictive band is too narrow for some records and wider "
                       f"than needed on others ({cov_txt})")
