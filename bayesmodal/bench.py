@@ -227,7 +227,7 @@ def bench_extensions(
         ``ratio_to_linear_rig_input``, ``ratio_per_round_rig_input``,
         ``meets_target_rig_input``.
     """
-    from .extensions import EXTENSIONS, get_extension
+    from .discrepancy.effects import EXTENSIONS, get_extension
 
     model, theta, u_random = _bench_problem(n_samples, batch, rng)
     rig = model.rig

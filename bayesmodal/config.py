@@ -15,7 +15,7 @@ problem in a file is collected and reported at once, each naming the file and th
 
     [model]
     damping = "free"            # or "proportional"
-    extensions = []             # names from bayesmodal.extensions
+    extensions = []             # names from bayesmodal.discrepancy.effects
 
     [priors]                    # per-parameter overrides: [lo, hi] bounds of a uniform prior
     m1 = [0.5, 3.0]             # or { lo = 0.5, hi = 3.0, scale = "log" }
@@ -331,7 +331,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     kw["damping"] = damping
     exts = values.get(("model", "extensions"), [])
     try:
-        from .extensions import EXTENSIONS  # noqa: PLC0415 - optional catalogue
+        from .discrepancy.effects import EXTENSIONS  # noqa: PLC0415 - optional catalogue
 
         known = tuple(EXTENSIONS)
     except ImportError:
@@ -491,7 +491,7 @@ def _check_prior_names(priors, kw, err) -> None:
     allowed = set(model.names) | {f"sigma_{i + 1}" for i in range(n)} | {
         f"phi_{i + 1}" for i in range(n)}
     try:
-        from .extensions import EXTENSIONS  # noqa: PLC0415
+        from .discrepancy.effects import EXTENSIONS  # noqa: PLC0415
 
         for e in kw.get("extensions", ()):
             if e in EXTENSIONS:

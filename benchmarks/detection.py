@@ -1,4 +1,4 @@
-"""Detection benchmark of ``bayesmodal.diagnose``: hidden effects and null data.
+"""Detection benchmark of ``bayesmodal.discrepancy.diagnosis``: hidden effects and null data.
 
 For every extension in the catalogue, ``--seeds`` synthetic experiments hide the effect at
 a size and location drawn from the seed (``tests/hidden_effects.py``: the independent
@@ -40,7 +40,7 @@ def _job(args):
 
     from hidden_effects import make
 
-    from bayesmodal.diagnose import diagnose
+    from bayesmodal.discrepancy.diagnosis import diagnose
 
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()

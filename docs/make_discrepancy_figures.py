@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from bayesmodal.data import find_data, load_experiment
-from bayesmodal.diagnostics import RESIDUAL_DIAGNOSTICS, linear_residuals
-from bayesmodal.extensions import EXTENSIONS, fit_extension_lsq
-from bayesmodal.extensions.fit import extension_residuals
+from bayesmodal.discrepancy.checks import RESIDUAL_DIAGNOSTICS, linear_residuals
+from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.discrepancy.effects.fit import extension_residuals
 from bayesmodal.fit import fit_lsq
 from bayesmodal.metrics import fit_percent
 from bayesmodal.simulate import simulate_linear
@@ -261,7 +261,7 @@ def posterior_part(recs: dict, runs_dir: Path) -> dict:
 def numerics_part(recs: dict, theta: np.ndarray) -> dict:
     """The friction fit at ``theta`` on the impulses with 1 to 16 sub-steps per sample and
     with the independent event-driven reference simulator of ``tests/reference_sim.py``."""
-    from bayesmodal.extensions import CoulombFriction
+    from bayesmodal.discrepancy.effects import CoulombFriction
 
     e = recs["data_impulses"]
     out = {f"n_sub_{k}": np.round(fit_percent(

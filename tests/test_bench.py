@@ -7,7 +7,7 @@ import pytest
 
 from bayesmodal.bench import COMBINED, EXTENSION_MAX_RATIO, bench_extensions, rig_input
 from bayesmodal.cli import main
-from bayesmodal.extensions import EXTENSIONS
+from bayesmodal.discrepancy.effects import EXTENSIONS
 
 
 def test_bench_extensions_reports_every_extension_against_the_same_run():

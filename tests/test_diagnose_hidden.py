@@ -15,7 +15,7 @@ from hidden_effects import EFFECTS, make
 
 from bayesmodal import ConfigError, DataError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, save_csv
-from bayesmodal.diagnose import (
+from bayesmodal.discrepancy.diagnosis import (
     CAUSES,
     calibrate_null,
     diagnose,
@@ -183,7 +183,7 @@ def test_bad_input_is_refused():
 def test_profiled_ar1_terms_match_the_likelihood_module():
     # the workflow's scoring equals the inference module's exact AR(1) density at the
     # moment estimates of (sigma, phi)
-    from bayesmodal.diagnose.scoring import ar1_pointwise
+    from bayesmodal.discrepancy.diagnosis.scoring import ar1_pointwise
     from bayesmodal.inference.likelihood import ar1_terms
 
     rng = np.random.default_rng(8)
@@ -196,9 +196,9 @@ def test_profiled_ar1_terms_match_the_likelihood_module():
 
 
 def test_best_starts_are_the_cheapest_grid_points_in_order():
-    from bayesmodal.diagnose.starts import best_start, best_starts
-    from bayesmodal.extensions import EXTENSIONS
-    from bayesmodal.extensions.fit import extension_residuals
+    from bayesmodal.discrepancy.diagnosis.starts import best_start, best_starts
+    from bayesmodal.discrepancy.effects import EXTENSIONS
+    from bayesmodal.discrepancy.effects.fit import extension_residuals
     from bayesmodal.fit import fit_lsq
     from bayesmodal.system import LinearModel, Rig
 

@@ -13,7 +13,7 @@ import pytest
 from conftest import measured
 from hidden_effects import make
 
-from bayesmodal.diagnose import diagnose
+from bayesmodal.discrepancy.diagnosis import diagnose
 
 
 @pytest.fixture(scope="module")

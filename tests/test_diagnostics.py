@@ -13,7 +13,7 @@ from reference_sim import REFERENCES, simulate_linear_ref
 
 from bayesmodal import ConfigError, DataError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
-from bayesmodal.diagnostics import (
+from bayesmodal.discrepancy.checks import (
     RESIDUAL_DIAGNOSTICS,
     Diagnostic,
     amplitude_dependence,
@@ -263,7 +263,7 @@ def test_detected_means_significant(friction):
 
 
 def test_lag_phrase_names_the_late_signal():
-    from bayesmodal.diagnostics import input_correlation as ic
+    from bayesmodal.discrepancy.checks import input_correlation as ic
 
     assert ic.lag_phrase(-0.0049) == "prediction lags measurement by 4.9 ms"
     assert ic.lag_phrase(0.008) == "measurement lags prediction by 8.0 ms"

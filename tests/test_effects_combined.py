@@ -10,7 +10,7 @@ from reference_sim import RTOL, simulate_coulomb_ref
 
 from bayesmodal import ConfigError, ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, save_csv
-from bayesmodal.extensions import EXTENSIONS, Combined, get_extension
+from bayesmodal.discrepancy.effects import EXTENSIONS, Combined, get_extension
 from bayesmodal.inference import Likelihood
 from bayesmodal.system import LinearModel, Rig
 
@@ -188,8 +188,8 @@ def test_least_squares_fit_of_a_combination_recovers_truth_within_its_standard_e
     Gaussian noise; the estimate lies within 4 Gauss-Newton standard errors (from the
     finite-difference Jacobian at the estimate) of the truth, and the fit's cost is not
     above the cost at the truth (the optimum, not merely a point near it)."""
-    from bayesmodal.extensions import fit_extension_lsq
-    from bayesmodal.extensions.fit import extension_residuals
+    from bayesmodal.discrepancy.effects import fit_extension_lsq
+    from bayesmodal.discrepancy.effects.fit import extension_residuals
 
     ext = get_extension("input_offset+drive_deadband")
     N = 2400

@@ -16,13 +16,13 @@ from reference_sim import RTOL
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT
-from bayesmodal.extensions import (
+from bayesmodal.discrepancy.effects import (
     DriveDeadband,
     InputOffset,
     LuGreFriction,
     get_extension,
 )
-from bayesmodal.extensions.deadband import deadband
+from bayesmodal.discrepancy.effects.deadband import deadband
 from bayesmodal.simulate import simulate_linear
 from bayesmodal.system import LinearModel, Rig
 

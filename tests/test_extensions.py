@@ -9,7 +9,7 @@ from reference_sim import REFERENCES, simulate_linear_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
-from bayesmodal.extensions import (
+from bayesmodal.discrepancy.effects import (
     EXTENSIONS,
     Backlash,
     CoulombFriction,
@@ -289,7 +289,7 @@ def test_friction_on_measured_impulses(impulses, steps):
     friction levels and scaled, floored dampers): from the linear fit alone
     (``fit_extension_lsq``'s default single start) the fit stops in an optimum with almost
     no friction (85.7 % on the impulses, docs/discrepancy.md section 3)."""
-    from bayesmodal.diagnose.starts import best_start
+    from bayesmodal.discrepancy.diagnosis.starts import best_start
     from bayesmodal.fit import fit_lsq
 
     ext = EXTENSIONS["coulomb_friction"]

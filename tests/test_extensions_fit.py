@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from hidden_effects import make
 
-from bayesmodal.extensions import EXTENSIONS, fit_extension_lsq
-from bayesmodal.extensions.fit import extension_residuals
+from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.discrepancy.effects.fit import extension_residuals
 from bayesmodal.fit import fit_lsq
 from bayesmodal.system import LinearModel, Rig
 
@@ -62,7 +62,7 @@ def test_experiment_weights_scale_each_records_share_of_the_cost(record):
     the negative control (weights 1, 1) differs from the first record alone by the second
     record's own cost.  The fit reports the cost function at its estimate."""
     from bayesmodal._errors import ConfigError
-    from bayesmodal.extensions.fit import extension_cost
+    from bayesmodal.discrepancy.effects.fit import extension_cost
 
     ext = EXTENSIONS["coulomb_friction"]
     other = make("coulomb_friction", seed=9, n_samples=1000).experiment

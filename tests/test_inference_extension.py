@@ -13,7 +13,7 @@ from conftest import EPS, zoh_rtol
 from hidden_effects import make
 
 from bayesmodal._errors import ConfigError, ModelError
-from bayesmodal.extensions import EXTENSIONS
+from bayesmodal.discrepancy.effects import EXTENSIONS
 from bayesmodal.inference import (
     Likelihood,
     default_priors,
@@ -192,7 +192,7 @@ def truth_runs(friction_data):
     model, which reaches the truth's basin on this record (cost 1.6e-8 m^2); the
     four-sub-step fit from the linear fit, or from diagnose's grid start, stops in a local
     optimum 25000 times costlier that a 1500-step chain does not leave."""
-    from bayesmodal.extensions import CoulombFriction, fit_extension_lsq
+    from bayesmodal.discrepancy.effects import CoulombFriction, fit_extension_lsq
 
     e = friction_data.experiment
     ext = EXTENSIONS["coulomb_friction"]

@@ -7,11 +7,11 @@ from conftest import EPS, TABLE3
 from reference_sim import REFERENCES
 from scipy.linalg import expm
 
-from bayesmodal._nl_kernels import expm_batched, zoh
 from bayesmodal.data import ECP_M_PER_COUNT as COUNT
-from bayesmodal.extensions import EXTENSIONS
-from bayesmodal.extensions._base import zoh_blocks
-from bayesmodal.extensions._linear import linear_parts
+from bayesmodal.discrepancy.effects import EXTENSIONS
+from bayesmodal.discrepancy.effects._base import zoh_blocks
+from bayesmodal.discrepancy.effects._linear import linear_parts
+from bayesmodal.discrepancy.kernels import expm_batched, zoh
 from bayesmodal.system import Rig
 
 RIG = Rig()
@@ -163,7 +163,7 @@ def _friction_draws(n, rng):
 def _count_kernel_calls(monkeypatch) -> list:
     """Patch the friction kernel to record what each call returns: (packed groups that
     took a sample again in sub-steps, samples a group at rest skipped)."""
-    import bayesmodal._nl_kernels as nk
+    import bayesmodal.discrepancy.kernels.coulomb as nk
 
     returned = []
     compiled = nk.coulomb_kernel

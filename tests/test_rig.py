@@ -538,7 +538,7 @@ def test_inseparable_scale_names_what_to_add():
 
 # ---------------------------------------------------------- extensions and the chain
 def test_extensions_refuse_other_layouts():
-    from bayesmodal.extensions import EXTENSIONS
+    from bayesmodal.discrepancy.effects import EXTENSIONS
 
     other = load_rig("ecp210-2cart-frame-at-drive")
     for name, ext in EXTENSIONS.items():
@@ -639,7 +639,7 @@ def test_replace_keeps_a_description_valid():
 
 
 def test_diagnose_refuses_permuted_sensors():
-    from bayesmodal.diagnose import diagnose
+    from bayesmodal.discrepancy.diagnosis import diagnose
 
     chain = Rig()
     rev = Rig(carts=chain.carts, springs=chain.springs, drive=chain.drive,

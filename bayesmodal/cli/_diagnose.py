@@ -78,7 +78,7 @@ def _report(d) -> str:
 
 
 def run(args) -> int:
-    from ..diagnose import diagnose
+    from ..discrepancy.diagnosis import diagnose
 
     exps = load_args(args)
     d = diagnose(exps, rig=load_rig(args), train=args.train, n_null=args.null,
@@ -86,7 +86,7 @@ def run(args) -> int:
                  rng=args.seed, posterior_options={"n_steps": args.steps},
                  n_starts=args.starts, progress=not args.quiet)
     if args.plots:
-        from ..diagnose.plots import write_plots
+        from ..discrepancy.diagnosis.plots import write_plots
 
         write_plots(d, exps, Path(args.plots))
     if args.json:

@@ -269,7 +269,7 @@ def extension_from_idata(idata):
     name = idata.posterior.attrs.get("extension", "")
     if not name:
         return None
-    from ..extensions import get_extension
+    from ..discrepancy.effects import get_extension
 
     return get_extension(str(name))
 

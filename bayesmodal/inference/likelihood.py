@@ -28,7 +28,7 @@ Impossible parameter sets (non-positive masses or g_v, negative damping, ``sigma
 are never simulated and never raise, so an MCMC walker that strays there is simply
 rejected.
 
-Model extensions: with ``extension`` (a name in ``bayesmodal.extensions.EXTENSIONS`` or an
+Model extensions: with ``extension`` (a name in ``bayesmodal.discrepancy.effects.EXTENSIONS`` or an
 ``Extension``) the model output is ``Extension.simulate`` of the free-damping model plus
 the extension's parameters (e.g. Coulomb friction), for all parameter sets of a batch in
 one call; the parameter vector is ``extension.names(rig)`` followed by the noise
@@ -221,7 +221,7 @@ class Likelihood:
         All with ``model.n_carts`` outputs; they share the mechanical and noise parameters.
     noise : {"ar1", "white"}
     extension : str or Extension, optional
-        A model extension (name in ``bayesmodal.extensions.EXTENSIONS`` or an instance);
+        A model extension (name in ``bayesmodal.discrepancy.effects.EXTENSIONS`` or an instance);
         requires ``model`` with free damping.  None (default) is the linear model.
     initial_state : {"rest", "estimate"}
         ``"rest"`` (default): every record starts at rest.  ``"estimate"``: the initial
@@ -482,14 +482,14 @@ def resolve_extension(extension, model: LinearModel):
     """
     if extension is None:
         return None
-    from ..extensions import Extension, get_extension
+    from ..discrepancy.effects import Extension, get_extension
 
     ext = (get_extension(extension) if isinstance(extension, (str, list, tuple))
            else extension)
     if not isinstance(ext, Extension):
         raise ModelError(
-            f"extension must be a name in bayesmodal.extensions.EXTENSIONS or an Extension, "
-            f"got {type(extension).__name__}")
+            "extension must be a name in bayesmodal.discrepancy.effects.EXTENSIONS or an "
+            f"Extension, got {type(extension).__name__}")
     if model.damping != "free":
         raise ModelError(
             f"the {ext.name} extension is built on the free-damping model; got "

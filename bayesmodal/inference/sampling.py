@@ -14,7 +14,7 @@ backend therefore continues exactly as the uninterrupted run would have.
 
 Model extensions (``extension="coulomb_friction"`` etc.) sample the free-damping
 parameters, the extension's parameters and the noise parameters jointly; the walkers start
-around ``bayesmodal.extensions.fit_extension_lsq`` and every half-ensemble is one batched
+around ``bayesmodal.discrepancy.effects.fit_extension_lsq`` and every half-ensemble is one batched
 ``Extension.simulate`` call per experiment.
 """
 
@@ -556,7 +556,7 @@ def sample_posterior(
     warn : bool
         Emit a ``ConvergenceWarning`` when the checks fail.
     extension : str or Extension, optional
-        Sample a model extension (a name in ``bayesmodal.extensions.EXTENSIONS`` or an
+        Sample a model extension (a name in ``bayesmodal.discrepancy.effects.EXTENSIONS`` or an
         instance) on top of ``model``, which must have free damping.  Parameter names are
         ``extension.names(model.rig)`` followed by the noise names.
     restart : int, optional
@@ -674,7 +674,7 @@ def sample_posterior(
         else:
             theta_mech = model.check(theta_mech)
     else:
-        from ..extensions import ExtensionFit, fit_extension_lsq
+        from ..discrepancy.effects import ExtensionFit, fit_extension_lsq
 
         if start is None or isinstance(start, LSQResult):
             start = fit_extension_lsq(list(exps), ext, model.rig, linear=start)

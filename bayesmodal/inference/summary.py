@@ -88,7 +88,7 @@ _UNITS = {"g_v": "N/V", "ca": "1/s", "cb": "s"}
 
 
 def _extension_units() -> dict[str, str]:
-    from ..extensions import EXTENSIONS
+    from ..discrepancy.effects import EXTENSIONS
     from ..system import Rig
 
     return {p.name: p.unit for ext in EXTENSIONS.values() for p in ext.specs(Rig())}

@@ -1,4 +1,4 @@
-"""Plots of the residual diagnostics (``bayesmodal.diagnostics``).
+"""Plots of the residual diagnostics (``bayesmodal.discrepancy.checks``).
 
 One function per diagnostic family, each ``plot_*(result, *, ax=None)`` returning the
 axes, and ``plot_diagnostic`` choosing by ``result.name``.  ``plot_residuals`` draws the
@@ -11,7 +11,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..data import ECP_M_PER_COUNT
-from ..diagnostics import Diagnostic, LinearResiduals
+from ..discrepancy.checks import Diagnostic, LinearResiduals
 
 __all__ = [
     "plot_diagnostic",

@@ -4,7 +4,7 @@ Both are independent of the sampler.  LSCE (``bayesmodal.ema``) uses only the me
 input and outputs, never the rig model, so its natural frequencies and damping ratios are
 a model-free check of the posterior intervals.  The residuals of the model at the
 posterior median show what the linear model leaves out: their autocorrelation function
-(ACF) against the white-noise band, and, where ``bayesmodal.diagnostics`` is installed,
+(ACF) against the white-noise band, and, where ``bayesmodal.discrepancy.checks`` is installed,
 its named tests (whiteness, friction signature, ...).
 """
 
@@ -141,7 +141,7 @@ class ResidualCheck:
     diagnostics : tuple of dict
         ``{"name", "detected", "p_value", "statistic", "threshold", "suggests", "location",
         "summary"}``
-        of each ``bayesmodal.diagnostics.RESIDUAL_DIAGNOSTICS`` entry that applies (empty
+        of each ``bayesmodal.discrepancy.checks.RESIDUAL_DIAGNOSTICS`` entry that applies (empty
         when the package is not available); ``{"name", "error"}`` for one that failed.
     """
 
@@ -173,8 +173,8 @@ def _extended_residuals(experiment: Experiment, model: LinearModel, theta: np.nd
     of the (noise-free) predicted positions.  ``theta`` keeps the linear part (the
     diagnostics that use ``M, C, K`` see the linear rig).
     """
-    from ..diagnostics import LinearResiduals, linear_residuals
-    from ..diagnostics.residuals import smooth_derivative
+    from ..discrepancy.checks import LinearResiduals, linear_residuals
+    from ..discrepancy.checks.residuals import smooth_derivative
 
     lin = theta[: model.n_params]
     base = linear_residuals(experiment, model, lin)
@@ -188,7 +188,7 @@ def _extended_residuals(experiment: Experiment, model: LinearModel, theta: np.nd
 def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray,
                  extension=None, y_hat=None) -> tuple:
     try:
-        from ..diagnostics import RESIDUAL_DIAGNOSTICS, linear_residuals
+        from ..discrepancy.checks import RESIDUAL_DIAGNOSTICS, linear_residuals
     except ImportError:
         return ()
     try:
@@ -229,7 +229,7 @@ def residual_check(experiment: Experiment, model: LinearModel, theta: np.ndarray
     max_lag_s : float
         Longest ACF lag, s.
     diagnostics : bool
-        Run ``bayesmodal.diagnostics`` when it is installed.
+        Run ``bayesmodal.discrepancy.checks`` when it is installed.
     extension : Extension, optional
         Predict with this model extension (``Extension.simulate``) instead of the linear
         model.

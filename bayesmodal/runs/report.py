@@ -428,8 +428,8 @@ def _section_residuals(s: dict, folder: Path) -> str:
                               _e(", ".join(d["suggests"]).replace("_", " ")),
                               _e(d["summary"])])
     if diag_rows:
-        out += ("<p class='muted'>Tests of <code>bayesmodal.diagnostics</code> on the residuals "
-                "at the posterior median. A test fails when its p-value is below its "
+        out += ("<p class='muted'>Tests of <code>bayesmodal.discrepancy.checks</code> on the "
+                "residuals at the posterior median. A test fails when its p-value is below its "
                 "significance level (1 %, family-wise) or its statistic passes its "
                 "threshold.</p>"
                 + _table(["experiment", "check", "result (fails: effect found)", "test",

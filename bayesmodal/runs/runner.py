@@ -182,7 +182,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         # several effects make one combined model, named "a+b" (extensions.Combined)
         extension = "+".join(cfg.extensions)
         try:
-            from ..extensions import get_extension
+            from ..discrepancy.effects import get_extension
 
             get_extension(extension)
         except ValueError as exc:

@@ -1,0 +1,80 @@
+"""Residual diagnostics: what does the linear simulation get wrong?
+
+Each diagnostic is a pure function of the residuals of the linear model,
+``LinearResiduals`` (from ``linear_residuals(experiment, model, theta)``), returning a
+frozen ``Diagnostic(name, statistic, p_value, threshold, detected, suggests, location,
+summary, detail)``; ``suggests`` names the model extensions
+(``bayesmodal.discrepancy.effects.EXTENSIONS``) the evidence points to.
+
+================================  ===================================  =======================
+function                          looks for                            suggests
+================================  ===================================  =======================
+``whiteness``                     structure left after AR whitening    (anything)
+``input_residual_correlation``    misfit locked to the input           input_delay, motor_lag
+``friction_signature``            force residual ~ -Fc sign(velocity)  coulomb_friction
+``decay_envelope``                linear (not exponential) free decay  coulomb_friction
+``amplitude_dependence``          frequency changing with amplitude    cubic_stiffness
+``stick_detection``               carts at rest off equilibrium        coulomb_friction
+``residual_spectrum``             peaks away from the modelled modes   unmodelled_mode
+``gain_error``                    residual proportional to prediction  sensor_gain, input_gain
+``cross_experiment_consistency``  fits that do not transfer            nonlinear effects
+================================  ===================================  =======================
+
+``RESIDUAL_DIAGNOSTICS`` lists the single-experiment ones by name, all with the signature
+``f(res, **options) -> Diagnostic``.
+"""
+
+from __future__ import annotations
+
+from ._result import Diagnostic
+from ._stats import ljung_box
+from .amplitude import amplitude_dependence
+from .consistency import cross_experiment_consistency
+from .decay import decay_envelope
+from .friction import force_residual, friction_signature
+from .gain import gain_error
+from .input_correlation import input_residual_correlation, prediction_lag
+from .residuals import (
+    LinearResiduals,
+    constant_input_segments,
+    linear_residuals,
+    noise_level,
+    smooth_derivative,
+)
+from .spectrum import residual_spectrum
+from .stick import stick_detection
+from .whiteness import whiteness
+
+__all__ = [
+    "Diagnostic",
+    "LinearResiduals",
+    "RESIDUAL_DIAGNOSTICS",
+    "amplitude_dependence",
+    "constant_input_segments",
+    "cross_experiment_consistency",
+    "decay_envelope",
+    "force_residual",
+    "friction_signature",
+    "gain_error",
+    "input_residual_correlation",
+    "linear_residuals",
+    "ljung_box",
+    "noise_level",
+    "prediction_lag",
+    "residual_spectrum",
+    "smooth_derivative",
+    "stick_detection",
+    "whiteness",
+]
+
+#: Single-experiment diagnostics by name, each ``f(res: LinearResiduals, **options)``.
+RESIDUAL_DIAGNOSTICS = {
+    "whiteness": whiteness,
+    "input_correlation": input_residual_correlation,
+    "friction_signature": friction_signature,
+    "decay_envelope": decay_envelope,
+    "amplitude_dependence": amplitude_dependence,
+    "stick": stick_detection,
+    "residual_spectrum": residual_spectrum,
+    "gain_error": gain_error,
+}

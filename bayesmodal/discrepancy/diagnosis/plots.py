@@ -1,0 +1,93 @@
+"""Plots of a diagnosis: every diagnostic of the linear model, and the fit before/after."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["plot_before_after", "write_plots"]
+
+
+def plot_before_after(diagnosis, experiment, *, ax=None):
+    """Measured positions, the linear prediction and the extended model's, per cart."""
+    import matplotlib.pyplot as plt
+
+    from ...simulate import simulate_linear
+    from ..effects import EXTENSIONS
+
+    lin = diagnosis.detail["linear"]
+    n = experiment.n_outputs
+    if ax is None:
+        _, ax = plt.subplots(n, 1, sharex=True, figsize=(9, 2.2 * n))
+    ax = np.atleast_1d(ax)
+    t = experiment.t_s
+    y_lin = simulate_linear(lin.model, lin.theta, experiment.v_volt, experiment.dt)
+    y_ext = None
+    if diagnosis.cause != "none" and "extension_fit" in diagnosis.detail:
+        ef = diagnosis.detail["extension_fit"]
+        y_ext = EXTENSIONS[diagnosis.cause].simulate(ef.rig, ef.theta, experiment.v_volt,
+                                                     experiment.dt)
+    for j in range(n):
+        ax[j].plot(t, experiment.y_m[:, j] * 1e3, "k", lw=1, label="measured")
+        ax[j].plot(t, y_lin[:, j] * 1e3, "C0", lw=0.8, label="linear")
+        if y_ext is not None:
+            ax[j].plot(t, y_ext[:, j] * 1e3, "C3", lw=0.8, label=diagnosis.cause)
+        ax[j].set_ylabel(f"x{j + 1} (mm)")
+    ax[-1].set_xlabel("time (s)")
+    ax[0].legend(loc="upper right", fontsize=8)
+    ax[0].set_title(f"{experiment.name}: before and after ({diagnosis.cause})")
+    return ax
+
+
+def write_plots(diagnosis, experiments, folder: Path) -> list[Path]:
+    """Write the diagnostics' plots and the before/after fits as PNG files in ``folder``.
+
+    A diagnostic with nothing to draw (e.g. no free-decay stretch) gives an empty panel;
+    matplotlib's warning about its empty legend is silenced.
+    """
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="No artists with labels")
+        return _write_plots(diagnosis, experiments, folder)
+
+
+def _write_plots(diagnosis, experiments, folder: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ...plots.diagnostics import plot_diagnostic, plot_residuals
+    from ..checks import linear_residuals
+    from .null import run_diagnostics
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    lin = diagnosis.detail["linear"]
+    written = []
+    for i in diagnosis.train:
+        e = experiments[i]
+        res = linear_residuals(e, lin.model, lin.theta)
+        fig, ax = plt.subplots(figsize=(9, 4))
+        plot_residuals(res, ax=ax)
+        p = folder / f"{e.name}_residuals.png"
+        fig.savefig(p, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        written.append(p)
+        for name, d in run_diagnostics(e, lin.model, lin.theta, quantum_m=res.quantum_m).items():
+            fig, ax = plt.subplots(figsize=(8, 4))
+            plot_diagnostic(d, ax=ax)
+            p = folder / f"{e.name}_{name}.png"
+            fig.savefig(p, dpi=110, bbox_inches="tight")
+            plt.close(fig)
+            written.append(p)
+    for e in experiments:
+        ax = plot_before_after(diagnosis, e)
+        fig = ax[0].figure
+        p = folder / f"{e.name}_before_after.png"
+        fig.savefig(p, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        written.append(p)
+    return written

@@ -1,0 +1,130 @@
+"""Model extensions: named simulators of effects the linear rig model leaves out.
+
+Each extension adds its own parameters after the nine free-damping linear parameters and
+reduces to the linear model at its ``null`` values.  The registry ``EXTENSIONS`` maps a
+name to a ready-to-use instance:
+
+============================  ===============================  =====================
+name                          parameters (after the linear)    acts at
+============================  ===============================  =====================
+``coulomb_friction``          ``Fc1..Fcn, Fs1..Fsn`` (N)       each cart
+``motor_lag``                 ``tau_s`` (s)                    motor input
+``input_delay``               ``delay_s`` (s)                  motor input
+``backlash``                  ``gap_m`` (m), ``m_p`` (kg)      drive of cart 1
+``cubic_stiffness``           ``k3_1..k3_n`` (N/m^3)           each spring
+``input_saturation``          ``v_sat`` (V)                    motor input
+``input_offset``              ``v_offset`` (V)                 motor input
+``drive_deadband``            ``v_dead`` (V)                   motor input
+``lugre_friction``            ``Fc1..Fcn, Fs1..Fsn`` (N),      each cart
+                              ``sigma0`` (N/m), ``sigma1``
+                              (N s/m), ``v_stribeck`` (m/s)
+``coulomb_directional``       ``Fcp_i, Fcn_i, Fs_i`` (N)       each cart
+``amplitude_gain``            ``kappa_per_V`` (1/V)            motor input
+============================  ===============================  =====================
+
+Effects combine: ``get_extension("coulomb_friction+input_offset")`` (or a list of names)
+is a ``Combined`` model, the linear core with all of them (see ``extensions.combined``).
+
+Examples
+--------
+>>> import numpy as np
+>>> from bayesmodal.system import Rig
+>>> ext = EXTENSIONS["coulomb_friction"]
+>>> rig = Rig()
+>>> theta = ext.null_theta(rig, np.array([6.2, 1.56, 1.46, 1.15, 2.9, 1.8, 2.0, 0.0, 0.0]))
+>>> ext.simulate(rig, theta, np.r_[np.full(10, 3.0), np.zeros(90)], 0.005).shape
+(100, 3)
+"""
+
+from __future__ import annotations
+
+from ._base import EffectLocation, Extension, ParamSpec
+from .amplitude_gain import AmplitudeGain
+from .backlash import Backlash
+from .combined import Combined
+from .coulomb import CoulombFriction
+from .coulomb_directional import DirectionalCoulombFriction
+from .cubic import CubicStiffness
+from .deadband import DriveDeadband
+from .fit import ExtensionFit, fit_extension_lsq
+from .input_delay import InputDelay
+from .input_offset import InputOffset
+from .lugre import LuGreFriction
+from .motor_lag import MotorLag
+from .saturation import InputSaturation
+
+__all__ = [
+    "EXTENSIONS",
+    "AmplitudeGain",
+    "EffectLocation",
+    "Extension",
+    "ExtensionFit",
+    "ParamSpec",
+    "Backlash",
+    "Combined",
+    "CoulombFriction",
+    "CubicStiffness",
+    "DirectionalCoulombFriction",
+    "DriveDeadband",
+    "InputDelay",
+    "InputOffset",
+    "InputSaturation",
+    "LuGreFriction",
+    "MotorLag",
+    "fit_extension_lsq",
+    "get_extension",
+]
+
+#: Registry of the extensions with their default numerical settings.
+EXTENSIONS: dict[str, Extension] = {
+    ext.name: ext
+    for ext in (
+        CoulombFriction(),
+        MotorLag(),
+        InputDelay(),
+        Backlash(),
+        CubicStiffness(),
+        InputSaturation(),
+        InputOffset(),
+        DriveDeadband(),
+        LuGreFriction(),
+        DirectionalCoulombFriction(),
+        AmplitudeGain(),
+    )
+}
+
+
+def get_extension(name) -> Extension:
+    """The registered extension called ``name``, or a combination of several.
+
+    Parameters
+    ----------
+    name : str or sequence of str
+        A name in ``EXTENSIONS``; names joined by ``+`` or a list of names give a
+        ``Combined`` model (one name alone gives that extension).
+
+    Raises
+    ------
+    ModelError
+        For an unknown name (the message lists the known ones) or an unsupported
+        combination.
+
+    Examples
+    --------
+    >>> get_extension(["coulomb_friction", "input_offset"]).name
+    'coulomb_friction+input_offset'
+    """
+    from ..._errors import ModelError
+
+    names = name.split("+") if isinstance(name, str) else list(name)
+    effects = []
+    for n in names:
+        try:
+            effects.append(EXTENSIONS[str(n).strip()])
+        except KeyError:
+            raise ModelError(
+                f"unknown model extension {n!r}; known: {sorted(EXTENSIONS)}"
+            ) from None
+    if len(effects) == 1:
+        return effects[0]
+    return Combined(tuple(effects))

@@ -1,0 +1,91 @@
+"""The linear rig driven by a per-lane input through an optional motor lag and input delay.
+
+The input-side effects that are memoryless (offset, dead band, saturation) turn the
+commanded voltage into one held input per parameter set, shape (nb, N).  The motor lag
+(``tau f' = g_v v - f``) and the input delay (``v(t - D)``) are linear, so with the linear
+plant the whole chain stays an exact linear recursion: the state ``(x, x', f)`` (``f`` the
+lagged motor force, unused where ``tau = 0``) discretised by zero-order hold, and the delay
+``D = (m + phi) dt`` split as in ``extensions.input_delay``::
+
+    z[k+1] = e^{A dt} z[k] + B1 v[k-m-1] + B2 v[k-m],
+    B1 = e^{A (1-phi) dt} Gamma(phi dt) B,   B2 = Gamma((1-phi) dt) B.
+
+Lag and delay are both linear and time-invariant, so their order does not matter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernels import linear_input_run, zoh
+from ._linear import linear_parts
+
+
+def lagged_system(rig, theta_lin: np.ndarray, tau: np.ndarray | None):
+    """State matrix and input vector of ``(x, x', f)`` with the lag ``tau`` (s) per lane.
+
+    Returns
+    -------
+    A : ndarray, shape (nb, s, s)
+        ``s = 2n`` without a lag, ``2n + 1`` with one.
+    B : ndarray, shape (nb, s)
+        Per volt; lanes with ``tau = 0`` take the motor force directly (the lag state is
+        then decoupled and stays at zero).
+    """
+    n = rig.n_carts
+    p = linear_parts(rig, theta_lin)
+    if tau is None:
+        return p.A, p.B
+    nb, s = theta_lin.shape[0], 2 * n
+    A = np.zeros((nb, s + 1, s + 1))
+    B = np.zeros((nb, s + 1))
+    A[:, :s, :s] = p.A
+    lag = tau > 0.0
+    A[:, s, s] = -1.0
+    B[~lag, :s] = p.B[~lag]
+    A[lag, n, s] = p.inv_mass[lag, 0]  # the lagged force drives cart 1
+    A[lag, s, s] = -1.0 / tau[lag]
+    B[lag, s] = p.b[lag, 0] / tau[lag]
+    return A, B
+
+
+def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None):
+    """Positions of the linear rig under per-lane inputs, with optional lag and delay.
+
+    Parameters
+    ----------
+    rig : Rig
+    theta_lin : ndarray, shape (nb, 9)
+        Free-damping linear parameters.
+    v : ndarray, shape (N,) or (nb, N)
+        Voltage at the amplifier output, V, held over each sample.
+    dt : float
+        Sample interval, s.
+    x0 : ndarray, shape (nb, 2n)
+        Initial positions (m) and velocities (m/s); the lag state starts at zero.
+    tau : ndarray, shape (nb,), optional
+        Motor lag time constants, s (>= 0).
+    delay_s : ndarray, shape (nb,), optional
+        Input delays, s (>= 0).
+
+    Returns
+    -------
+    ndarray, shape (nb, N, n)
+        Cart positions, m.
+    """
+    n = rig.n_carts
+    nb = theta_lin.shape[0]
+    A, B = lagged_system(rig, theta_lin, tau)
+    s = A.shape[1]
+    z0 = np.zeros((nb, s))
+    z0[:, : 2 * n] = x0
+    if delay_s is None:
+        Ad, Bd = zoh(A, B[..., None], dt)
+        return linear_input_run(Ad, np.zeros((nb, s)), Bd[..., 0], v, z0, n)
+    delay = np.asarray(delay_s, dtype=float) / dt
+    m = np.floor(delay + 1e-12).astype(int)
+    phi = np.clip(delay - m, 0.0, 1.0)
+    A1, G1 = zoh(A, B[..., None], phi * dt)
+    A2, G2 = zoh(A, B[..., None], (1.0 - phi) * dt)
+    B1 = np.einsum("bij,bj->bi", A2, G1[..., 0])
+    return linear_input_run(A2 @ A1, B1, G2[..., 0], v, z0, n, shift=m)

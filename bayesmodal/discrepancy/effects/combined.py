@@ -1,0 +1,199 @@
+"""Several effects at once: the linear core plus any set of effects from the catalogue.
+
+The parameter vector is the nine free-damping linear parameters followed by each effect's
+own parameters, in the order the effects are given.  Whatever that order, a simulation
+follows the physical chain from the command to the carts:
+
+    command v -> offset -> dead band -> saturation -> amplitude gain -> lag -> delay
+    -> plant
+
+The memoryless input stages (offset, dead band, saturation, amplitude gain) give one held input per
+parameter set, shape (nb, N).  The plant is the linear rig, or one plant-side effect
+(friction, backlash, cubic springs, LuGre friction) whose compiled kernel takes that
+per-lane input.  With the linear plant the lag and the delay stay exact (one linear
+recursion, ``extensions._input``).
+
+Not supported (``ModelError`` at construction): two plant-side effects together (each
+has its own compiled kernel; friction and backlash in one kernel is not written), and a
+motor lag or input delay with a nonlinear plant (those kernels take a voltage held over
+each sample; a lagged force or a fractionally delayed voltage is not held).
+
+Examples
+--------
+>>> from bayesmodal.discrepancy.effects import get_extension
+>>> ext = get_extension("coulomb_friction+input_offset")
+>>> ext.extension_names(Rig())
+('Fc1', 'Fc2', 'Fc3', 'Fs1', 'Fs2', 'Fs3', 'v_offset')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._errors import ModelError
+from ...system import Rig
+from ._base import EffectLocation, Extension, ParamSpec
+from ._input import linear_lanes_run
+
+#: Input-side effects that are linear filters handled by the linear plant recursion.
+_LINEAR_FILTERS = {3: "tau", 4: "delay_s"}
+
+
+@dataclass(frozen=True)
+class Combined(Extension):
+    """The linear rig with several effects; ``name`` joins theirs with ``+``.
+
+    Parameters
+    ----------
+    effects : tuple of Extension
+        At least one; nested combinations are flattened.  At most one plant-side effect,
+        and no motor lag or input delay with a nonlinear plant.
+
+    Raises
+    ------
+    ModelError
+        For an empty or unsupported combination or repeated parameter names.
+
+    Examples
+    --------
+    >>> from bayesmodal.discrepancy.effects import EXTENSIONS
+    >>> Combined((EXTENSIONS["input_offset"], EXTENSIONS["input_saturation"])).name
+    'input_offset+input_saturation'
+    """
+
+    effects: tuple
+
+    def __post_init__(self) -> None:
+        flat: list[Extension] = []
+        for e in tuple(self.effects):
+            if isinstance(e, Combined):
+                flat.extend(e.effects)
+            elif isinstance(e, Extension):
+                flat.append(e)
+            else:
+                raise ModelError(f"a combination takes Extension instances, got "
+                                 f"{type(e).__name__}; use get_extension(name)")
+        if not flat:
+            raise ModelError("a combination needs at least one effect; use the linear model "
+                             "(no extension) for none")
+        names = [e.name for e in flat]
+        if len(set(names)) != len(names):
+            raise ModelError(f"effect repeated in {names}; list each effect once")
+        plant = [e for e in flat if e.side != "input"]
+        if len(plant) > 1:
+            raise ModelError(
+                f"two plant-side effects {[e.name for e in plant]} in one model are not "
+                "supported (each has its own compiled kernel); keep one of them")
+        filters = [e.name for e in flat if e.input_stage in _LINEAR_FILTERS]
+        if plant and filters:
+            raise ModelError(
+                f"{filters} with the nonlinear plant effect {plant[0].name!r} is not "
+                "supported (its kernel takes a voltage held over each sample); combine "
+                "the lag or delay with the linear plant only")
+        stages = [e.input_stage for e in flat if e.side == "input"]
+        if any(s is None for s in stages) or len(set(stages)) != len(stages):
+            raise ModelError(f"input-side effects {names} need distinct stages")
+        object.__setattr__(self, "effects", tuple(flat))
+
+    # ------------------------------------------------------------------ description
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        return "+".join(e.name for e in self.effects)
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return "; ".join(e.description for e in self.effects)
+
+    @property
+    def exact(self) -> bool:  # type: ignore[override]
+        return all(e.exact for e in self.effects)
+
+    @property
+    def validity_rule(self) -> str:  # type: ignore[override]
+        return "; ".join(f"{e.name}: {e.validity_rule}" for e in self.effects)
+
+    @property
+    def plant(self) -> Extension | None:
+        """The plant-side effect, or None for the linear plant."""
+        return next((e for e in self.effects if e.side != "input"), None)
+
+    # ------------------------------------------------------------------ parameters
+    def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
+        specs = tuple(p for e in self.effects for p in e.specs(rig))
+        names = [p.name for p in specs]
+        if len(set(names)) != len(names):
+            raise ModelError(f"{self.name}: repeated parameter names {names}; these effects "
+                             "cannot be combined")
+        return specs
+
+    def _slices(self, rig: Rig) -> list[slice]:
+        out, i = [], 0
+        for e in self.effects:
+            q = len(e.specs(rig))
+            out.append(slice(i, i + q))
+            i += q
+        return out
+
+    def _valid_extension(self, rig, theta_lin, theta_ext):
+        ok = np.ones(theta_ext.shape[:-1], bool)
+        for e, sl in zip(self.effects, self._slices(rig), strict=True):
+            ok &= e._valid_extension(rig, theta_lin, theta_ext[..., sl])
+        return ok
+
+    # ------------------------------------------------------------------ simulation
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+        own = {e.name: np.ascontiguousarray(theta_ext[:, sl])
+               for e, sl in zip(self.effects, self._slices(rig), strict=True)}
+        v = u
+        filters: dict[str, np.ndarray] = {}
+        for e in sorted((e for e in self.effects if e.side == "input"),
+                        key=lambda e: e.input_stage):
+            if e.input_stage in _LINEAR_FILTERS:
+                filters[_LINEAR_FILTERS[e.input_stage]] = own[e.name][:, 0]
+            else:
+                v = e.transform_input(v, own[e.name])
+        if v.ndim == 2:
+            v = np.ascontiguousarray(np.broadcast_to(v, (theta_lin.shape[0], v.shape[-1])))
+        plant = self.plant
+        if plant is None:
+            return linear_lanes_run(rig, theta_lin, v, dt, x0, **filters)
+        return plant._simulate(rig, theta_lin, own[plant.name], v, dt, x0)
+
+    # ------------------------------------------------------------------ location
+    def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
+        """The plant-side effect's location, or the motor input."""
+        theta = self.check(rig, np.asarray(theta, dtype=float))
+        lin, ext = self.split(rig, theta)
+        plant = self.plant
+        if plant is not None:
+            sl = self._slices(rig)[self.effects.index(plant)]
+            return plant.location_of(rig, np.concatenate([lin, ext[sl]]))
+        return EffectLocation("input", None, "motor input", np.abs(ext - self.null_values(rig)))
+
+    # ------------------------------------------------------------------ fitting hooks
+    def to_opt(self, rig, theta_ext):
+        theta_ext = np.asarray(theta_ext, dtype=float)
+        return np.concatenate([e.to_opt(rig, theta_ext[..., sl]) for e, sl in
+                               zip(self.effects, self._slices(rig), strict=True)], axis=-1)
+
+    def from_opt(self, rig, w):
+        w = np.asarray(w, dtype=float)
+        return np.concatenate([e.from_opt(rig, w[..., sl]) for e, sl in
+                               zip(self.effects, self._slices(rig), strict=True)], axis=-1)
+
+    def opt_bounds(self, rig):
+        lo, hi = zip(*(e.opt_bounds(rig) for e in self.effects), strict=True)
+        return np.concatenate(lo), np.concatenate(hi)
+
+    def start_grid(self, rig: Rig) -> np.ndarray:
+        """Each effect's start grid with the other effects at their null values."""
+        null = self.null_values(rig)
+        rows = [null]
+        for e, sl in zip(self.effects, self._slices(rig), strict=True):
+            for g in e.start_grid(rig):
+                r = null.copy()
+                r[sl] = g
+                rows.append(r)
+        return np.unique(np.array(rows), axis=0)

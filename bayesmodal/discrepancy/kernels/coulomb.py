@@ -1,0 +1,548 @@
+"""Coulomb friction with stick-slip: the event-corrected batched kernel."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ._codegen import (
+    _compile,
+    _fma_sum,
+    _head,
+    _lane_inputs,
+    _Rows,
+    _sum,
+    run_batched,
+)
+
+#: Safeguarded Newton steps for the break-away time of the friction kernel (a held force
+#: reaching the static level, on its cubic Hermite interpolant in time).
+HERMITE_NEWTON = 2
+
+#: Newton steps from the chord for the velocity zero of the friction kernel.
+REVERSAL_NEWTON = 2
+
+#: Lanes of the friction kernel that take a sample together (two AVX-512 vectors of
+#: float64: LLVM does not vectorise loops of 8), and lanes with an event packed together
+#: to take it again in sub-steps; a packed group takes the event-corrected path when one
+#: of its lanes needs it and the others keep their quick result, so that no lane depends
+#: on the rest of its batch.
+REFINE_GROUP = 16
+
+#: Relative margin below the static level under which a stuck cart of the friction
+#: kernel is at rest for certain over a step (rounding of the step is ~1e-16).
+REST_MARGIN = 1e-9
+
+
+
+def _rising_cubic_root(t: str, x: str, c: tuple[str, str, str, str]) -> list[str]:
+    """Code locating the root ``x`` in [0, 1] of ``c0 + x (c1 + x (c2 + x c3))``, which
+    is negative at 0 and not negative at 1.
+
+    Starts from the chord (``x`` must hold it) and takes ``HERMITE_NEWTON`` Newton steps
+    safeguarded by the bracket [lo, hi] (a step leaving it bisects instead).  On cubics with an
+    inflection or strong curvature in the step plain Newton from the chord overshoots
+    (a break-away located 0.18 of a step late on a quadratically rising force).
+    """
+    c0, c1, c2, c3 = c
+    lines = [f"{t}lo = 0.0", f"{t}hi = 1.0"]
+    for _ in range(HERMITE_NEWTON):
+        lines += [
+            f"{t}g = {c0} + {x} * ({c1} + {x} * ({c2} + {x} * {c3}))",
+            f"{t}dg = {c1} + {x} * (2.0 * {c2} + 3.0 * {x} * {c3})",
+            f"{t}hi = {x} if g > 0.0 else hi",
+            f"{t}lo = lo if g > 0.0 else {x}",
+            f"{t}xn = {x} - g / dg",
+            f"{t}xn = xn if dg != 0.0 else -1.0",
+            f"{t}xb = 0.5 * (lo + hi)",
+            f"{t}{x} = xn if (xn > lo) & (xn < hi) else xb",
+        ]
+    return lines
+
+
+
+
+def _held_force(P, n: int, i: int, fe: str, x: str) -> str:
+    """Code of cart i's net force at the step end were it held at ``x`` (velocity 0):
+    the end force ``fe`` without the cart's own spring and damper motion over the step."""
+    s = 2 * n
+    return f"{fe} + {P('G', i * s + i)} * ({x} - n{i}) - {P('G', i * s + n + i)} * n{n + i}"
+
+
+def _force_rates(P, n: int, i: int) -> tuple[list, list]:
+    """The products whose sums are the rates of change of cart i's net force at the step
+    start and end, N/s: ``G`` times the velocities and accelerations (``x{n+j}``,
+    ``A0_j``; ``V1_j``, ``A1_j``)."""
+    s, C = 2 * n, range(n)
+    r0 = ([(P("G", i * s + j), f"x{n + j}") for j in C]
+          + [(P("G", i * s + n + j), f"A0_{j}") for j in C])
+    r1 = ([(P("G", i * s + j), f"V1_{j}") for j in C]
+          + [(P("G", i * s + n + j), f"A1_{j}") for j in C])
+    return r0, r1
+
+
+def _kinetic(i: int, d: str, asym: bool) -> str:
+    """Code of cart i's kinetic friction level when sliding in direction ``d`` (+-1): one
+    level ``fc{i}``, or with ``asym`` ``fp{i}`` forwards and ``fn{i}`` backwards."""
+    return f"(fp{i} if {d} > 0.0 else fn{i})" if asym else f"fc{i}"
+
+
+def _coulomb_load(t, P, X, n, asym=False) -> list[str]:
+    """Code loading a lane's state and friction parameters into scalars."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    L: list[str] = []
+    L += [f"{t}x{r} = {X('x', r)}" for r in R]
+    for i in C:
+        L += [f"{t}st{i} = {X('st', i)} != 0.0", f"{t}d{i} = {X('d', i)}",
+              f"{t}xs{i} = {X('xs', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}",
+              f"{t}gb{i} = {P('gb', i)}", f"{t}mi{i} = {P('mi', i)}"]
+        if asym:
+            L += [f"{t}fp{i} = fc{i}", f"{t}fn{i} = {P('fn', i)}"]
+    return L
+
+
+def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
+    """Code of the friction decision at the step start and the state predicted with it
+    held over the step (matrices ``mats = (A, B, F, R)`` of the step: input, held and
+    ramped force responses), the net forces at the end (``Fe``) and the velocities and
+    accelerations at both ends."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    L: list[str] = []
+    # friction over the sub-step: stuck carts hold the net force (or break away at once
+    # when the input jumped past Fs), sliding carts get -Fc dir; written as selects (no
+    # nested branches) so that the compiler vectorises across lanes
+    for i in C:
+        gz = " + ".join(f"{P('G', i * s + j)} * x{j}" for j in R)
+        L += [f"{t}F{i} = gb{i} * uk + {gz}",
+              f"{t}aF{i} = abs(F{i})",
+              f"{t}hold = st{i} & (aF{i} < fs{i})",
+              f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} != hold else d{i}",
+              f"{t}f{i} = -F{i} if hold else -{_kinetic(i, f'd{i}', asym)} * d{i}",
+              f"{t}st{i} = hold"]
+    for r in R:
+        prods = [(P(mats[0], r * s + j), f"x{j}") for j in R]
+        prods += [(P(mats[2], r * n + j), f"f{j}") for j in C]
+        L.append(f"{t}n{r} = {P(mats[1], r)} * uk + {_sum(prods)}")
+
+    def end_force(i):
+        return f"{t}Fe{i} = gb{i} * uk + {_sum((P('G', i * s + j), f'n{j}') for j in R)}"
+
+    # net forces at the end; a held cart's force changed over the step, and holding it
+    # with its start value would let it drift and pull on its neighbours: hold it with
+    # the force ramping to its end value instead (one correction with the ramp response)
+    for i in C:
+        # (a product with 1 or 0, not a branch: the compiler would sink the end force
+        # into the branch and not vectorise the loop)
+        L += [end_force(i),
+              f"{t}df{i} = (1.0 if st{i} else 0.0) * (F{i} -"
+              f" ({_held_force(P, n, i, f'Fe{i}', f'xs{i}')}))"]
+    for r in R:
+        prods = [(P(mats[3], r * n + j), f"df{j}") for j in C]
+        L.append(f"{t}n{r} = {_fma_sum(f'n{r}', prods)}")
+    # net forces at the end again, and the rates of change of the net force at both ends
+    # (G times velocities and accelerations; held carts neither move nor accelerate)
+    for i in C:
+        L += [end_force(i),
+              f"{t}A0_{i} = (F{i} + f{i}) * mi{i}",
+              f"{t}A1_{i} = 0.0 if st{i} else (Fe{i} + f{i}) * mi{i}",
+              f"{t}V1_{i} = 0.0 if st{i} else n{n + i}"]
+    return L
+
+
+def _coulomb_events(t, P, n, asym=False) -> list[str]:
+    """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
+    L: list[str] = []
+    for i in range(n):
+        v = n + i
+        r0, r1 = (_sum(r) for r in _force_rates(P, n, i))
+        L += [f"{t}Fe = Fe{i}",
+              # stuck: did the net force on the held cart reach Fs inside the step?
+              # (on its cubic Hermite interpolant in time, Newton from the chord)
+              f"{t}Fh = {_held_force(P, n, i, 'Fe', f'xs{i}')}",
+              f"{t}aE = abs(Fh)",
+              f"{t}slip = st{i} & (aE >= fs{i})",
+              f"{t}db = math.copysign(1.0, Fh)",
+              f"{t}ab = (fs{i} - aF{i}) / (aE - aF{i})",
+              f"{t}ab = ab if slip & (aE > aF{i}) else 0.0",
+              f"{t}ab = (0.0 if ab < 0.0 else (1.0 if ab > 1.0 else ab))",
+              f"{t}q0 = db * F{i}",
+              f"{t}q1 = db * Fh",
+              f"{t}k0 = db * h * ({r0})",
+              f"{t}k1 = db * h * ({r1})",
+              # q(s) = q0 + s (k0 + s (c2 + s c3)), the Hermite cubic in power form
+              f"{t}c2 = 3.0 * (q1 - q0) - 2.0 * k0 - k1",
+              f"{t}c3 = 2.0 * (q0 - q1) + k0 + k1",
+              f"{t}qs = q0 - fs{i}"]
+        L += _rising_cubic_root(t, "ab", ("qs", "k0", "c2", "c3"))
+        L += [f"{t}ab = ab if slip else 0.0",
+              # velocity and displacement gained from the break-away to the end of the
+              # step under the net force q(s) less the kinetic level: integrals of
+              # (q - Fc) and (1 - s)(q - Fc) over [ab, 1] (antiderivatives J1 and J2)
+              f"{t}p0 = q0 - {_kinetic(i, 'db', asym)}",
+              f"{t}j1 = ab * (p0 + ab * (0.5 * k0 + ab * ({1 / 3!r} * c2 + 0.25 * ab * c3)))",
+              f"{t}j2 = ab * ab * (0.5 * p0 + ab * ({1 / 3!r} * k0 + ab * (0.25 * c2"
+              f" + 0.2 * ab * c3)))",
+              f"{t}i0 = p0 + 0.5 * k0 + {1 / 3!r} * c2 + 0.25 * c3 - j1",
+              f"{t}i1 = 0.5 * p0 + {1 / 3!r} * k0 + 0.25 * c2 + 0.2 * c3 - j2",
+              f"{t}dvb = db * mi{i} * h * i0",
+              f"{t}dxb = db * mi{i} * h * h * (i0 - i1)",
+              # sliding: a velocity reversal inside the step, located on the cubic Hermite
+              # interpolant of the velocity (end values and accelerations)
+              f"{t}v0 = x{v}",
+              f"{t}v1 = n{v}",
+              f"{t}rev = (not st{i}) & (d{i} * v1 < 0.0)",
+              f"{t}a = v0 / (v0 - v1)",
+              f"{t}a = a if v0 != v1 else 0.0",
+              f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))",
+              f"{t}m0 = (F{i} + f{i}) * mi{i} * h",
+              f"{t}m1 = (Fe + f{i}) * mi{i} * h",
+              # v(s) = v0 + s (m0 + s (e2 + s e3))
+              f"{t}e2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1",
+              f"{t}e3 = 2.0 * (v0 - v1) + m0 + m1"]
+        for _ in range(REVERSAL_NEWTON):
+            L += [f"{t}g = v0 + a * (m0 + a * (e2 + a * e3))",
+                  f"{t}dg = m0 + a * (2.0 * e2 + 3.0 * a * e3)",
+                  f"{t}an = a - g / dg",
+                  f"{t}a = an if dg != 0.0 else a",
+                  f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))"]
+        L += [f"{t}tau = (1.0 - a) * h",
+              # stick if the net force at the crossing is below Fs, else slide back
+              f"{t}stick = rev & (abs(F{i} + a * (Fe - F{i})) < fs{i})",
+              f"{t}flip = rev != stick",
+              # the friction after the crossing, fc(-d) d, instead of -fc(d) d
+              f"{t}dv = {_reversal_levels(i, asym)} * d{i} * mi{i} * tau",
+              f"{t}dv = dv if flip else 0.0",
+              # distance travelled after the crossing: integral of the interpolant
+              f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
+              f" - a * (v0 + a * (0.5 * m0 + a * ({1 / 3!r} * e2 + 0.25 * a * e3))))",
+              f"{t}pa = n{i} - after",
+              f"{t}pb = n{i} + 0.5 * dv * tau",
+              f"{t}p = pa if stick else pb",
+              # stuck at the crossing, but the held net force reaches Fs again before
+              # the end of the step: break away there (linear in time from the crossing)
+              f"{t}Fk = {_held_force(P, n, i, 'Fe', 'p')}",
+              f"{t}aK = abs(Fk)",
+              f"{t}brk = stick & (aK >= fs{i})",
+              f"{t}dk = math.copysign(1.0, Fk)",
+              f"{t}qx = dk * (F{i} + a * (Fe - F{i}))",
+              f"{t}ak = a + (1.0 - a) * (fs{i} - qx) / (aK - qx)",
+              f"{t}ak = ak if brk & (aK > qx) else 1.0",
+              f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
+              f"{t}tk = (1.0 - ak) * h",
+              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - {_kinetic(i, 'dk', asym)}) * mi{i} * tk",
+              f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
+              f" - 0.5 * {_kinetic(i, 'dk', asym)})",
+              f"{t}pk = p + dxk",
+              f"{t}p = pk if brk else p",
+              f"{t}xb = xs{i} + dxb",
+              f"{t}xh = xb if slip else xs{i}",
+              f"{t}n{i} = xh if st{i} else p",
+              f"{t}vh = dvb if slip else 0.0",
+              f"{t}vk = dvk if brk else 0.0",
+              f"{t}vf = v1 + dv",
+              f"{t}vs = vk if stick else vf",
+              f"{t}n{v} = vh if st{i} else vs",
+              f"{t}xs{i} = p if stick else xs{i}",
+              f"{t}dr = -d{i} if flip else d{i}",
+              f"{t}dr = dk if brk else dr",
+              f"{t}d{i} = db if slip else dr",
+              f"{t}st{i} = (st{i} != slip) | (stick != brk)"]
+    return L
+
+
+def _reversal_levels(i: int, asym: bool) -> str:
+    """Code of ``fc(d) + fc(-d)`` for cart i sliding in direction ``d{i}``."""
+    return f"(fp{i} + fn{i})" if asym else f"2.0 * fc{i}"
+
+
+def _coulomb_store(t, X, n) -> list[str]:
+    """Code storing a lane's state."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    L: list[str] = []
+    L += [f"{t}{X('x', r)} = n{r}" for r in R]
+    for i in C:
+        L += [f"{t}{X('st', i)} = 1.0 if st{i} else 0.0", f"{t}{X('d', i)} = d{i}",
+              f"{t}{X('xs', i)} = xs{i}"]
+    return L
+
+
+def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False) -> list[str]:
+    """Code of a step without event corrections that counts the lanes needing them.
+
+    Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
+    ``step``) and keeps held carts in place.  The lane's flag (the last row of ``S``) is
+    set, and ``ev`` counts it, if any cart had or may have had an event in the step: the
+    velocity of a sliding cart or the held force of a stuck one tested at the end, at the
+    midpoint of its cubic Hermite interpolant and on the linear extrapolations from both
+    ends (a velocity dipping through zero and back, or a held force peaking past ``Fs``
+    inside the step, which the end values alone would hide).
+    """
+    C, w = range(n), X.width
+    L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
+    L += _coulomb_load(t, P, X, n, asym)
+    L += _coulomb_predict(t, P, n, mats, asym)
+    flags = []
+    for i in C:
+        v = n + i
+        r0, r1 = (_fma_sum("0.0", r) for r in _force_rates(P, n, i))
+        L += [f"{t}q1 = {_held_force(P, n, i, f'Fe{i}', f'xs{i}')}",
+              f"{t}k0 = {step} * ({r0})",
+              f"{t}k1 = {step} * ({r1})",
+              f"{t}qm = 0.5 * (F{i} + q1) + 0.125 * (k0 - k1)",
+              f"{t}hit = ((abs(q1) >= fs{i}) | (abs(qm) >= fs{i}) | (abs(F{i} + k0) >= fs{i})"
+              f" | (abs(q1 - k1) >= fs{i}))",
+              f"{t}m0 = A0_{i} * {step}",
+              f"{t}m1 = A1_{i} * {step}",
+              f"{t}vm = 0.5 * (x{v} + n{v}) + 0.125 * (m0 - m1)",
+              f"{t}turn = ((d{i} * n{v} < 0.0) | (d{i} * vm < 0.0) | (d{i} * (x{v} + m0) < 0.0)"
+              f" | (d{i} * (n{v} - m1) < 0.0))",
+              f"{t}ev{i} = hit if st{i} else turn",
+              f"{t}n{i} = xs{i} if st{i} else n{i}",
+              f"{t}n{v} = 0.0 if st{i} else n{v}"]
+        flags.append(f"ev{i}")
+    L += [f"{t}e = {' | '.join(flags)}",
+          f"{t}S[{X.size * w} + b] = 1.0 if e else 0.0",
+          f"{t}ev += 1 if e else 0"]
+    return L + _coulomb_store(t, X, n)
+
+
+def _coulomb_at_rest(t, P, X, n) -> list[str]:
+    """Code adding 1 to ``nq`` for a lane at rest over the coming step.
+
+    A lane is at rest when every cart is stuck and each one's net force at the step start
+    is below its static level by more than ``REST_MARGIN`` times the size of the terms
+    it sums.  Over a step with the input held, such a lane's state does not change: the
+    quick step would return it bit for bit (held carts are put back where they stuck,
+    with velocity 0, and no held force can reach ``Fs``: the rounding of the quick step
+    is ~1e-16 of the same terms), so the kernel skips the step for a group of lanes all
+    at rest.  The test depends on the lane's own state only, and skipping changes no
+    result: the output is the same whatever the batch.
+    """
+    s = 2 * n
+    L: list[str] = [f"{t}rest = True"]
+    for i in range(n):
+        terms = [f"{P('gb', i)} * uk"] + [f"{P('G', i * s + j)} * {X('x', j)}"
+                                          for j in range(s)]
+        L += [f"{t}Fq = {' + '.join(terms)}",
+              f"{t}mq = {' + '.join(f'abs({term})' for term in terms)}",
+              f"{t}rest = rest & ({X('st', i)} != 0.0)"
+              f" & (abs(Fq) + {REST_MARGIN!r} * mq < {P('fs', i)})"]
+    return L + [f"{t}nq += 1 if rest else 0"]
+
+
+@functools.lru_cache(maxsize=16)
+def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
+                   asymmetric: bool = False):
+    """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
+
+    The kernel returns how many packed groups of lanes took a sample again in sub-steps
+    and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
+    With ``per_lane`` the input is one column per lane (see ``_lane_inputs``); with
+    ``asymmetric`` the kinetic level depends on the direction of sliding (parameter rows
+    ``fc`` forwards, ``fn`` backwards).
+    """
+    asym = bool(asymmetric)
+    w = width
+    s = 2 * n
+    p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
+              ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
+              ("fs", n)] + ([("fn", n)] if asym else [])
+    x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
+    P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    L[1:1] = ["    nref = 0", "    nrest = 0"]
+
+    def corrected(t, P, X):
+        return (_coulomb_load(t, P, X, n, asym)
+                + _coulomb_predict(t, P, n, ("A", "bh", "fh", "rh"), asym)
+                + _coulomb_events(t, P, n, asym) + _coulomb_store(t, X, n))
+
+    if not adaptive:
+        L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
+        L += corrected(" " * 16, P, X)
+        L += ["    return nref, nrest"]
+        if per_lane:
+            return _compile(_lane_inputs(L, w),
+                            f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
+        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{' asym' * asym}>")
+    # S: state at the start of the sample, and a last row with the lane's event flag (one
+    # array less for the vectoriser to check for aliasing).  Lanes with an event are
+    # packed (parameters PP, state XX) into groups of g and take the sample again there;
+    # S2: state at the start of a sub-step and flags, T2: the quick results
+    g = min(w, REFINE_GROUP)
+    PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
+    flag2 = X.size * g
+    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})",
+              f"    PP = np.empty({P.size * g})", f"    XX = np.empty({X.size * g})",
+              f"    S2 = np.empty({(X.size + 1) * g})", f"    T2 = np.empty({X.size * g})",
+              f"    idx = np.empty({w}, np.int64)",
+              f"    slot = np.zeros({g}, np.int64)",
+              "    dt = h * n_sub",
+              # unused packed slots hold copies of lane 0 (valid numbers)
+              f"    for j in range({g}):",
+              f"        for r in range({P.size}):",
+              f"            PP[r * {g} + j] = P[r * {w}]",
+              f"        for r in range({X.size}):",
+              f"            XX[r * {g} + j] = X[r * {w}]"]
+    rows = range(X.size)
+
+    def retake(t, start, result):
+        # keep the quick step's result, go back to the step's start
+        return ([f"{t}for b in range({g}):"]
+                + [f"{t}    {result}[{r * g} + b] = XX[{r * g} + b]" for r in rows]
+                + [f"{t}    XX[{r * g} + b] = {start}[{r * g} + b]" for r in rows])
+
+    def keep_quick(t, start, result):
+        # lanes without an event take the quick step's result: every lane's result
+        # depends on its own parameters only, never on the other lanes of its group
+        return ([f"{t}for b in range({g}):"]
+                + [f"{t}    XX[{r * g} + b] = XX[{r * g} + b] if {start}[{flag2} + b] != 0.0"
+                   f" else {result}[{r * g} + b]" for r in rows])
+
+    # a group whose lanes are all at rest skips the sample (the state does not change);
+    # the others take the sample in one step, and the lanes with an event in it take it
+    # again in sub-steps, packed into groups: each sub-step first without corrections and
+    # again with them where a lane of the packed group needs them
+    L += ["        nf = 0",
+          f"        for g0 in range(0, {w}, {g}):",
+          "            nq = 0",
+          f"            for b in range(g0, g0 + {g}):"]
+    L += _coulomb_at_rest(" " * 16, P, X, n)
+    L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
+          "            ev = 0",
+          f"            for b in range(g0, g0 + {g}):"]
+    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym)
+    L += ["            if ev > 0:",
+          f"                for b in range(g0, g0 + {g}):",
+          f"                    if S[{X.size * w} + b] != 0.0:",
+          "                        idx[nf] = b",
+          "                        nf += 1",
+          f"        for c0 in range(0, nf, {g}):",
+          "            nref += 1",
+          f"            m = min({g}, nf - c0)",
+          "            for j in range(m):",
+          "                bj = idx[c0 + j]",
+          # a slot keeps its lane's parameters until another lane is packed there (the
+          # rows of the whole-sample step, Ad to rd, are not used in sub-steps)
+          "                if slot[j] != bj:",
+          "                    slot[j] = bj",
+          f"                    for r in range({P.offset['Ad']}):",
+          f"                        PP[r * {g} + j] = P[r * {w} + bj]",
+          f"                    for r in range({P.offset['G']}, {P.size}):",
+          f"                        PP[r * {g} + j] = P[r * {w} + bj]",
+          f"                for r in range({X.size}):",
+          f"                    XX[r * {g} + j] = S[r * {w} + bj]",
+          "            for sub in range(n_sub):",
+          "                ev = 0",
+          f"                for b in range({g}):"]
+    L += [line.replace("S[", "S2[") for line in
+          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h", asym)]
+    L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
+    L += [f"                    for b in range({g}):"]
+    L += corrected(" " * 24, PP, XX)
+    L += keep_quick(" " * 20, "S2", "T2")
+    L += ["            for j in range(m):",
+          "                bj = idx[c0 + j]",
+          f"                for r in range({X.size}):",
+          f"                    X[r * {w} + bj] = XX[r * {g} + j]"]
+    L += ["    return nref, nrest"]
+    if per_lane:
+        packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
+        # the packed lanes' inputs, copied where their state is packed
+        pack = next(i for i, line in enumerate(L)
+                    if i > packed_from and line.strip() == "bj = idx[c0 + j]")
+        L.insert(pack + 1, f"                UU[j] = u[k * {w} + bj]")
+        L.insert(1, f"    UU = np.zeros({g})")
+        packed_from += 1
+        return _compile(_lane_inputs(L, w, packed_from=packed_from),
+                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
+    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{' asym' * asym}>")
+
+
+def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
+                adaptive=True, Fc_backward=None):
+    """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
+
+    A step: the friction force of each cart is decided at its start (stuck carts hold the
+    net force, ``f = -F``, while ``|F| < Fs``, or break away at once if the input jumped
+    past ``Fs``; sliding carts get ``f = -Fc dir``) and the state is advanced exactly with
+    that force held, a stuck cart's holding force ramping to its end value (one
+    correction with the ramp response, so that the held cart does not drift and pull on
+    its neighbours).  That is all a step without an event needs.
+
+    Each sample is first taken in one such step.  A lane that had, or may have had, an
+    event in it (see ``_coulomb_quiet_step``) takes the sample again in ``n_sub``
+    sub-steps ``h``, each again first quick and then, for a lane with an event in it, with
+    the events located on cubic Hermite interpolants in time (values and rates at both
+    ends; Newton from the chord, safeguarded for the break-away) and corrected:
+
+    - a stuck cart whose held net force reached ``Fs`` inside the step broke away there
+      and gains the velocity and displacement of the integrals of the interpolated net
+      force less ``Fc`` from then to the end;
+    - a sliding cart whose velocity changed sign crossed zero ``tau`` before the end.  If
+      the net force there is below ``Fs`` it sticks where the velocity vanished (the
+      distance travelled since is the integral of the velocity interpolant), and breaks
+      away again later in the same step if its held force reaches ``Fs`` by the end;
+      otherwise friction reverses and the wrong force over ``tau`` is undone:
+      ``dv = 2 Fc dir tau / m``, ``dx = dv tau / 2``.
+
+    Lanes run in groups of ``REFINE_GROUP`` (vectorised); a group whose lanes are all at
+    rest skips the sample, and the lanes with an event in a sample (from any group) are
+    packed into groups of ``REFINE_GROUP`` that take it again in sub-steps.  A packed
+    group takes the corrected path in a sub-step when one of its lanes needs it, but every
+    lane keeps the result of the path its own flags chose: the output of a parameter set
+    never depends on the others in the batch.  The error is second order in the sub-step
+    where events are, but a stick-or-reverse decision taken with ``|F|`` within a fraction
+    of a percent of ``Fs`` can flip and change the whole future (as in any fixed-step
+    scheme).
+
+    Parameters
+    ----------
+    Ah : ndarray, shape (nb, s, s)
+        One sub-step of the linear system.
+    Bh : ndarray, shape (nb, s)
+        Response to the input held over a sub-step.
+    Fh : ndarray, shape (nb, s, n)
+        Response to a force held on each cart over a sub-step.
+    Rh : ndarray, shape (nb, s, n)
+        Response to a force on each cart ramping from 0 to 1 over a sub-step.
+    Ad, Bd, Fd, Rd : ndarray
+        The same over a whole sample interval.
+    G : ndarray, shape (nb, n, s)
+        ``[-K, -C]``: spring and damper force on each cart, N.
+    gb : ndarray, shape (nb, n)
+        Motor force per volt on each cart, N/V.
+    minv : ndarray, shape (nb, n)
+        Inverse masses, 1/kg.
+    Fc, Fs : ndarray, shape (nb, n)
+        Kinetic and static friction levels, N (``Fc`` forwards if ``Fc_backward`` is
+        given).
+    u : ndarray, shape (N,) or (nb, N)
+    n_sub : int
+    h : float
+        Sub-step, s.
+    x0 : ndarray, shape (nb, s)
+    adaptive : bool
+        False: every sample in ``n_sub`` corrected sub-steps (slower; for checks).
+    Fc_backward : ndarray, shape (nb, n), optional
+        Kinetic level when sliding in the negative direction, N (default: ``Fc``).
+
+    Returns
+    -------
+    ndarray, shape (nb, N, n)
+        Positions, a view of the kernel's output buffer.
+    """
+    n = Fc.shape[1]
+    v = x0[:, n:]
+    state = [x0, v == 0.0, np.sign(v), x0[:, :n]]
+    params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
+    if Fc_backward is not None:
+        params.append(Fc_backward)
+    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
+    if Fc_backward is not None:
+        kernel = functools.partial(kernel, asymmetric=True)
+    return run_batched(kernel, params, state, u, n, int(n_sub), float(h))

@@ -1,0 +1,82 @@
+"""Cubic (hardening or softening) springs: the batched kernel."""
+
+from __future__ import annotations
+
+import functools
+
+from ._codegen import (
+    _compile,
+    _fma_sum,
+    _head,
+    _lane_inputs,
+    _Rows,
+    run_batched,
+)
+
+
+# cubic spring stiffness
+def _cubic_force_lines(t: str, n: int, src: str, dst: str) -> list[str]:
+    # spring i joins cart i and i + 1 (the last one joins cart n - 1 to the frame); its
+    # extension is d_i = x_{i+1} - x_i (or -x_{n-1}) and it pulls cart i with k3_i d_i^3
+    # and cart i + 1 with -k3_i d_i^3
+    lines = []
+    for i in range(n):
+        d = f"({src}{i + 1} - {src}{i})" if i < n - 1 else f"(-{src}{i})"
+        lines += [f"{t}e{i} = {d}", f"{t}c{i} = k3_{i} * e{i} * e{i} * e{i}"]
+    for i in range(n):
+        lines.append(f"{t}{dst}{i} = c{i}" + (f" - c{i - 1}" if i > 0 else ""))
+    return lines
+
+
+@functools.lru_cache(maxsize=16)
+def cubic_kernel(n: int, width: int, per_lane: bool = False):
+    """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``."""
+    s, w = 2 * n, width
+    R, C = range(s), range(n)
+    P = _Rows("P", w, [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", n)])
+    X = _Rows("X", w, [("x", s)])
+    L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
+    L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
+    t = "                "
+    L += [f"{t}x{r} = {X('x', r)}" for r in R]
+    L += [f"{t}k3_{i} = {P('k3', i)}" for i in C]
+    L += _cubic_force_lines(t, n, "x", "f")
+    for r in R:
+        prods = ([(P('A', r * s + j), f"x{j}") for j in R]
+                 + [(P('p', r * n + j), f"f{j}") for j in C])
+        L.append(f"{t}y{r} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
+    L += _cubic_force_lines(t, n, "y", "g")
+    for r in R:
+        prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
+        L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
+    if per_lane:
+        return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane>")
+    return _compile(L, f"<bayesmodal cubic n={n} w={w}>")
+
+
+def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0):
+    """Cubic spring forces ``k3_i d_i^3`` by the exponential Runge-Kutta scheme ETD2RK.
+
+    Predictor with the force held over the sub-step (``F0h``), corrector with the force
+    ramped linearly between its values at both ends (``F1h``, the response to the unit
+    ramp ``s / h``); second-order in the nonlinear part, exact in the linear part.
+
+    Parameters
+    ----------
+    Ah : ndarray, shape (nb, s, s)
+    Bh : ndarray, shape (nb, s)
+    F0h, F1h : ndarray, shape (nb, s, n)
+        Response to a held and to a ramped force on each cart over a sub-step.
+    k3 : ndarray, shape (nb, n)
+        Cubic stiffness of each spring, N/m^3.
+    u : ndarray, shape (N,)
+    n_sub : int
+    x0 : ndarray, shape (nb, s)
+
+    Returns
+    -------
+    ndarray, shape (nb, N, n)
+    """
+    n = k3.shape[1]
+    return run_batched(functools.partial(cubic_kernel, n), [Ah, Bh, F0h, F1h, k3], [x0], u,
+                       n, int(n_sub))

@@ -1,0 +1,158 @@
+"""Compiled kernel (numba) of the LuGre friction model, batched across parameter sets.
+
+The bristle deflection ``z_i`` of cart ``i`` obeys ``z' = v - a(v) z`` with
+``a(v) = sigma0 |v| / g(v)``; over a sub-step ``h`` with the velocity frozen at ``v`` this
+is solved exactly::
+
+    z(h) = z0 E + z_ss (1 - E),      E = exp(-a h),  z_ss = sign(v) g(v) / sigma0,
+    mean of z over the step = z0 phi + z_ss (1 - phi),   phi = (1 - E) / (a h),
+
+so the stiff bristle relaxation (``a h`` up to thousands while sliding) is stable for every
+step.  The exponentials are evaluated by a branch-free polynomial scheme
+(``_one_minus_exp``) so that the lane loop vectorises.  The friction force
+``F = sigma0 z + sigma1 z'`` is held over the sub-step at its mean,
+``sigma0 mean(z) + sigma1 (z(h) - z0) / h``, and the carts are advanced by the exact
+zero-order-hold step of the linear rig with that force as an input.  The velocity frozen
+for the bristles is the mid-step velocity ``v0 + (h / 2) a0``, with the acceleration
+``a0`` at the start taken with the last sub-step's friction force: an O(h^2) velocity,
+so the scheme is second order in ``h`` with one linear step and one bristle update per
+sub-step (a predictor-corrector with two of each was 1.5 times slower for 25 % less
+error).  Every operation is a smooth
+function of the parameters (``|v|`` and ``sign(v)`` enter only through ``a`` and
+``z_ss (1 - E)``, both continuous in ``v``), so the simulated output is continuous in
+them.  Layouts and batching as in ``bayesmodal.discrepancy.kernels._codegen``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, run_batched
+
+#: Arguments of ``e^{-x}`` are clipped at this value (``e^{-40} = 4e-18``, nil next to 1).
+_EXP_CLIP = 40.0
+#: Halvings of the argument before the series (``x / 2^8 <= 0.16``).
+_EXP_HALVINGS = 8
+#: Terms of the series of ``(1 - e^{-y}) / y`` (truncation ``y^9 / 10! < 2e-14``).
+_EXP_TERMS = 9
+
+
+def _one_minus_exp(t: str, x: str, om: str, q: str) -> list[str]:
+    """Code of ``om = 1 - e^{-x}`` and ``q = om / x`` for ``x >= 0``, without a library call.
+
+    numba (without SVML) does not vectorise ``math.exp``; this polynomial version does.
+    With ``y = x / 2^m`` the series ``q_y = sum_k (-y)^k / (k + 1)!`` and ``om_y = y q_y``
+    are doubled ``m`` times, ``om_{2y} = om_y (2 - om_y)`` and
+    ``q_{2y} = q_y (1 - om_y / 2)``: neither recurrence amplifies relative errors, there
+    is no division and no cancellation, so ``q -> 1`` smoothly as ``x -> 0``.  Relative
+    error ~1e-15; ``x`` is clipped at ``_EXP_CLIP`` (``q`` is then ``om / _EXP_CLIP``).
+    """
+    coef = [(-1.0) ** k / math.factorial(k + 1) for k in range(_EXP_TERMS)]
+    series = repr(coef[-1])
+    for c in reversed(coef[:-1]):
+        series = f"{c!r} + y * ({series})"
+    L = [f"{t}y = ({x} if {x} < {_EXP_CLIP!r} else {_EXP_CLIP!r}) * {2.0 ** -_EXP_HALVINGS!r}",
+         f"{t}{q} = {series}",
+         f"{t}{om} = y * {q}"]
+    for _ in range(_EXP_HALVINGS):
+        L += [f"{t}{q} = {q} * (1.0 - 0.5 * {om})", f"{t}{om} = {om} * (2.0 - {om})"]
+    return L
+
+
+def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
+    """Code of cart i's bristle state ``z1{out}`` at the sub-step end and held friction
+    force ``F{out}`` for the velocity ``v`` frozen over the sub-step."""
+    L = [f"{t}vv = {v}",
+         f"{t}e = vv * {P('ivs')}",
+         f"{t}e2 = e * e"]
+    L += _one_minus_exp(t, "e2", "os", "qs")  # Stribeck: e^{-(v/vs)^2} = 1 - os
+    L += [f"{t}g = fc{i} + (fs{i} - fc{i}) * (1.0 - os)",
+          f"{t}g = g if g > 1e-300 else 1e-300",
+          f"{t}ah = s0 * abs(vv) * h / g"]
+    L += _one_minus_exp(t, "ah", "om", "ph")  # relaxation over the step: E = 1 - om
+    L += [f"{t}ph = ph if ah < {_EXP_CLIP!r} else om / ah"]  # q was of the clipped argument
+    L += [f"{t}ss = g / s0 if vv >= 0.0 else -g / s0",
+          f"{t}z1{out} = z{i} * (1.0 - om) + ss * om",
+          f"{t}F{out} = s0 * (z{i} * ph + ss * (1.0 - ph)) + s1 * (z1{out} - z{i}) * ih"]
+    return L
+
+
+@functools.lru_cache(maxsize=16)
+def lugre_kernel(n: int, width: int, per_lane: bool = False):
+    """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``)."""
+    s, w = 2 * n, width
+    R, C = range(s), range(n)
+    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("G", n * s), ("gb", n),
+                       ("mi", n), ("fc", n), ("fs", n), ("s0", 1), ("s1", 1), ("ivs", 1)])
+    X = _Rows("X", w, [("x", s), ("z", n), ("fr", n)])
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    L[1:1] = ["    ih = 1.0 / h"]
+    L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
+    t = " " * 16
+    L += [f"{t}x{r} = {X('x', r)}" for r in R]
+    L += [f"{t}s0 = {P('s0')}", f"{t}s1 = {P('s1')}"]
+    for i in C:
+        L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}"]
+    # the velocity at mid-step from the acceleration at the start (the friction force of
+    # the last sub-step standing in for the one at its end)
+    for i in C:
+        net = _fma_sum(f"{P('gb', i)} * uk - {X('fr', i)}",
+                       [(P("G", i * s + j), f"x{j}") for j in R])
+        L += [f"{t}vm{i} = x{n + i} + 0.5 * h * {P('mi', i)} * ({net})"]
+    for i in C:
+        L += _bristle(t, i, f"vm{i}", f"c{i}", P)
+    for r in R:
+        prods = ([(P('A', r * s + j), f"x{j}") for j in R]
+                 + [(P('fh', r * n + j), f"(-Fc{j})") for j in C])
+        L.append(f"{t}{X('x', r)} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
+    L += [f"{t}{X('z', i)} = z1c{i}" for i in C]
+    L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
+    if per_lane:
+        return _compile(_lane_inputs(L, w), f"<bayesmodal lugre1 n={n} w={w} per-lane>")
+    return _compile(L, f"<bayesmodal lugre1 n={n} w={w}>")
+
+
+def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0):
+    """LuGre friction on every cart (see ``extensions.lugre``), bristles relaxed at start.
+
+    Parameters
+    ----------
+    Ah : ndarray, shape (nb, s, s)
+        One sub-step of the linear rig.
+    Bh : ndarray, shape (nb, s)
+        Response to the input held over a sub-step.
+    Fh : ndarray, shape (nb, s, n)
+        Response to a force held on each cart over a sub-step.
+    G : ndarray, shape (nb, n, s)
+        ``[-K, -C]``: spring and damper force on each cart, N.
+    gb : ndarray, shape (nb, n)
+        Motor force per volt on each cart, N/V.
+    minv : ndarray, shape (nb, n)
+        Inverse masses, 1/kg.
+    Fc, Fs : ndarray, shape (nb, n)
+        Coulomb and static friction levels, N.
+    sigma0, sigma1, v_stribeck : ndarray, shape (nb,)
+        Bristle stiffness (N/m), bristle damping (N s/m), Stribeck velocity (m/s).
+    u : ndarray, shape (N,) or (nb, N)
+        Input, V, held over each sample; shared or one row per lane.
+    n_sub : int
+        Sub-steps per sample.
+    h : float
+        Sub-step, s.
+    x0 : ndarray, shape (nb, s)
+
+    Returns
+    -------
+    ndarray, shape (nb, N, n)
+        Cart positions, m (a view of the kernel's output buffer).
+    """
+    nb, s = x0.shape
+    n = s // 2
+    params = [Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1,
+              1.0 / np.asarray(v_stribeck, dtype=float)]
+    state = [x0, np.zeros((nb, n)), np.zeros((nb, n))]
+    return run_batched(functools.partial(lugre_kernel, n), params, state, u, n, int(n_sub),
+                       float(h))
