@@ -53,6 +53,9 @@ problem in a file is collected and reported at once, each naming the file and th
     checkpoint_every_s = 5.0    # seconds between atomic checkpoint writes
     pointwise_loglik = true     # false leaves the pointwise log-likelihood out of
                                 # posterior.nc (most of its size); LOO rebuilds it
+    chain = "compact"           # chain.h5 of a finished run: every k-th step in float32
+                                # and the final state in float64; "full" keeps the
+                                # float64 checkpoint
 
     [evidence]                  # optional nested-sampling evidence (dynesty), slow
     enabled = false
@@ -93,7 +96,8 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
                 "moves": str, "restart": int},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
-                "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool},
+                "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool,
+                "chain": str},
     "evidence": {"enabled": bool, "nlive": int, "dlogz": (int, float)},
 }
 
@@ -135,6 +139,7 @@ class RunConfig:
     ema: bool = True
     checkpoint_every_s: float = 5.0
     pointwise_loglik: bool = True
+    chain_storage: str = "compact"
     evidence: bool = False
     evidence_nlive: int = 250
     evidence_dlogz: float = 0.5
@@ -197,7 +202,7 @@ class RunConfig:
         """SHA-256 of the canonical JSON of everything that affects the result."""
         d = self.to_dict()
         for k in ("source", "name", "out_dir", "plots", "report", "ema",
-                  "checkpoint_every_s", "pointwise_loglik"):
+                  "checkpoint_every_s", "pointwise_loglik", "chain_storage"):
             d.pop(k)
         if d["restart"] is None:  # keeps the hashes of configs written before the key
             d.pop("restart")
@@ -414,6 +419,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     for key in ("plots", "report", "ema", "pointwise_loglik"):
         if ("outputs", key) in values:
             kw[key] = values[("outputs", key)]
+    chain = values.get(("outputs", "chain"))
+    if chain is not None:
+        if chain not in ("compact", "full"):
+            err("outputs.chain", f"must be 'compact' or 'full', got {chain!r}")
+        kw["chain_storage"] = chain
     ck = values.get(("outputs", "checkpoint_every_s"))
     if ck is not None:
         if not ck > 0:
