@@ -137,7 +137,8 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
     out = []
     for f in files:
         try:
-            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count))
+            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count,
+                                       options=cfg.read_options()))
             if fitted:
                 check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
