@@ -214,5 +214,5 @@ def test_run_without_pointwise_loglik_compares_like_the_full_run(tmp_path):
     # (compare_runs refuses the same run twice: the criteria are compared directly)
     a, b = information_criteria(full), information_criteria(lean)
     assert a.elpd_loo == b.elpd_loo and a.n_bad_k == b.n_bad_k
-    with h5py.File(dirs["false"] / "chain.h5", "r") as f:
-        assert f["mcmc/chain"].compression == "gzip"
+    with h5py.File(dirs["false"] / "chain.h5", "r") as f:   # compacted at the end
+        assert f["mcmc"].attrs["compact"] and f["mcmc/trace"].compression == "gzip"

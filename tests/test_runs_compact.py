@@ -232,6 +232,11 @@ def test_small_run_folder_is_compacted_and_reproduces_its_summary(tmp_path):
     assert st.coords.dtype == np.float64 and st.coords.shape == (30, len(names))
     pp = idata.posterior_predictive
     assert pp.sizes["chain"] * pp.sizes["draw"] == 16
+    # stored as packed 32-bit integers, compressed below their raw size
+    with h5py.File(out / "posterior.nc", "r") as f:
+        for v in ("y", "y_hat"):
+            d = f[f"posterior_predictive/{v}"]
+            assert d.dtype == np.int32 and d.id.get_storage_size() < d.size * d.dtype.itemsize
     for p in out.glob("*.png"):
         with Image.open(p) as im:
             assert im.mode == "P", p.name
