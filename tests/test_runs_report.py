@@ -154,8 +154,10 @@ def test_coverage_colours_follow_the_sentence(tmp_path, n_fail):
     s = _summary(n_fail=n_fail)
     s["crossval"] = {"records": [{"name": "rec_w", "coverage_90": [1.0, 0.99, 0.98],
                                   "width_90": [2.0] * 3, "fit_percent": [80.0] * 3}]}
+    del s["heldout"]   # left-out records only (the main job): the legend is shown there
     page = _render(tmp_path / f"cv{n_fail}", s)
     assert "<span class='wide'>100</span>" in page
+    assert page.count("<span class='wide'>amber</span>: above") == 1
     assert "wider than needed" in run_verdict(s).sentence
     assert "<span class='ok'>100</span>" not in page
 

@@ -186,20 +186,21 @@ def _section_verdict(s: dict) -> str:
     rows += _coverage_rows(held.get("fitted_records") or [], "fitted (in-sample)")
     cv = s.get("crossval") or {}
     cv_rows = _coverage_rows(cv.get("records") or [], "left out", relative=True)
+    legend = ("<p class='muted'>Coverage: the share of the measured samples inside the "
+              "90 % posterior-predictive band (model output plus fitted noise); a band "
+              "that holds covers about 90 % of a record it was not fitted to. "
+              f"<span class='ok'>Green</span>: within 90 &plusmn; {tol} %; "
+              "<span class='bad'>red</span>: below (the band is too narrow); "
+              "<span class='wide'>amber</span>: above (the band is wider than needed)."
+              "</p>")
     if rows:
-        out += ("<p class='muted'>Coverage: the share of the measured samples inside the "
-                "90 % posterior-predictive band (model output plus fitted noise); a band "
-                "that holds covers about 90 % of a record it was not fitted to. "
-                f"<span class='ok'>Green</span>: within 90 &plusmn; {tol} %; "
-                "<span class='bad'>red</span>: below (the band is too narrow); "
-                "<span class='wide'>amber</span>: above (the band is wider than needed)."
-                "</p>"
-                + _table(["record", "role", "coverage of 90 % band (%, per output)",
-                          "band width (mm, per output)", "fit % (per output)"], rows,
-                         left=(0, 1)))
+        out += legend + _table(["record", "role", "coverage of 90 % band (%, per output)",
+                                "band width (mm, per output)", "fit % (per output)"], rows,
+                               left=(0, 1))
     if cv_rows:
         method = cv.get("method") or "each record left out of the fit in turn"
         out += (f"<h3 id='crossval'>Leave-one-record-out ({_e(method)})</h3>"
+                + ("" if rows else legend)
                 + _table(["record", "role", "coverage of 90 % band (%, per output)",
                           "band width / record sd (per output)", "fit % (per output)"],
                          cv_rows, left=(0, 1)))
