@@ -7,6 +7,10 @@ problem in a file is collected and reported at once, each naming the file and th
     files = ["ecp210-3dof/data_impulses.mat"]   # relative to the config, or to a data root
     m_per_count = 0.0000044125                   # optional, m per encoder count
     heldout = ["ecp210-3dof/data_steps.mat"]     # optional: records scored, not fitted
+    columns = { t = "time", v = "target_v", x1 = "enc1", x2 = "enc2" }   # optional: a
+                                                 # lab file's own names (CLI --columns)
+    input_scale = "5/4096"                       # optional: V per unit of the input
+    time_scale = "1/1000"                        # optional: s per unit of the time
 
     [rig]
     springs_n_m = [774.0, 770.0, 396.0]   # a chain; or file = "my_rig.toml" (or a preset
@@ -53,6 +57,9 @@ problem in a file is collected and reported at once, each naming the file and th
     checkpoint_every_s = 5.0    # seconds between atomic checkpoint writes
     pointwise_loglik = true     # false leaves the pointwise log-likelihood out of
                                 # posterior.nc (most of its size); LOO rebuilds it
+    chain = "compact"           # chain.h5 of a finished run: every k-th step in float32
+                                # and the final state in float64; "full" keeps the
+                                # float64 checkpoint
 
     [evidence]                  # optional nested-sampling evidence (dynesty), slow
     enabled = false
@@ -82,7 +89,8 @@ MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
 NOISE_MODELS = ("ar1", "white")
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
-    "data": {"files": list, "m_per_count": (int, float), "heldout": list},
+    "data": {"files": list, "m_per_count": (int, float), "heldout": list, "columns": dict,
+             "input_scale": (int, float, str), "time_scale": (int, float, str)},
     "rig": {"springs_n_m": list, "file": str, "name": str, "clamped": list, "carts": list,
             "springs": list, "dampers": dict, "drive": dict, "sensors": list},
     "model": {"damping": str, "extensions": list},
@@ -93,7 +101,8 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
                 "moves": str, "restart": int},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
-                "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool},
+                "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool,
+                "chain": str},
     "evidence": {"enabled": bool, "nlive": int, "dlogz": (int, float)},
 }
 
@@ -135,6 +144,7 @@ class RunConfig:
     ema: bool = True
     checkpoint_every_s: float = 5.0
     pointwise_loglik: bool = True
+    chain_storage: str = "compact"
     evidence: bool = False
     evidence_nlive: int = 250
     evidence_dlogz: float = 0.5
@@ -146,12 +156,24 @@ class RunConfig:
     crossval_draws: int = 200
     crossval_walkers: int | None = None
     crossval_steps: int | None = None
+    columns: dict[str, str] | None = None
+    input_scale: float = 1.0
+    time_scale: float = 1.0
 
     #: Fields left out of the hash at their defaults (configs written before them keep
     #: their hashes).
     _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "temperature": 1.0,
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
-                     "crossval_steps": None}
+                     "crossval_steps": None, "columns": None, "input_scale": 1.0,
+                     "time_scale": 1.0}
+
+    def read_options(self):
+        """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
+        given to the loader separately, for encoder files)."""
+        from .reading import ReadOptions  # noqa: PLC0415
+
+        return ReadOptions(columns=self.columns, input_scale=self.input_scale,
+                           time_scale=self.time_scale)
 
     def make_rig(self):
         """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
@@ -197,7 +219,7 @@ class RunConfig:
         """SHA-256 of the canonical JSON of everything that affects the result."""
         d = self.to_dict()
         for k in ("source", "name", "out_dir", "plots", "report", "ema",
-                  "checkpoint_every_s", "pointwise_loglik"):
+                  "checkpoint_every_s", "pointwise_loglik", "chain_storage"):
             d.pop(k)
         if d["restart"] is None:  # keeps the hashes of configs written before the key
             d.pop("restart")
@@ -316,6 +338,32 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             err("data.m_per_count", f"must be in (0, 1) m per count, got {mpc!r}")
         kw["m_per_count"] = float(mpc)
 
+    cols = values.get(("data", "columns"))
+    if cols is not None:
+        from .reading import ReadOptions  # noqa: PLC0415
+
+        bad = [k for k, c in cols.items()
+               if isinstance(c, bool) or not isinstance(c, (str, int))]
+        if bad:
+            err(f"data.columns.{bad[0]}", "must be a column name or a 1-based column number, "
+                f"got {cols[bad[0]]!r}")
+        else:
+            try:
+                opts = ReadOptions(columns={k: str(c) for k, c in cols.items()})
+                kw["columns"] = opts.column_map
+            except ConfigError as exc:
+                err("data.columns", str(exc))
+    for key in ("input_scale", "time_scale"):
+        val = values.get(("data", key))
+        if val is None:
+            continue
+        from .reading import parse_scale  # noqa: PLC0415
+
+        try:
+            kw[key] = parse_scale(str(val), key)
+        except ConfigError as exc:
+            err(f"data.{key}", str(exc))
+
     springs = values.get(("rig", "springs_n_m"))
     if springs is not None:
         if not springs or not all(isinstance(k, (int, float)) and not isinstance(k, bool)
@@ -324,10 +372,23 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         else:
             kw["springs_n_m"] = tuple(float(k) for k in springs)
     _parse_rig(raw.get("rig"), values, kw, base, err)
+    if mpc is None and kw.get("rig") is not None:
+        # encoder files take the scale of the rig's count sensors, as on the command line
+        scales = {float(s["m_per_unit"]) for s in kw["rig"].get("sensors", [])
+                  if s.get("unit") == "count" and s.get("m_per_unit") is not None}
+        if len(scales) == 1:
+            kw["m_per_count"] = scales.pop()
 
-    damping = values.get(("model", "damping"), "free")
+    # a rig description may declare its damping ([dampers] proportional = true/false)
+    prop = ((kw.get("rig") or {}).get("dampers") or {}).get("proportional")
+    declared = None if prop is None else ("proportional" if prop else "free")
+    given = values.get(("model", "damping"))
+    damping = given if given is not None else (declared or "free")
     if damping not in DAMPING_MODELS:
         err("model.damping", f"must be one of {DAMPING_MODELS}, got {damping!r}")
+    elif given is not None and declared is not None and given != declared:
+        err("model.damping", f"{given!r} contradicts the rig's [dampers] proportional = "
+            f"{str(prop).lower()}; drop one of the two")
     kw["damping"] = damping
     exts = values.get(("model", "extensions"), [])
     try:
@@ -414,6 +475,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     for key in ("plots", "report", "ema", "pointwise_loglik"):
         if ("outputs", key) in values:
             kw[key] = values[("outputs", key)]
+    chain = values.get(("outputs", "chain"))
+    if chain is not None:
+        if chain not in ("compact", "full"):
+            err("outputs.chain", f"must be 'compact' or 'full', got {chain!r}")
+        kw["chain_storage"] = chain
     ck = values.get(("outputs", "checkpoint_every_s"))
     if ck is not None:
         if not ck > 0:

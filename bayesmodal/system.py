@@ -262,6 +262,10 @@ class Rig:
         Carts fixed to the frame (not degrees of freedom).
     gain_n_v : float, optional
         Known input gain, N/V (then ``g_v`` is not a parameter); default estimated.
+    damping : {"free", "proportional"}, optional
+        The damping model the description declares (``[dampers] proportional = true`` or
+        ``false`` in TOML); ``LinearModel`` refuses another one.  None (default): not
+        declared, chosen with the model.
     name : str
         Free-text label.
 
@@ -287,10 +291,14 @@ class Rig:
     sensors: tuple[Sensor, ...] | None = None
     clamped: tuple[str, ...] = ()
     gain_n_v: float | None = None
+    damping: str | None = None
     name: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
+        if self.damping is not None and self.damping not in DAMPING_MODELS:
+            raise ModelError(f"rig damping must be one of {DAMPING_MODELS} or None (not "
+                             f"declared), got {self.damping!r}")
         if not self.carts:
             k = np.asarray(ECP210_SPRINGS_N_M if self.springs_n_m is None else self.springs_n_m,
                            dtype=float)
@@ -713,6 +721,11 @@ class LinearModel:
             raise ModelError(f"damping must be one of {DAMPING_MODELS}, got {self.damping!r}")
         if not isinstance(self.rig, Rig):
             raise ModelError(f"rig must be a Rig, got {type(self.rig).__name__}")
+        if self.rig.damping is not None and self.rig.damping != self.damping:
+            raise ModelError(
+                f"the rig declares {self.rig.damping} damping ([dampers] proportional = "
+                f"{str(self.rig.damping == 'proportional').lower()}) but {self.damping} "
+                "damping was asked for; drop one of the two")
         _check_scale(self.rig)
         chain = self.rig.is_chain
         object.__setattr__(self, "_chain", chain)

@@ -329,17 +329,17 @@ INPUTS = [
              r"--columns t=NAME.*available: time, enc1"),
     BadInput("logger_mat_wrong_name", "logger `.mat`, column map naming a variable it lacks",
              _logger_mat("logger.mat"), r"column 'enc4' \(for x3\) not found",
-             entries=("load_experiment", "lsq", "ema"),
+             entries=("load_experiment", "lsq", "ema", "run"),
              args=("--columns", "t=time,v=target_v,x1=enc1,x2=enc2,x3=enc4",
                    "--input-scale", "5/4096")),
     BadInput("logger_mat_text_field", "logger `.mat`, column map naming a text struct field",
              _logger_mat("logger.mat"), r"variable 'run.operator' is text, not a real numeric",
-             entries=("load_experiment", "lsq", "ema"),
+             entries=("load_experiment", "lsq", "ema", "run"),
              args=("--columns", "t=time,v=run.operator,x1=enc1,x2=enc2,x3=enc3")),
     BadInput("logger_mat_converter_units", "logger `.mat` read without --input-scale "
              "(input in converter units)", _logger_mat("logger.mat"),
              r"input up to 2458 V is far beyond the rig's \+-10 V command.*--input-scale 5/4096",
-             entries=("load_experiment", "lsq", "ema"), args=_LOGGER_MAP),
+             entries=("load_experiment", "lsq", "ema", "run"), args=_LOGGER_MAP),
     BadInput("txt_header_no_map", "ECP `.txt` with header rows `Sample Time Encoder 1 Pos "
              "...`, no column map",
              _ecp_text("header.txt", header=("; exported", "Sample\tTime\tEncoder 1 Pos\t"
@@ -352,7 +352,7 @@ INPUTS = [
                                                      "Encoder 3 Pos Control Effort",),
                                index=True),
              "column number 9 is out of range: the file has 6 columns",
-             entries=("load_experiment", "lsq", "ema"),
+             entries=("load_experiment", "lsq", "ema", "run"),
              args=("--columns", "t=2,x1=3,x2=4,x3=5,v=9")),
     BadInput("txt_sample_index", "header-less `.txt` whose first column is a sample index",
              _ecp_text("indexed.txt", index=True),
@@ -468,6 +468,23 @@ def _read_options(args: tuple[str, ...]):
     return reader_options(parser.parse_args(list(args)))
 
 
+def _config_data(args: tuple[str, ...]) -> str:
+    """The ``[data]`` keys of a run configuration that say what the reader options say."""
+    lines = []
+    for opt, val in zip(args[::2], args[1::2], strict=True):
+        key = opt.lstrip("-").replace("-", "_")
+        if key == "columns":
+            pairs = (item.split("=", 1) for item in val.split(","))
+            lines.append("columns = { " + ", ".join(f'{r} = "{c}"' for r, c in pairs) + " }")
+        elif key == "m_per_count":   # a number in the configuration
+            from bayesmodal.reading import parse_scale
+
+            lines.append(f"{key} = {parse_scale(val)!r}")
+        else:   # a number or fraction, as on the command line
+            lines.append(f'{key} = "{val}"')
+    return "".join(ln + "\n" for ln in lines)
+
+
 def _cli(argv: list[str]) -> tuple[int, str, list[str]]:
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
@@ -509,7 +526,8 @@ def run_case(entry: str, bad: BadInput, folder: Path) -> Outcome:
                                    "--walkers", "32", "--quiet", "--no-plots", *bad.args])
             msg = err[0] if err else ""
         elif entry == "run":
-            Path("cfg.toml").write_text(RUN_CONFIG.format(name=name))
+            Path("cfg.toml").write_text(RUN_CONFIG.format(name=name).replace(
+                "[sampler]", _config_data(bad.args) + "\n[sampler]", 1))
             before = _listing(folder)
             code, out, err = _cli(["run", "cfg.toml", "--out", "run-out", "--quiet"])
             msg = err[0] if err else ""
@@ -674,7 +692,8 @@ def render_table(outcomes: dict[str, Outcome]) -> str:
         "exception of `bayesmodal.data.load_experiment`; `run` and `batch` rows use a",
         "configuration `cfg.toml` whose `[data] files` names the input.  Reader options",
         "(`--columns`, `--input-scale`, ...) shown with an input are given on the command",
-        "line, and to the loader as the `ReadOptions` they parse to.",
+        "line, to the loader as the `ReadOptions` they parse to, and to `run` as the",
+        "`[data]` keys of the same names (`columns = { t = \"time\", ... }`, `input_scale`).",
         "A well-formed MATLAB v7.3 (HDF5) file with t, x1..xn, v is not a bad input: it is read",
         "like a v5 file (`test_every_entry_point_and_input_is_covered`).",
         "",

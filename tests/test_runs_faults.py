@@ -49,6 +49,7 @@ report = true
 ema = false
 predictive_draws = 20
 checkpoint_every_s = 0.2
+chain = "full"   # whole float64 chains compared bit for bit (not compacted at the end)
 """
 
 

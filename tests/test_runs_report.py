@@ -16,7 +16,7 @@ from bayesmodal.data import Experiment
 from bayesmodal.inference import Likelihood, simulate_noise
 from bayesmodal.runs.crosscheck import predictive_coverage
 from bayesmodal.runs.report import render_report
-from bayesmodal.runs.verdict import run_verdict
+from bayesmodal.runs.verdict import COVERAGE_TOLERANCE, coverage_status, run_verdict
 from bayesmodal.simulate import simulate_linear
 from bayesmodal.system import LinearModel, Rig
 
@@ -99,7 +99,7 @@ def test_without_new_data_the_intervals_are_untested():
 
 def _render(tmp_path, s):
     d = tmp_path / "run"
-    d.mkdir()
+    d.mkdir(parents=True)
     (d / "summary.json").write_text(json.dumps(s))
     return render_report(d)
 
@@ -125,6 +125,41 @@ def test_report_opens_with_the_verdict_and_shows_crossval(tmp_path):
     # leaving records out changes the third answer
     assert "leaving one record out, the 90 % band covers 61-92 %" in v.intervals.text
     assert "class='verdict big bad'" in page
+
+
+@pytest.mark.parametrize("n_fail", [0, 7])
+def test_coverage_colours_follow_the_sentence(tmp_path, n_fail):
+    """A band that covers more than nominal (100 % for a 90 % band) is amber and the
+    sentence calls it wider than needed; one that covers less is red and called too
+    narrow; within the window green.  The window edges come from COVERAGE_TOLERANCE."""
+    tol = COVERAGE_TOLERANCE
+    edge_lo, edge_hi = round(0.9 - tol, 6), round(0.9 + tol, 6)
+    cells = {"ok": [edge_lo, 0.9, edge_hi], "wide": [1.0, edge_hi + 0.02],
+             "narrow": [0.5, edge_lo - 0.02]}
+    for status, values in cells.items():
+        assert all(coverage_status(c) == status for c in values), status
+    expect = {"ok": "ok", "wide": "wide", "narrow": "bad"}
+    words = {"wide": "wider than needed", "narrow": "too narrow"}
+    for status, values in cells.items():
+        s = _summary(n_fail=n_fail, coverage=(0.9, *values[:2]))
+        page = _render(tmp_path / f"{status}{n_fail}", s)
+        v = run_verdict(s)
+        for c in values[:2]:
+            assert f"<span class='{expect[status]}'>{100 * c:.0f}</span>" in page, (status, c)
+        if status in words:
+            assert words[status] in v.sentence
+        else:
+            assert "wider than needed" not in v.sentence and "too narrow" not in v.sentence
+    # the fitted, in-sample rows and the left-out rows are coloured the same way
+    s = _summary(n_fail=n_fail)
+    s["crossval"] = {"records": [{"name": "rec_w", "coverage_90": [1.0, 0.99, 0.98],
+                                  "width_90": [2.0] * 3, "fit_percent": [80.0] * 3}]}
+    del s["heldout"]   # left-out records only (the main job): the legend is shown there
+    page = _render(tmp_path / f"cv{n_fail}", s)
+    assert "<span class='wide'>100</span>" in page
+    assert page.count("<span class='wide'>amber</span>: above") == 1
+    assert "wider than needed" in run_verdict(s).sentence
+    assert "<span class='ok'>100</span>" not in page
 
 
 def test_report_without_crossval_has_no_crossval_table(tmp_path):

@@ -79,6 +79,14 @@ def load_rig(args) -> Rig:
     return Rig() if source is None else _load(source)
 
 
+def damping_of(args, rig: Rig) -> str:
+    """``--damping`` if given, else the damping the rig declares (``[dampers] proportional``),
+    else ``"free"``.  A ``--damping`` that contradicts the rig is refused by
+    ``LinearModel``."""
+    d = getattr(args, "damping", None)
+    return d if d is not None else (rig.damping or "free")
+
+
 def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
     rig = load_rig(args) if getattr(args, "rig", None) else None

@@ -5,7 +5,15 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
+from ..system import Rig
+from ._common import (
+    add_data_args,
+    add_rig_argument,
+    damping_of,
+    load_args,
+    load_rig,
+    print_json,
+)
 
 
 def register(sub) -> None:
@@ -25,8 +33,9 @@ def register(sub) -> None:
     p.add_argument("--config", default=None, metavar="FILE",
                    help="run configuration (TOML) whose [model], [likelihood], [records] and "
                         "[sampler] settings are used (default: the options below)")
-    p.add_argument("--damping", choices=["free", "proportional"], default="free",
-                   help="damping model (default free)")
+    p.add_argument("--damping", choices=["free", "proportional"], default=None,
+                   help="damping model (default: the rig's [dampers] proportional "
+                        "declaration, else free)")
     p.add_argument("--noise", default="ar1", metavar="MODEL",
                    help="residual model: ar1, white, arP (e.g. ar4), ar(p1,p2,p3) or ar:auto "
                    "(orders by BIC on each fold's training records) (default ar1)")
@@ -64,7 +73,7 @@ def spec_from_args(args):
         cfg = load_config(args.config, check_files=False)
         return cfg.crossval_spec()
     rig = load_rig(args) if getattr(args, "rig", None) else None
-    return CrossvalSpec(damping=args.damping, noise=args.noise, rig=rig,
+    return CrossvalSpec(damping=damping_of(args, rig or Rig()), noise=args.noise, rig=rig,
                         layout=parse_layout(args.per_record), n_walkers=args.walkers,
                         n_steps=args.steps, n_predictive=args.draws, seed=args.seed,
                         temperature=args.temperature)

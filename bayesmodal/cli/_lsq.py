@@ -11,6 +11,7 @@ from ._common import (
     add_data_args,
     add_initial_state_argument,
     add_rig_argument,
+    damping_of,
     load_args,
     load_rig,
     print_json,
@@ -29,9 +30,10 @@ def register(sub) -> None:
     add_data_args(p, many=True)
     add_rig_argument(p)
     add_initial_state_argument(p)
-    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+    p.add_argument("--damping", choices=["free", "proportional"], default=None,
                    help="damping model: free (c1, c2, c3, c12, c23 each fitted) or "
-                   "proportional (C = ca M + cb K)")
+                   "proportional (C = ca M + cb K)"
+                   " (default: the rig's [dampers] proportional declaration, else free)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.set_defaults(func=run)
 
@@ -57,7 +59,8 @@ def lsq_summary(res) -> dict:
 
 def run(args) -> int:
     exps = load_args(args)
-    model = LinearModel(load_rig(args), args.damping)
+    rig = load_rig(args)
+    model = LinearModel(rig, damping_of(args, rig))
     res = fit_lsq(exps, model, initial_state=args.initial_state)
     summary = lsq_summary(res)
     if args.json:

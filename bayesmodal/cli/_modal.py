@@ -10,7 +10,7 @@ from .._errors import ConfigError
 from .._format import param_unit, sig
 from ..modal import ConvergenceError, modal_report, rayleigh_modes, transfer_function
 from ..system import LinearModel, Rig
-from ._common import add_rig_argument, load_rig, print_json
+from ._common import add_rig_argument, damping_of, load_rig, print_json
 
 #: Report Table 3 (free damping) and Table 4 (proportional damping), the defaults.
 REPORT_PARAMS = {
@@ -34,9 +34,10 @@ def register(sub) -> None:
                    help="parameters to change from the report's values, "
                    "e.g. m1=1.57,ca=1.6,cb=8e-5; springs k1..k3 in N/m "
                    "(default: the report's Table 3 or 4 and the rig's springs)")
-    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+    p.add_argument("--damping", choices=["free", "proportional"], default=None,
                    help="damping model: free (c1, c2, c3, c12, c23) or proportional "
-                   "(C = ca M + cb K)")
+                   "(C = ca M + cb K) (default: the rig's [dampers] proportional "
+                   "declaration, else free)")
     add_rig_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", type=Path,
@@ -88,12 +89,13 @@ def parse_params(text: str, damping: str, springs=None, names=None
 
 def run(args) -> int:
     rig = load_rig(args)
+    damping = damping_of(args, rig)
     if rig == Rig():
-        params, springs = parse_params(args.params, args.damping)
-        model = LinearModel(Rig(tuple(springs)), args.damping)
+        params, springs = parse_params(args.params, damping)
+        model = LinearModel(Rig(tuple(springs)), damping)
     else:
-        model = LinearModel(rig, args.damping)
-        params, _ = parse_params(args.params, args.damping, names=model.names)
+        model = LinearModel(rig, damping)
+        params, _ = parse_params(args.params, damping, names=model.names)
     theta = model.as_vector(params)
     if not np.all(np.isfinite(theta)):
         missing = [n for n, v in zip(model.names, theta, strict=True) if not np.isfinite(v)]

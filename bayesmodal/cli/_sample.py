@@ -13,6 +13,7 @@ from ._common import (
     add_data_args,
     add_initial_state_argument,
     add_rig_argument,
+    damping_of,
     load_args,
     load_rig,
     print_json,
@@ -44,9 +45,10 @@ def register(sub) -> None:
 
 def add_sampler_args(p) -> None:
     """Options shared by ``sample`` and ``compare``."""
-    p.add_argument("--damping", choices=["free", "proportional"], default="free",
+    p.add_argument("--damping", choices=["free", "proportional"], default=None,
                    help="damping model: free (c1, c2, c3, c12, c23) or proportional "
-                   "(C = ca M + cb K)")
+                   "(C = ca M + cb K)"
+                   " (default: the rig's [dampers] proportional declaration, else free)")
     p.add_argument("--noise", default="ar1", metavar="MODEL",
                    help="residual model: ar1 (AR(1) Gaussian per output), white, arP (e.g. "
                    "ar4), ar(p1,p2,p3) or ar:auto (orders by BIC)")
@@ -128,8 +130,9 @@ def _print_text(summary: dict, out: Path) -> None:
 
 def run(args) -> int:
     exps = load_args(args)
-    out = Path(args.out or f"runs/sample-{args.damping}-{args.noise}")
-    summary, _ = sample_to_dir(exps, args, args.damping, out)
+    damping = damping_of(args, load_rig(args))
+    out = Path(args.out or f"runs/sample-{damping}-{args.noise}")
+    summary, _ = sample_to_dir(exps, args, damping, out)
     if args.json:
         print_json(summary)
     elif not args.quiet:

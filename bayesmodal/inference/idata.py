@@ -18,8 +18,10 @@ Groups written by :func:`to_inference_data`:
     observed data with :func:`with_pointwise_loglik`.
 ``posterior_predictive``
     ``y`` (replicated measurements: model output plus a draw of the noise model) and
-    ``y_hat`` (noise-free model output), dims ``(chain, draw, obs, output)``, for a subset
-    of the draws (about ``n_predictive``), float32.
+    ``y_hat`` (noise-free model output), dims ``(chain, draw, obs, output)``, for at most
+    ``n_predictive`` draws (:func:`predictive_subset`), float32; the file stores them as
+    integer multiples of :func:`predictive_quantum` (1e-4 of the smallest output's
+    standard deviation, 1e-7 m on the rig records: 1/44 of an encoder count).
 ``observed_data``
     ``y``, dims ``(obs, output)``, m.
 ``constant_data``
@@ -168,8 +170,8 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
     ----------
     run : PosteriorRun
     n_predictive : int
-        Approximate number of draws (over all chains) for the posterior predictive group;
-        0 leaves the group out.
+        Largest number of draws (over all chains) for the posterior predictive group
+        (:func:`predictive_subset`); 0 leaves the group out.
     pointwise : bool
         Compute the ``log_likelihood`` group (one simulation per retained draw).  With
         False the group is left out (it is most of the file: draws x observations x
@@ -227,9 +229,8 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
         groups["log_likelihood"] = _pointwise_group(lik, draws, obs, attrs)
 
     if n_predictive > 0:
-        step = max(1, round(n_chain * n_draw / n_predictive))
-        idx = np.arange(0, n_draw, step)
-        sub = draws[:, idx].reshape(-1, n_par)
+        ch, idx = predictive_subset(n_chain, n_draw, n_predictive)
+        sub = draws[np.ix_(ch, idx)].reshape(-1, n_par)
         if hasattr(lik, "predict_theta"):  # several records with their own parameters
             y_hat = np.concatenate(lik.predict_theta(sub), axis=1)
             noise = np.concatenate(lik.noise_draws(sub, rng), axis=1)
@@ -239,17 +240,80 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
             noise = np.concatenate(
                 [simulate_noise(sigma, phi, e.n_samples, rng) for e in exps], axis=1
             )
-        shape = (n_chain, idx.size, y_obs.shape[0], n_out)
+        shape = (ch.size, idx.size, y_obs.shape[0], n_out)
+        step_m = predictive_quantum(y_obs)
         groups["posterior_predictive"] = xr.Dataset(
             {
-                "y": (("chain", "draw", "obs", "output"),
-                      (y_hat + noise).reshape(shape).astype(np.float32)),
-                "y_hat": (("chain", "draw", "obs", "output"),
-                          y_hat.reshape(shape).astype(np.float32)),
+                "y": _packed(("chain", "draw", "obs", "output"),
+                             (y_hat + noise).reshape(shape), step_m),
+                "y_hat": _packed(("chain", "draw", "obs", "output"),
+                                 y_hat.reshape(shape), step_m),
             },
-            coords={"chain": cd["chain"], "draw": idx, **obs}, attrs=attrs,
+            coords={"chain": ch, "draw": idx, **obs}, attrs=attrs,
         )
     return az.InferenceData(**groups)
+
+
+def predictive_subset(n_chain: int, n_draw: int, n_predictive: int
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Chains and draws of the posterior predictive group: at most ``n_predictive`` draws.
+
+    ``d = n_predictive // n_chain`` draws per chain (at least 1, at most ``n_draw``), evenly
+    spaced, from ``ceil(n_predictive / d)`` evenly spaced chains (all chains when there
+    are enough).  With 56 walkers and 20 draws that is one draw from each of 20 walkers,
+    not one from each of the 56.
+
+    Returns
+    -------
+    chains : ndarray of int, shape (n_c,)
+    draws : ndarray of int, shape (d,)
+
+    Examples
+    --------
+    >>> ch, dr = predictive_subset(56, 18, 20)
+    >>> ch.size * dr.size
+    20
+    >>> [a.size for a in predictive_subset(24, 8, 48)]
+    [24, 2]
+    """
+    d = int(min(n_draw, max(1, n_predictive // n_chain)))
+    n_c = int(min(n_chain, -(-n_predictive // d)))
+    chains = np.unique(np.linspace(0, n_chain - 1, n_c).round().astype(int))
+    draws = np.unique(np.linspace(0, n_draw - 1, d).round().astype(int))
+    return chains, draws
+
+
+#: The predictive values are stored as 32-bit integers in steps of this fraction of the
+#: smallest standard deviation of an observed output (rounded down to a power of ten):
+#: 1e-4 x std.  For the ECP 210 records that is 1e-7 m, 1/44 of an encoder count, and
+#: the rounding error (at most half a step) moves a band quantile by at most that much.
+PREDICTIVE_RELATIVE_STEP = 1e-4
+
+
+def predictive_quantum(y_obs: np.ndarray) -> float:
+    """Storage step of the posterior predictive values, m (see
+    :data:`PREDICTIVE_RELATIVE_STEP`); 0 when the observed outputs do not vary."""
+    sd = np.std(np.asarray(y_obs, dtype=float), axis=0)
+    sd = sd[np.isfinite(sd) & (sd > 0)]
+    if sd.size == 0:
+        return 0.0
+    return float(10.0 ** np.floor(np.log10(PREDICTIVE_RELATIVE_STEP * sd.min())))
+
+
+def _packed(dims, values: np.ndarray, step: float):
+    """A float32 DataArray that NetCDF stores as int32 multiples of ``step`` (CF packing:
+    ``scale_factor``), or plain float32 when a value would not fit or ``step`` is 0.
+
+    Packed integers of a smooth signal have mostly constant high bytes, which the byte
+    shuffle and zlib of :func:`save_idata` remove; float32 mantissas are noise to zlib."""
+    import xarray as xr
+
+    arr = xr.DataArray(values.astype(np.float32), dims=dims)
+    lim = np.iinfo(np.int32).max - 1
+    if step > 0 and np.all(np.isfinite(values)) and np.abs(values).max() / step < lim:
+        arr.encoding = {"dtype": "int32", "scale_factor": step,
+                        "_FillValue": np.iinfo(np.int32).min}
+    return arr
 
 
 def posterior_matrix(idata, names=None) -> np.ndarray:
@@ -377,10 +441,11 @@ NETCDF_COMPRESSION = {"zlib": True, "complevel": 4, "shuffle": True}
 def save_idata(idata, path: str | os.PathLike) -> Path:
     """Write InferenceData to compressed NetCDF atomically (temporary file, then rename).
 
-    Every numeric variable is compressed losslessly (:data:`NETCDF_COMPRESSION`); the
-    dtypes are those of ``idata`` (the large groups, ``log_likelihood`` and
-    ``posterior_predictive``, are float32 from :func:`to_inference_data`; the posterior
-    draws stay float64).
+    Every numeric and string variable is compressed losslessly
+    (:data:`NETCDF_COMPRESSION`; strings as character arrays); the dtypes are those of
+    ``idata`` (``log_likelihood`` is float32 from :func:`to_inference_data`, the
+    ``posterior_predictive`` values are packed in steps of :func:`predictive_quantum` by
+    their encoding; the posterior draws stay float64).
 
     Returns
     -------
@@ -408,6 +473,11 @@ def save_idata(idata, path: str | os.PathLike) -> Path:
         for var in ds.variables.values():
             if np.issubdtype(var.dtype, np.number) and var.ndim > 0:
                 var.encoding = {**var.encoding, **NETCDF_COMPRESSION}
+            elif var.dtype.kind in "OUS" and var.ndim > 0:
+                # strings (the ``experiment`` label of every observation) as compressed
+                # character arrays: variable-length strings cannot be compressed (1.4 MB
+                # per group for the four records of the main job)
+                var.encoding = {**var.encoding, "dtype": "S1", **NETCDF_COMPRESSION}
         groups[g] = ds
     out = arviz().InferenceData(attrs=dict(getattr(idata, "attrs", {}) or {}), **groups)
     out.to_netcdf(str(tmp), compress=False)

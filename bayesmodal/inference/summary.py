@@ -290,13 +290,18 @@ def write_run(idata, out_dir, *, prob: float = 0.9, plots: bool = True) -> dict:
 
 #: Resolution of the run plots (dots per inch).
 PLOT_DPI = 160
+#: Resolution of the trace plot: one row per parameter (21 rows, 34 inches, for the main
+#: job), thin lines that need no more.
+TRACE_DPI = 90
 
 
-def _save(fig, path) -> None:
+def _save(fig, path, dpi: float = PLOT_DPI) -> None:
     import matplotlib.pyplot as plt
 
+    from ..plots._png import save_png
+
     tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    fig.savefig(tmp, dpi=PLOT_DPI, bbox_inches="tight")
+    save_png(fig, tmp, dpi=dpi)
     plt.close(fig)
     tmp.replace(path)
 
@@ -315,7 +320,7 @@ def _write_plots(idata, modal, out, prob) -> None:
     ref = None if theta is None else propagate_modes(model, theta[None], methods=("eig",))
     refd = None if theta is None else dict(zip(_mech_names(idata, model), theta.tolist(),
                                                strict=True))
-    _save(plot_trace(idata).flat[0].figure, out / "trace.png")
+    _save(plot_trace(idata).flat[0].figure, out / "trace.png", dpi=TRACE_DPI)
     _save(plot_corner(idata, reference=refd).flat[0].figure, out / "corner.png")
     if "posterior_predictive" in idata.groups():
         _save(plot_predictive(idata, prob=prob)[0].figure, out / "predictive.png")

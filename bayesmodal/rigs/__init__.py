@@ -19,6 +19,8 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
     [dampers]                           # optional; default: every cart to the frame and
     ground = ["1", "2"]                 # across every spring between two carts
     pairs = [["1", "2"]]
+    # or: proportional = true           # C = ca M + cb K (no ground/pairs then); false
+                                        # declares the free model
 
     [drive]                             # optional; omitted: no input (free decays)
     carts = ["1"]
@@ -68,7 +70,7 @@ DEFAULT_PRESET = "ecp210-3cart"
 _TOP = {"name", "clamped", "carts", "springs", "dampers", "drive", "sensors"}
 _CART = {"name", "mass", "mass_kg"}
 _SPRING = {"name", "between", "stiffness_n_m", "known", "prior_sd_n_m"}
-_DAMPERS = {"ground", "pairs"}
+_DAMPERS = {"ground", "pairs", "proportional"}
 _DRIVE = {"carts", "shares", "gain_n_v"}
 _SENSOR = {"cart", "unit", "m_per_unit"}
 
@@ -138,8 +140,21 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
             springs.append(Spring(ends[0], ends[1], s["stiffness_n_m"], s.get("known", True),
                                   s.get("prior_sd_n_m"), str(s.get("name", ""))))
         dampers = None
+        damping = None
         if "dampers" in d:
             t = _keys(d["dampers"], _DAMPERS, f"{where}: dampers")
+            prop = t.get("proportional")
+            if prop is not None:
+                if not isinstance(prop, bool):
+                    raise ModelError(f"{where}: dampers.proportional must be true or false, "
+                                     f"got {prop!r}")
+                damping = "proportional" if prop else "free"
+                if prop and ("ground" in t or "pairs" in t):
+                    raise ModelError(
+                        f"{where}: dampers.proportional = true (C = ca M + cb K) contradicts "
+                        "the listed dampers ground/pairs; remove one or the other")
+        if "dampers" in d and set(t) != {"proportional"}:
+            # (only "proportional" given: the default dampers)
             dampers = [Damper(c) for c in _names(t.get("ground", []), "dampers.ground")]
             for p in t.get("pairs", []):
                 ends = _names(p, f"{where}: dampers.pairs")
@@ -169,7 +184,7 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                    dampers=None if dampers is None else tuple(dampers), drive=drive,
                    sensors=None if sensors is None else tuple(sensors),
                    clamped=_names(d.get("clamped", []), f"{where}: clamped"),
-                   gain_n_v=gain, name=str(d.get("name", "")))
+                   gain_n_v=gain, damping=damping, name=str(d.get("name", "")))
     except ModelError as exc:
         msg = str(exc)
         raise ModelError(msg if msg.startswith(where) else f"{where}: {msg}") from None
@@ -189,8 +204,13 @@ def rig_to_dict(rig: Rig) -> dict:
         if s.prior_sd_n_m is not None:
             t["prior_sd_n_m"] = s.prior_sd_n_m
         d["springs"].append(t)
-    d["dampers"] = {"ground": [x.a for x in rig.dampers if x.b == FRAME],
-                    "pairs": [[x.a, x.b] for x in rig.dampers if x.b != FRAME]}
+    if rig.damping == "proportional":
+        d["dampers"] = {"proportional": True}
+    else:
+        d["dampers"] = {"ground": [x.a for x in rig.dampers if x.b == FRAME],
+                        "pairs": [[x.a, x.b] for x in rig.dampers if x.b != FRAME]}
+        if rig.damping == "free":
+            d["dampers"]["proportional"] = False
     if rig.drive:
         d["drive"] = {"carts": [x.cart for x in rig.drive],
                       "shares": [x.share for x in rig.drive]}

@@ -15,7 +15,13 @@ backend in :mod:`.checkpoint`, the report in :mod:`.report`, its first-screen ve
 """
 
 from .batch import BatchItem, BatchResult, run_batch, run_one
-from .checkpoint import AtomicCheckpoint, checkpoint_iteration
+from .checkpoint import (
+    AtomicCheckpoint,
+    checkpoint_iteration,
+    compact_checkpoint,
+    last_state,
+    read_trace,
+)
 from .compare import RunComparison, RunRow, compare_runs, write_comparison
 from .folder import RunExistsError, RunFolder, RunLockedError
 from .report import render_report, write_report
@@ -47,6 +53,9 @@ __all__ = [
     "RunLockedError",
     "RunOutcome",
     "checkpoint_iteration",
+    "compact_checkpoint",
+    "last_state",
+    "read_trace",
     "default_out_dir",
     "execute_run",
     "parse_moves",

@@ -130,13 +130,19 @@ def atomic_write_json(path: str | os.PathLike, obj) -> Path:
 
 
 def atomic_savefig(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
-    """Save a matplotlib figure atomically (``name.tmp.png`` then rename) and close it."""
+    """Save a matplotlib figure atomically (``name.tmp.png`` then rename) and close it;
+    a PNG gets a 256-colour palette (``bayesmodal.plots._png.save_png``)."""
     import matplotlib.pyplot as plt
+
+    from ..plots._png import save_png
 
     path = Path(path)
     tmp = path.with_name(path.stem + ".tmp" + path.suffix)
     try:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+        if path.suffix.lower() == ".png":
+            save_png(fig, tmp, dpi=dpi)
+        else:
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
     except OSError as exc:
         raise write_failed(exc, path, tmp) from exc
     finally:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from .folder import atomic_write_text
-from .verdict import COVERAGE_TOLERANCE, run_verdict
+from .verdict import COVERAGE_TOLERANCE, coverage_status, run_verdict
 
 __all__ = ["render_report", "write_report", "REPORT_IMAGES"]
 
@@ -53,6 +53,7 @@ th{background:#f2f2f2}td.l,th.l{text-align:left}
 .verdict{padding:0.6em 1em;border-radius:6px;margin:0.6em 0}
 .verdict.ok{background:#e6f4e8}.verdict.bad{background:#fbe9e9}
 .verdict.unknown{background:#fff4d6}.unknown{color:#8a5a00;font-weight:600}
+.wide{color:#b35c00;font-weight:600}
 .verdict.big{font-size:1.15em;border:1px solid #ccc}
 table.answers td{text-align:left;vertical-align:top}table.answers td.s{white-space:nowrap}
 pre{background:#f6f6f6;padding:0.8em;overflow-x:auto;font-size:0.85em}
@@ -143,8 +144,15 @@ def _answer_word(question: str, status: str) -> str:
     return f"<span class='{cls}'>{_e(word)}</span>"
 
 
-def _coverage_rows(records, role: str, *, relative: bool = False) -> list[list[str]]:
-    """Table rows; band widths in mm, or (``relative``) divided by the record's sd."""
+#: Colour (CSS class) of a coverage cell by ``coverage_status``: too narrow red, wider
+#: than needed amber, within the window green, as the verdict's sentence says.
+_COVERAGE_CLASS = {"ok": "ok", "narrow": "bad", "wide": "wide"}
+
+
+def _coverage_rows(records, role: str, *, relative: bool = False,
+                   prob: float = 0.9) -> list[list[str]]:
+    """Table rows; band widths in mm, or (``relative``) divided by the record's sd; each
+    coverage coloured by :func:`~.verdict.coverage_status`."""
     rows = []
     for r in records:
         cov = _flat(r.get("coverage_90", []))
@@ -152,7 +160,7 @@ def _coverage_rows(records, role: str, *, relative: bool = False) -> list[list[s
         fit = _flat(r.get("fit_percent", []))
         cells = []
         for c in cov:
-            cls = "ok" if c >= 0.9 - COVERAGE_TOLERANCE else "bad"
+            cls = _COVERAGE_CLASS[coverage_status(c, prob)]
             cells.append(f"<span class='{cls}'>{100 * c:.0f}</span>")
         rows.append([_e(r.get("name", "?")), _e(role), ", ".join(cells) or "&ndash;",
                      _e(", ".join(f"{w:.2f}" if relative else f"{1e3 * w:.3f}"
@@ -173,20 +181,26 @@ def _section_verdict(s: dict) -> str:
     out = (f"<div id='verdict' class='verdict big {cls}'>{_e(v.sentence)}</div>"
            f"<table class='answers'>{rows}</table>")
     held = (s.get("heldout") or {})
+    tol = f"{100 * COVERAGE_TOLERANCE:.0f}"
     rows = _coverage_rows(held.get("records") or [], "held out")
     rows += _coverage_rows(held.get("fitted_records") or [], "fitted (in-sample)")
     cv = s.get("crossval") or {}
     cv_rows = _coverage_rows(cv.get("records") or [], "left out", relative=True)
+    legend = ("<p class='muted'>Coverage: the share of the measured samples inside the "
+              "90 % posterior-predictive band (model output plus fitted noise); a band "
+              "that holds covers about 90 % of a record it was not fitted to. "
+              f"<span class='ok'>Green</span>: within 90 &plusmn; {tol} %; "
+              "<span class='bad'>red</span>: below (the band is too narrow); "
+              "<span class='wide'>amber</span>: above (the band is wider than needed)."
+              "</p>")
     if rows:
-        out += ("<p class='muted'>Coverage: the share of the measured samples inside the "
-                "90 % posterior-predictive band (model output plus fitted noise); a band "
-                "that holds covers about 90 % of a record it was not fitted to.</p>"
-                + _table(["record", "role", "coverage of 90 % band (%, per output)",
-                          "band width (mm, per output)", "fit % (per output)"], rows,
-                         left=(0, 1)))
+        out += legend + _table(["record", "role", "coverage of 90 % band (%, per output)",
+                                "band width (mm, per output)", "fit % (per output)"], rows,
+                               left=(0, 1))
     if cv_rows:
         method = cv.get("method") or "each record left out of the fit in turn"
         out += (f"<h3 id='crossval'>Leave-one-record-out ({_e(method)})</h3>"
+                + ("" if rows else legend)
                 + _table(["record", "role", "coverage of 90 % band (%, per output)",
                           "band width / record sd (per output)", "fit % (per output)"],
                          cv_rows, left=(0, 1)))

@@ -30,7 +30,7 @@ from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
 from ..metrics import fit_percent
 from ..system import LinearModel
-from .checkpoint import AtomicCheckpoint, checkpoint_iteration
+from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 
 __all__ = ["PreparedRun", "RunOutcome", "prepare_run", "execute_run", "run_config",
@@ -137,7 +137,8 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
     out = []
     for f in files:
         try:
-            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count))
+            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count,
+                                       options=cfg.read_options()))
             if fitted:
                 check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
@@ -700,6 +701,12 @@ def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bo
                     logger.warning("%s: %s", w.category.__name__, w.message)
             wall = time.perf_counter() - t0
             folder.write_status("finished", finished=now_iso(), wall_time_s=wall)
+            if cfg.chain_storage == "compact":
+                # after "finished": a compacted chain is never resumed as a checkpoint
+                try:
+                    compact_checkpoint(folder.checkpoint_path, burn=cfg.burn, thin=cfg.thin)
+                except OSError as exc:
+                    logger.warning("chain.h5 kept in full: %s", exc)
             logger.info("run finished in %.1f s; converged: %s", wall,
                         summary["convergence"]["converged"])
     return RunOutcome(cfg.name, folder.path, "finished", action, summary, wall)

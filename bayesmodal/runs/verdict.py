@@ -18,12 +18,31 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Answer", "RunVerdict", "run_verdict", "COVERAGE_TOLERANCE"]
+__all__ = ["Answer", "RunVerdict", "run_verdict", "coverage_status", "COVERAGE_TOLERANCE"]
 
 #: A 90 % predictive band is taken as "covering" new records when it covers at least
-#: 90 % - this (fraction).  Coverage of autocorrelated residuals has a large sampling
-#: error (few independent stretches per record), so only a clear shortfall counts.
+#: 90 % - this (fraction), and as wider than needed above 90 % + this.  Coverage of
+#: autocorrelated residuals has a large sampling error (few independent stretches per
+#: record), so only a clear departure counts.
 COVERAGE_TOLERANCE = 0.05
+
+
+def coverage_status(coverage: float, prob: float = 0.9) -> str:
+    """How honest a band of probability ``prob`` is that covers ``coverage`` of a record.
+
+    ``"ok"`` within ``prob +- COVERAGE_TOLERANCE``, ``"narrow"`` below (the band
+    understates the uncertainty), ``"wide"`` above (it covers by being wider than needed).
+
+    Examples
+    --------
+    >>> [coverage_status(c) for c in (0.5, 0.88, 0.93, 1.0)]
+    ['narrow', 'ok', 'ok', 'wide']
+    """
+    if coverage < prob - COVERAGE_TOLERANCE:
+        return "narrow"
+    if coverage > min(1.0, prob + COVERAGE_TOLERANCE):
+        return "wide"
+    return "ok"
 
 
 @dataclass(frozen=True)
@@ -223,7 +242,7 @@ def _intervals(s: dict, model: Answer) -> Answer:
         parts.append(f"leaving one record out, the {pct} band covers {cv_txt} of the "
                      "left-out record")
     mins = [m for m in (held_min, cv_min) if m is not None]
-    covered = all(m >= prob - COVERAGE_TOLERANCE for m in mins)
+    covered = all(coverage_status(m, prob) != "narrow" for m in mins)
     if model.status == "bad" or not covered:
         status = "bad"
     elif model.status == "unknown" or not mins:
@@ -288,12 +307,12 @@ def run_verdict(summary: dict) -> RunVerdict:
     else:
         second = "the residuals were not checked"
         joint = "; "
+    mins = [m for m in (held_min, cv_min) if m is not None]
+    maxs = [m for m in (held_max, cv_max) if m is not None]
+    narrow = bool(mins) and coverage_status(min(mins), prob) == "narrow"
+    wide = bool(maxs) and coverage_status(max(maxs), prob) == "wide"
     if c.status == "bad":
         third = "the intervals below are conditional on this model"
-        mins = [m for m in (held_min, cv_min) if m is not None]
-        maxs = [m for m in (held_max, cv_max) if m is not None]
-        narrow = bool(mins) and min(mins) < prob - COVERAGE_TOLERANCE
-        wide = bool(maxs) and max(maxs) > min(1.0, prob + COVERAGE_TOLERANCE)
         if narrow and wide:
             third += (" and their predictive band is too narrow for some records and wider "
                       f"than needed on others ({cov_txt})")
@@ -304,6 +323,9 @@ def run_verdict(summary: dict) -> RunVerdict:
                       f"than needed ({cov_txt})")
         else:
             third += " and understate the uncertainty"
+    elif c.status == "ok" and wide:
+        third = (f"the intervals below hold on new data, with a predictive band wider than "
+                 f"needed ({cov_txt})")
     elif c.status == "ok":
         third = f"the intervals below hold on new data ({cov_txt})"
     else:
