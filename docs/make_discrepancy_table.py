@@ -31,6 +31,7 @@ from scipy.signal import butter, filtfilt, hilbert
 from bayesmodal.data import ECP_M_PER_COUNT, find_data, load_experiment
 from bayesmodal.discrepancy.effects import get_extension
 from bayesmodal.discrepancy.effects.records_fit import fit_records_lsq, loro_lsq, simulate_model
+from bayesmodal.metrics import fit_percent
 from bayesmodal.system import Rig
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,6 +53,17 @@ STEPS = (
     ("directional friction", "coulomb_directional+input_offset+drive_deadband", ("v_offset",),
      "friction levels per direction of sliding instead (joint fit only: its folds take "
      "about half an hour on the shared machine)"),
+    # hypotheses tested and rejected (joint fits only)
+    ("offset + motor lag", "input_offset+motor_lag", ("g_v", "v_offset"),
+     "a first-order lag from voltage to force (linear plant: the lag is refused with "
+     "stick-slip friction)"),
+    ("friction, c1 per record", "coulomb_friction+input_offset", ("g_v", "v_offset", "c1"),
+     "a cart-1 damper per record: what a back-EMF damping g_v k_e with a per-record gain "
+     "could add at most"),
+    ("friction + saturation", "coulomb_friction+input_offset+input_saturation",
+     ("g_v", "v_offset"), "a clipped drive voltage"),
+    ("friction + amplitude gain", "coulomb_friction+input_offset+amplitude_gain",
+     ("g_v", "v_offset"), "a drive gain growing with the voltage"),
 )
 #: Steps whose leave-one-record-out folds are computed.
 LORO_STEPS = ("linear", "offset", "friction", "friction, one gain", "dead band, one gain")
@@ -91,6 +103,14 @@ def _start(label: str, prev: dict) -> np.ndarray | None:
     if label == "directional friction":  # the same level both ways to start
         th = np.array(prev["dead band, one gain"]["theta"])
         return np.c_[th[:, :12], th[:, 9:]]
+    if label == "offset + motor lag":
+        return np.c_[np.array(prev["offset"]["theta"]), np.full(4, 0.003)]
+    if label == "friction, c1 per record":
+        return np.array(prev["friction"]["theta"])
+    if label == "friction + saturation":
+        return np.c_[np.array(prev["friction"]["theta"]), np.full(4, 2.5)]
+    if label == "friction + amplitude gain":
+        return np.c_[np.array(prev["friction"]["theta"]), np.full(4, 0.01)]
     raise ValueError(label)
 
 
@@ -166,6 +186,37 @@ def residual_checks(recs, label: str, joint: dict) -> dict:
     return out
 
 
+def record_checks(recs, joint: dict, loro: dict | None) -> dict:
+    """What each record needs: the held-out fit with the record's own offset, and where
+    the impulse record's misfit sits (the first 1.5 s after each pulse)."""
+    ext = get_extension(dict((s[0], s[1]) for s in STEPS)[FINAL])
+    theta = np.array(joint[FINAL]["theta"])
+    i_off = joint[FINAL]["names"].index("v_offset")
+    out: dict = {}
+    if loro and FINAL in loro:
+        own = {}
+        for r, e in enumerate(recs):
+            th = np.array(loro[FINAL]["theta"][r])
+            th[i_off] = theta[r, i_off]
+            own[SHORT[r]] = np.round(
+                fit_percent(e.y_m, simulate_model(ext, RIG, th[None], e)[0]), 1).tolist()
+        out["held_out_with_own_offset"] = own
+    e = recs[0]
+    yh = simulate_model(ext, RIG, theta[:1], e)[0]
+    res2 = np.sum((e.y_m - yh) ** 2, axis=1)
+    starts = np.flatnonzero(np.diff((e.v_volt > 0.1).astype(int)) == 1) + 1
+    pulses = []
+    for s in starts:
+        w = slice(s, s + int(round(1.5 / e.dt)))
+        w2 = slice(s, s + int(round(0.6 / e.dt)))
+        pulses.append({"volt_samples": round(float(np.sum(e.v_volt[s - 1:s + 12])), 2),
+                       "share_of_squared_residual": round(float(res2[w].sum() / res2.sum()), 3),
+                       "first_peak_mm": [round(float(e.y_m[w2, 0].max()) * 1e3, 2),
+                                         round(float(yh[w2, 0].max()) * 1e3, 2)]})
+    out["impulse_pulses"] = pulses
+    return out
+
+
 def sweep_phase(e, yh) -> dict:
     """Gain and phase of the measurement against the model in 1-s windows of the sweep,
     and the time delay that a straight line of phase against frequency gives (a lag or a
@@ -210,7 +261,9 @@ def markdown(joint: dict, loro: dict | None) -> str:
         off = (", ".join(f"{1e3 * x:.1f}" for x in th[:, names.index("v_offset")])
                if "v_offset" in names else "-")
         other = ", ".join(f"{n} {th[0, i]:.3g}" for i, n in enumerate(names)
-                          if n.startswith(("F", "v_dead")))
+                          if n.startswith(("F", "v_dead", "tau", "v_sat", "kappa")))
+        if "c1" in joint[label]["per_record"]:
+            other += ", c1 " + ", ".join(f"{x:.2f}" for x in th[:, names.index("c1")])
         lines.append(f"| {label} | {g} | {off} | {other} |")
     return "\n".join(lines)
 
@@ -226,8 +279,9 @@ def main(argv=None) -> int:
     joint = joint_fits(recs, cache)
     loro = None if args.no_loro else loro_fits(recs, joint, cache)
     checks = {label: residual_checks(recs, label, joint) for label in ("friction", FINAL)}
+    needs = record_checks(recs, joint, loro)
     out = {"records": list(RECORDS), "steps": [s[0] for s in STEPS],
-           "joint": joint, "loro": loro, "residuals": checks}
+           "joint": joint, "loro": loro, "residuals": checks, "records_need": needs}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
     print(markdown(joint, loro))
@@ -236,6 +290,7 @@ def main(argv=None) -> int:
             extra = f", equivalent delay {item['delay_ms']} ms" if "delay_ms" in item else ""
             print(f"{label} / {rec}: mean residual {item['mean_counts']} counts, "
                   f"below 0.5 Hz {item['slow_share']}{extra}")
+    print(json.dumps(needs))
     return 0
 
 
