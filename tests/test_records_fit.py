@@ -145,6 +145,15 @@ def test_loro_predicts_a_record_of_the_same_rig_exactly_without_noise():
     assert np.all(fit_percent(exps[0].y_m, y) < 95)
 
 
+def test_nothing_per_record_shares_every_parameter():
+    rng = np.random.default_rng(11)
+    exps = _records(_truth(), 1e-4, rng)
+    fit = fit_records_lsq(exps, OFFSET, RIG, per_record=(), theta0=_truth()[0], max_nfev=3)
+    assert fit.per_record == ()
+    np.testing.assert_array_equal(fit.theta[0], fit.theta[1])
+    assert new_record_theta(fit.theta, fit.names, ()).tolist() == fit.theta[0].tolist()
+
+
 def test_bad_inputs_are_refused_with_the_fix():
     t, a, _ = _inputs()
     e = Experiment(t, a, np.zeros((t.size, 3)), name="z")
