@@ -10,8 +10,9 @@ Each model is fitted to the four records jointly by least squares
 (``bayesmodal.discrepancy.effects.records_fit.fit_records_lsq``: shared physics, the
 parameters named per record fitted per record, cost the sum over records and carts of the
 squared fit deficit), each started from the previous step's estimate.  Leave-one-record-out
-(``loro_lsq``) refits on three records from the joint estimate and predicts the fourth
-with the training records' mean gain and offset.  Every result is cached in
+fits the same chain of steps on three records alone and predicts the fourth with the
+training records' mean gain and offset (``new_record_theta``); ``--folds`` splits the
+folds over processes.  Every result is cached in
 ``out/discrepancy_table/`` (delete it to recompute) and the numbers are written to
 ``docs/figures/discrepancy_table.json``.  Wall time on the shared 2-core machine: about
 5 minutes for the joint fits and 20 for the folds.
@@ -30,7 +31,11 @@ from scipy.signal import butter, filtfilt, hilbert
 
 from bayesmodal.data import ECP_M_PER_COUNT, find_data, load_experiment
 from bayesmodal.discrepancy.effects import get_extension
-from bayesmodal.discrepancy.effects.records_fit import fit_records_lsq, loro_lsq, simulate_model
+from bayesmodal.discrepancy.effects.records_fit import (
+    fit_records_lsq,
+    new_record_theta,
+    simulate_model,
+)
 from bayesmodal.metrics import fit_percent
 from bayesmodal.system import Rig
 
@@ -51,8 +56,10 @@ STEPS = (
     ("dead band, one gain", "coulomb_friction+input_offset+drive_deadband", ("v_offset",),
      "+ dead band of the drive, one drive gain for all records"),
     ("directional friction", "coulomb_directional+input_offset+drive_deadband", ("v_offset",),
-     "friction levels per direction of sliding instead (joint fit only: its folds take "
-     "about half an hour on the shared machine)"),
+     "+ a kinetic friction level per direction of sliding"),
+    ("dead band, one gain, one offset", "coulomb_friction+input_offset+drive_deadband", (),
+     "the dead band model with one offset for all records too: nothing per record (the "
+     "final model, best held out)"),
     # hypotheses tested and rejected (joint fits only)
     ("offset + motor lag", "input_offset+motor_lag", ("g_v", "v_offset"),
      "a first-order lag from voltage to force (linear plant: the lag is refused with "
@@ -66,8 +73,9 @@ STEPS = (
      ("g_v", "v_offset"), "a drive gain growing with the voltage"),
 )
 #: Steps whose leave-one-record-out folds are computed.
-LORO_STEPS = ("linear", "offset", "friction", "friction, one gain", "dead band, one gain")
-FINAL = "dead band, one gain"
+LORO_STEPS = ("linear", "offset", "friction", "friction, one gain", "dead band, one gain",
+              "directional friction", "dead band, one gain, one offset")
+FINAL = "dead band, one gain, one offset"
 
 
 def load_records() -> list:
@@ -103,6 +111,10 @@ def _start(label: str, prev: dict) -> np.ndarray | None:
     if label == "directional friction":  # the same level both ways to start
         th = np.array(prev["dead band, one gain"]["theta"])
         return np.c_[th[:, :12], th[:, 9:]]
+    if label == "dead band, one gain, one offset":
+        th = np.array(prev["dead band, one gain"]["theta"])
+        th[:, 15] = np.mean(th[:, 15])
+        return th
     if label == "offset + motor lag":
         return np.c_[np.array(prev["offset"]["theta"]), np.full(4, 0.003)]
     if label == "friction, c1 per record":
@@ -146,23 +158,45 @@ def joint_fits(recs, cache: Path, log=print) -> dict:
     return res
 
 
-def loro_fits(recs, joint: dict, cache: Path, log=print) -> dict:
-    res = {}
-    for label, effects, per, _ in STEPS:
-        if label not in LORO_STEPS:
-            continue
-        ext = None if effects is None else get_extension(effects)
+def loro_fits(recs, cache: Path, folds=None, log=print) -> dict | None:
+    """Leave-one-record-out: for each held-out record, the whole chain of steps is fitted
+    on the other three records alone (each step started from that fold's previous step,
+    as the joint fits are), and the held-out record is predicted with the training
+    records' mean gain and offset (``new_record_theta``).  A fold never starts from an
+    estimate that has seen its held-out record.  Returns None until every fold is done
+    (``folds`` computes a subset, e.g. in two processes)."""
+    R = len(recs)
+    todo = range(R) if folds is None else folds
+    per_fold: dict = {}
+    for r in range(R):
+        train = [e for k, e in enumerate(recs) if k != r]
+        prev: dict = {}
+        for label, effects, per, _ in STEPS:
+            if label not in LORO_STEPS:
+                continue
+            path = cache / f"fold{r}_{_slug(label)}.json"
+            if r not in todo and not path.exists():
+                break
+            ext = None if effects is None else get_extension(effects)
 
-        def compute(label=label, ext=ext, per=per):
-            t = time.time()
-            lo = loro_lsq(recs, ext, RIG, per_record=per,
-                          theta0=np.array(joint[label]["theta"]), max_nfev=25)
-            return {"fit": np.round(lo.fit_percent, 1).tolist(), "theta": lo.theta.tolist(),
-                    "seconds": round(time.time() - t, 1)}
+            def compute(label=label, ext=ext, per=per, train=train, prev=prev, r=r):
+                t = time.time()
+                f = fit_records_lsq(train, ext, RIG, per_record=per,
+                                    theta0=_start(label, prev), max_nfev=60)
+                th = new_record_theta(f.theta, f.names, per)
+                held = fit_percent(recs[r].y_m, simulate_model(ext, RIG, th[None], recs[r])[0])
+                return {"theta": f.theta.tolist(), "held_out_theta": th.tolist(),
+                        "held_out_fit": np.round(held, 1).tolist(),
+                        "seconds": round(time.time() - t, 1)}
 
-        res[label] = _cached(cache / f"loro_{_slug(label)}.json", compute)
-        log(f"{label}: held out {res[label]['fit']}")
-    return res
+            prev[label] = _cached(path, compute)
+            per_fold.setdefault(label, {})[r] = prev[label]
+            log(f"fold {r} {label}: held out {prev[label]['held_out_fit']}")
+    if any(len(per_fold.get(label, {})) < R for label in LORO_STEPS):
+        return None
+    return {label: {"fit": [per_fold[label][r]["held_out_fit"] for r in range(R)],
+                    "theta": [per_fold[label][r]["held_out_theta"] for r in range(R)]}
+            for label in LORO_STEPS}
 
 
 def residual_checks(recs, label: str, joint: dict) -> dict:
@@ -182,27 +216,31 @@ def residual_checks(recs, label: str, joint: dict) -> dict:
                 "slow_share": np.round((slow**2).sum(0) / (res**2).sum(0), 2).tolist()}
         if "sweep" in e.name:
             item.update(sweep_phase(e, yh))
+            item.update(harmonics(e, yh))
         out[SHORT[r]] = item
     return out
 
 
 def record_checks(recs, joint: dict, loro: dict | None) -> dict:
-    """What each record needs: the held-out fit with the record's own offset, and where
-    the impulse record's misfit sits (the first 1.5 s after each pulse)."""
-    ext = get_extension(dict((s[0], s[1]) for s in STEPS)[FINAL])
-    theta = np.array(joint[FINAL]["theta"])
-    i_off = joint[FINAL]["names"].index("v_offset")
+    """What each record needs: the held-out fit of the per-record-offset model with the
+    record's own offset, and where the final model's impulse misfit sits (the first 1.5 s
+    after each pulse)."""
+    per_offset = "dead band, one gain"  # the same model with an offset per record
+    ext = get_extension(dict((s[0], s[1]) for s in STEPS)[per_offset])
+    theta = np.array(joint[per_offset]["theta"])
+    i_off = joint[per_offset]["names"].index("v_offset")
     out: dict = {}
-    if loro and FINAL in loro:
+    if loro and per_offset in loro:
         own = {}
         for r, e in enumerate(recs):
-            th = np.array(loro[FINAL]["theta"][r])
+            th = np.array(loro[per_offset]["theta"][r])
             th[i_off] = theta[r, i_off]
             own[SHORT[r]] = np.round(
                 fit_percent(e.y_m, simulate_model(ext, RIG, th[None], e)[0]), 1).tolist()
         out["held_out_with_own_offset"] = own
     e = recs[0]
-    yh = simulate_model(ext, RIG, theta[:1], e)[0]
+    ext = get_extension(dict((s[0], s[1]) for s in STEPS)[FINAL])
+    yh = simulate_model(ext, RIG, np.array(joint[FINAL]["theta"])[:1], e)[0]
     res2 = np.sum((e.y_m - yh) ** 2, axis=1)
     starts = np.flatnonzero(np.diff((e.v_volt > 0.1).astype(int)) == 1) + 1
     pulses = []
@@ -215,6 +253,26 @@ def record_checks(recs, joint: dict, loro: dict | None) -> dict:
                                          round(float(yh[w2, 0].max()) * 1e3, 2)]})
     out["impulse_pulses"] = pulses
     return out
+
+
+def harmonics(e, yh, band=(1.0, 3.0)) -> dict:
+    """Amplitude (mm) of the measured, modelled and residual response at 1, 2 and 3 times
+    the sweep's phase, averaged where the instantaneous frequency is within ``band`` Hz
+    (demodulation by the input phase, then a 0.5 Hz low-pass)."""
+    v = e.v_volt
+    phase = np.unwrap(np.angle(hilbert(v - v.mean())))
+    f_inst = np.gradient(phase, e.dt) / (2 * np.pi)
+    b, a = butter(4, 0.5 / (0.5 / e.dt))
+    sel = (f_inst > band[0]) & (f_inst < band[1])
+
+    def amp(x, k):
+        z = x * np.exp(-1j * k * phase)[:, None]
+        return 2 * np.abs(filtfilt(b, a, z.real, axis=0) + 1j * filtfilt(b, a, z.imag, axis=0))
+
+    return {f"harmonic_{k}_mm": {w: np.round(amp(x, k)[sel].mean(axis=0) * 1e3, 3).tolist()
+                                 for w, x in (("measured", e.y_m), ("model", yh),
+                                              ("residual", e.y_m - yh))}
+            for k in (1, 2, 3)}
 
 
 def sweep_phase(e, yh) -> dict:
@@ -271,14 +329,18 @@ def markdown(joint: dict, loro: dict | None) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-loro", action="store_true", help="joint fits only")
+    ap.add_argument("--folds", default=None, metavar="R,...",
+                    help="compute only these held-out folds (0-3), e.g. in two processes")
     ap.add_argument("--cache", default=str(ROOT / "out" / "discrepancy_table"))
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures" / "discrepancy_table.json"))
     args = ap.parse_args(argv)
     recs = load_records()
     cache = Path(args.cache)
     joint = joint_fits(recs, cache)
-    loro = None if args.no_loro else loro_fits(recs, joint, cache)
-    checks = {label: residual_checks(recs, label, joint) for label in ("friction", FINAL)}
+    folds = None if args.folds is None else [int(x) for x in args.folds.split(",")]
+    loro = None if args.no_loro else loro_fits(recs, cache, folds)
+    checks = {label: residual_checks(recs, label, joint)
+              for label in ("friction", "dead band, one gain", "directional friction", FINAL)}
     needs = record_checks(recs, joint, loro)
     out = {"records": list(RECORDS), "steps": [s[0] for s in STEPS],
            "joint": joint, "loro": loro, "residuals": checks, "records_need": needs}

@@ -361,8 +361,12 @@ def loro_lsq(
     ext, rig, per_record, max_nfev, fd_step
         As in ``fit_records_lsq``.
     theta0 : ndarray, shape (n_params,) or (n_records, n_params), optional
-        Start of every fold (e.g. the joint fit's ``theta``; a fold starts from the rows
-        of its training records).
+        Start of every fold (a fold starts from the rows of its training records).  Do not
+        start from a fit that has seen the held-out record when the cost is flat (stick-
+        slip friction): a fold that stops near its start then predicts with information
+        from the record it should not know, and the held-out fit is optimistic
+        (``docs/make_discrepancy_table.py`` fits every fold's chain of models from the
+        linear fit of its training records instead).
 
     Returns
     -------
