@@ -13,6 +13,10 @@ coefficient differ by four decades in width here).  Every difference is one batc
 of the log density: ``2 P`` points for the diagonal and ``2 P (P - 1)`` for the
 off-diagonal terms (``P = 30``: about 1800 evaluations).
 
+The mode given is polished by Newton steps with this Hessian first: gradient optimisers on
+forward differences stop short of the mode of the rig's posteriors, and a Gaussian placed
+beside the mode starts the walkers below the typical set.
+
 Where ``H`` is not positive definite (a mode at a bound, a flat direction, a rough
 likelihood) the eigenvalues are floored at ``1e-8`` of the largest; the returned
 ``clipped`` counts them, so a caller can tell a trustworthy approximation from a repaired
@@ -120,7 +124,8 @@ def hessian_fd(log_density: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
 
 
 def laplace_approximation(log_density: Callable[[np.ndarray], np.ndarray], z_mode,
-                          *, step: float = 1e-3, step_sd: float = 0.2) -> Laplace:
+                          *, step: float = 1e-3, step_sd: float = 0.2,
+                          newton: int = 20) -> Laplace:
     """Gaussian approximation at a mode, with a curvature-scaled finite-difference Hessian.
 
     Parameters
@@ -135,10 +140,17 @@ def laplace_approximation(log_density: Callable[[np.ndarray], np.ndarray], z_mod
     step_sd : float
         Final step as a fraction of each coordinate's first-pass posterior width
         ``1 / sqrt(H_ii)`` (0.2: the quadratic region of a near-Gaussian posterior).
+    newton : int
+        At most this many Newton steps from ``z_mode`` with the first Hessian (central
+        differences for the gradient, six step lengths per direction in one batched
+        call), stopping when a step gains less than 1e-3 nat; the Hessian is then
+        measured again at the point reached.  0 takes ``z_mode`` as it is.
 
     Returns
     -------
     Laplace
+        Centred at the point reached (``mean``), which is ``z_mode`` when no Newton step
+        improved it.
 
     Raises
     ------
@@ -170,16 +182,51 @@ def laplace_approximation(log_density: Callable[[np.ndarray], np.ndarray], z_mod
     # a non-positive or non-finite curvature keeps the first-pass step
     width = np.where(np.isfinite(d) & (d > 0), 1.0 / np.sqrt(np.abs(d) + 1e-300), step / step_sd)
     h = step_sd * width
-    H, _ = hessian_fd(lambda x: _finite(log_density(x), f0), z, h)
-    n_eval = 1 + 2 * p + 1 + 2 * p + 2 * p * (p - 1)
-    w, v = np.linalg.eigh(H)
-    floor = 1e-8 * max(float(np.max(np.abs(w))), 1e-300)
-    clipped = int(np.sum(w < floor))
-    w = np.maximum(w, floor)
-    cov = (v / w) @ v.T
+    n_eval = 1 + 2 * p
+
+    def fd_hessian(zc, fc):
+        H, _ = hessian_fd(lambda x: _finite(log_density(x), fc), zc, h)
+        w, v = np.linalg.eigh(H)
+        floor = 1e-8 * max(float(np.max(np.abs(w))), 1e-300)
+        clipped = int(np.sum(w < floor))
+        w = np.maximum(w, floor)
+        return H, (v / w) @ v.T, clipped
+
+    H, cov, clipped = fd_hessian(z, f0)
+    n_eval += 1 + 2 * p + 2 * p * (p - 1)
+    # Newton steps z += H^-1 grad with the Hessian held (a quasi-Newton polish): a
+    # gradient optimiser on forward differences stops short of the mode of these
+    # posteriors (21 nats on a two-record test problem), and draws around a point
+    # that is not the mode sit that much below the posterior's typical set
+    moved = False
+    alphas = 0.5 ** np.arange(NEWTON_ALPHAS)
+    for _ in range(int(newton)):
+        fg = np.asarray(log_density(np.vstack([z + np.diag(h), z - np.diag(h)])), dtype=float)
+        n_eval += 2 * p
+        grad = (fg[:p] - fg[p:]) / (2 * h)
+        if not np.all(np.isfinite(grad)):
+            break
+        dz = cov @ grad
+        trial = z + alphas[:, None] * dz
+        ft = np.asarray(log_density(trial), dtype=float)
+        n_eval += alphas.size
+        ft = np.where(np.isfinite(ft), ft, -np.inf)
+        k = int(np.argmax(ft))
+        if not ft[k] > f0 + NEWTON_TOL:
+            break
+        z, f0, moved = trial[k], float(ft[k]), True
+    if moved:
+        H, cov, clipped = fd_hessian(z, f0)
+        n_eval += 1 + 2 * p + 2 * p * (p - 1)
     cov = 0.5 * (cov + cov.T)
     return Laplace(mean=z, cov=cov, hessian=H, log_density=f0, clipped=clipped,
                    n_evaluations=n_eval)
+
+
+#: Step lengths tried along each Newton direction: 1, 1/2, ... 1/2^(NEWTON_ALPHAS - 1).
+NEWTON_ALPHAS = 6
+#: A Newton step is taken when it raises the log density by more than this (nats).
+NEWTON_TOL = 1e-3
 
 
 def _finite(f, f0: float) -> np.ndarray:
