@@ -144,7 +144,8 @@ def laplace_approximation(log_density: Callable[[np.ndarray], np.ndarray], z_mod
         At most this many Newton steps from ``z_mode`` with the first Hessian (central
         differences for the gradient, six step lengths per direction in one batched
         call), stopping when a step gains less than 1e-3 nat; the Hessian is then
-        measured again at the point reached.  0 takes ``z_mode`` as it is.
+        measured again at the point reached, and the steps repeated from there (at most
+        :data:`NEWTON_ROUNDS` rounds).  0 takes ``z_mode`` as it is.
 
     Returns
     -------
@@ -198,24 +199,28 @@ def laplace_approximation(log_density: Callable[[np.ndarray], np.ndarray], z_mod
     # gradient optimiser on forward differences stops short of the mode of these
     # posteriors (21 nats on a two-record test problem), and draws around a point
     # that is not the mode sit that much below the posterior's typical set
-    moved = False
     alphas = 0.5 ** np.arange(NEWTON_ALPHAS)
-    for _ in range(int(newton)):
-        fg = np.asarray(log_density(np.vstack([z + np.diag(h), z - np.diag(h)])), dtype=float)
-        n_eval += 2 * p
-        grad = (fg[:p] - fg[p:]) / (2 * h)
-        if not np.all(np.isfinite(grad)):
+    # far from the mode one Hessian is not the mode's: up to NEWTON_ROUNDS rounds of
+    # (Newton steps with the Hessian held, the Hessian measured again where they end)
+    for _ in range(NEWTON_ROUNDS):
+        moved = False
+        for _ in range(int(newton)):
+            fg = np.asarray(log_density(np.vstack([z + np.diag(h), z - np.diag(h)])),
+                            dtype=float)
+            n_eval += 2 * p
+            grad = (fg[:p] - fg[p:]) / (2 * h)
+            if not np.all(np.isfinite(grad)):
+                break
+            trial = z + alphas[:, None] * (cov @ grad)
+            ft = np.asarray(log_density(trial), dtype=float)
+            n_eval += alphas.size
+            ft = np.where(np.isfinite(ft), ft, -np.inf)
+            k = int(np.argmax(ft))
+            if not ft[k] > f0 + NEWTON_TOL:
+                break
+            z, f0, moved = trial[k], float(ft[k]), True
+        if not moved:
             break
-        dz = cov @ grad
-        trial = z + alphas[:, None] * dz
-        ft = np.asarray(log_density(trial), dtype=float)
-        n_eval += alphas.size
-        ft = np.where(np.isfinite(ft), ft, -np.inf)
-        k = int(np.argmax(ft))
-        if not ft[k] > f0 + NEWTON_TOL:
-            break
-        z, f0, moved = trial[k], float(ft[k]), True
-    if moved:
         H, cov, clipped = fd_hessian(z, f0)
         n_eval += 1 + 2 * p + 2 * p * (p - 1)
     cov = 0.5 * (cov + cov.T)
@@ -223,6 +228,8 @@ def laplace_approximation(log_density: Callable[[np.ndarray], np.ndarray], z_mod
                    n_evaluations=n_eval)
 
 
+#: Rounds of Newton steps, each ending with a new Hessian.
+NEWTON_ROUNDS = 3
 #: Step lengths tried along each Newton direction: 1, 1/2, ... 1/2^(NEWTON_ALPHAS - 1).
 NEWTON_ALPHAS = 6
 #: A Newton step is taken when it raises the log density by more than this (nats).
