@@ -201,7 +201,7 @@ def test_laplace_start_recovers_known_truth():
         return abs(lp0.mean() - kept.mean()) / se
 
     assert gap(first) < 4
-    ball = sample_posterior(recs, model, n_steps=2, burn=0, init="ball", **kw)
+    ball = sample_posterior(recs, model, n_steps=10, burn=0, init="ball", **kw)
     assert gap(ball.log_prob[0]) > 4
 
 
