@@ -47,6 +47,8 @@ problem in a file is collected and reported at once, each naming the file and th
     moves = "stretch"           # stretch, de, de-snooker, walk, kde or "de:0.8,de-snooker:0.2"
     restart = 500               # optional: re-centre the walkers on the best one at this
                                 # step (< burn), for walkers stuck in a negligible mode
+    init = "ball"               # or "laplace": walkers drawn from the Gaussian at the
+                                # posterior mode (an extended model on several records)
 
     [outputs]
     dir = "impulses-free"       # relative to the output root; no "..", not absolute
@@ -99,7 +101,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "records": {"per_record": dict, "noise_per_record": bool},
     "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
-                "moves": str, "restart": int},
+                "moves": str, "restart": int, "init": str},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
                 "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool,
                 "chain": str},
@@ -136,6 +138,7 @@ class RunConfig:
     seed: int = 1
     moves: str = "stretch"
     restart: int | None = None
+    init: str = "ball"
     out_dir: str = ""
     plots: bool = True
     report: bool = True
@@ -165,7 +168,7 @@ class RunConfig:
     _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "temperature": 1.0,
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None, "columns": None, "input_scale": 1.0,
-                     "time_scale": 1.0}
+                     "time_scale": 1.0, "init": "ball"}
 
     def read_options(self):
         """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
@@ -202,12 +205,12 @@ class RunConfig:
 
         return CrossvalSpec(
             damping=self.damping, noise=self.noise,
-            extension=self.extensions[0] if self.extensions else None,
+            extension="+".join(self.extensions) if self.extensions else None,
             layout=self.layout or RecordLayout({}),
             n_walkers=self.crossval_walkers or self.walkers,
             n_steps=self.crossval_steps or self.steps, burn=None if self.crossval_steps
             else self.burn, n_predictive=self.crossval_draws, seed=self.seed,
-            temperature=self.temperature, springs_n_m=self.springs_n_m,
+            temperature=self.temperature, springs_n_m=self.springs_n_m, init=self.init,
             rig=None if self.rig is None else self.make_rig())
 
     def to_dict(self) -> dict:
@@ -452,6 +455,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             err("sampler.restart", f"must be in [1, sampler.burn) = [1, {burn}) so that "
                 f"every retained draw comes after it, got {restart}")
         kw["restart"] = restart
+    init = values.get(("sampler", "init"))
+    if init is not None:
+        if init not in ("ball", "laplace"):
+            err("sampler.init", f"must be 'ball' or 'laplace', got {init!r}")
+        kw["init"] = init
     moves = values.get(("sampler", "moves"))
     if moves is not None:
         for part in moves.split(","):

@@ -63,6 +63,9 @@ def add_sampler_args(p) -> None:
     p.add_argument("--thin", type=int, default=None,
                    help="keep every N-th step (default: about 1000 retained draws)")
     p.add_argument("--seed", type=int, default=1, help="random seed")
+    p.add_argument("--init", choices=["ball", "laplace"], default="ball",
+                   help="walker start: a small ball at the posterior mode, or draws of the "
+                   "Laplace approximation there (shorter burn-in; default ball)")
 
 
 def sample_to_dir(exps, args, damping: str, out: Path):
@@ -91,6 +94,7 @@ def sample_to_dir(exps, args, damping: str, out: Path):
             layout=layout if layout.per_record else None,
             n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
             progress=not args.quiet, initial_state=getattr(args, "initial_state", "rest"),
+            init=getattr(args, "init", "ball"),
         )
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)

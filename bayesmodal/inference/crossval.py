@@ -57,6 +57,8 @@ class CrossvalSpec:
         The rig's springs (default: the ECP 210's).
     rig : Rig, optional
         A rig description (``bayesmodal.rigs``); overrides ``springs_n_m``.
+    init : {"ball", "laplace"}
+        How each fold's walkers start (``sample_posterior(init=...)``).
     """
 
     damping: str = "free"
@@ -71,6 +73,7 @@ class CrossvalSpec:
     temperature: float = 1.0
     springs_n_m: tuple[float, ...] | None = None
     rig: object = None
+    init: str = "ball"
 
     def __post_init__(self) -> None:
         if self.n_predictive < 2:
@@ -226,7 +229,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
                            ("ar1", "white") else lik.noise, extension=spec.extension,
                            layout=spec.layout, priors=priors, n_walkers=walkers,
                            n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
-                           progress=progress, temperature=spec.temperature)
+                           progress=progress, temperature=spec.temperature, init=spec.init)
     rng = np.random.default_rng(seed + 7)
     flat = run.flat_draws
     take = rng.choice(flat.shape[0], size=min(spec.n_predictive, flat.shape[0]),
