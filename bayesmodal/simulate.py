@@ -238,6 +238,15 @@ class LinearSimulator:
         y : ndarray, shape (nb, N, n_out)
             View into the simulator's buffer (valid until the next call).
         """
+        return self.run_prepared(self.prepare_second_order(masses, C, K, b, x0))
+
+    def prepare_second_order(self, masses, C, K, b, x0=None) -> tuple:
+        """The modal form of a batch of second-order systems, for :meth:`run_prepared`.
+
+        It depends on the parameters and ``dt``, not on the input: simulators of records
+        with the same ``dt`` and ``n_out`` can share it (several records of one rig, or a
+        record and a constant input).  Arguments as :meth:`run_second_order`.
+        """
         masses = np.ascontiguousarray(masses, dtype=float)
         C = np.ascontiguousarray(C, dtype=float)
         K = np.ascontiguousarray(K, dtype=float)
@@ -273,7 +282,32 @@ class LinearSimulator:
                 good = bad[ok2]
                 mu[good], G[good], w0[good] = mu2[ok2], G2[ok2], w02[ok2]
                 ok[good] = True
-        return self._dispatch(ok, mu, G, w0, A, B, x0b, masses=masses, C=C, K=K, b=b)
+        return (self.dt, self.n_out, ok, mu, G, w0, A, B, x0b,
+                {"masses": masses, "C": C, "K": K, "b": b})
+
+    def run_prepared(self, prepared: tuple, *, lanes_last: bool = False) -> np.ndarray:
+        """Simulate this simulator's input with a form of :meth:`prepare_second_order`.
+
+        Parameters
+        ----------
+        prepared : tuple
+            From ``prepare_second_order`` of a simulator with the same ``dt`` and ``n_out``.
+        lanes_last : bool
+            Return the buffer itself, shape (n_chunks, N, n_out, width), lanes innermost
+            and padded to the kernel width (for compiled consumers); default the
+            (nb, N, n_out) view of :meth:`run_second_order`.
+
+        Returns
+        -------
+        ndarray
+            A view of the simulator's buffer (valid until the next call).
+        """
+        dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
+        if dt != self.dt or n_out != self.n_out:
+            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
+                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, lanes_last=lanes_last,
+                              **second_order)
 
     def _initial(self, x0, nb: int, s: int) -> np.ndarray:
         if x0 is None:
@@ -285,7 +319,8 @@ class LinearSimulator:
             raise DataError("x0 has non-finite values")
         return np.broadcast_to(x0, (nb, s))
 
-    def _dispatch(self, ok, mu, G, w0, A, B, x0b, **second_order) -> np.ndarray:
+    def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
+                  **second_order) -> np.ndarray:
         """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct."""
         nb, s = x0b.shape
         width = padded_width(nb)
@@ -319,6 +354,8 @@ class LinearSimulator:
                 X = np.ascontiguousarray(x0b[real].T)
                 direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
                                                     Y[c].reshape(-1))
+        if lanes_last:
+            return Y
         # (chunk, N, out, lane) -> (lane, N, out); a view when there is one chunk
         y = Y.transpose(0, 3, 1, 2)
         if n_chunks == 1:
