@@ -69,6 +69,8 @@ def spec_from_args(args):
         from ..config import load_config
 
         cfg = load_config(args.config, check_files=False)
+        if cfg.temperature == "loro":  # [likelihood] temperature = "loro": calibrate
+            args.temperature = "loro"
         return cfg.crossval_spec()
     rig = load_rig(args) if getattr(args, "rig", None) else None
     return CrossvalSpec(damping=args.damping, noise=args.noise, rig=rig,
