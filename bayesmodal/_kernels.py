@@ -97,3 +97,53 @@ def modal_kernel(n_modes: int, n_out: int, width: int):
         lines.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + uk")
         lines.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m}")
     return _compile(lines, f"modal m={nm} o={n_out} w={w}")
+
+
+@functools.lru_cache(maxsize=64)
+def modal_sums_kernel(n_modes: int, n_out: int, width: int):
+    """Compiled ``kernel(Q, u, W, y, S)``: the modal recursion of :func:`modal_kernel` that,
+    instead of storing the outputs, accumulates the residual sums against a record.
+
+    ``y`` ``(N, n_out)`` flat, the measured outputs; ``S`` ``(4 * n_out, width)`` flat, rows
+    ``i``, ``n_out + i``, ``2 n_out + i``, ``3 n_out + i`` = ``sum_{k>=1} r_k^2``,
+    ``sum_{k>=1} r_k r_{k-1}``, ``r_0`` and ``r_{N-1}`` of output ``i``, with
+    ``r_k = y_k - Re(G w[k])`` evaluated exactly as the stored output minus ``y`` would be
+    (the sums of ``_resid_kernels``, bit for bit, without writing the (N, n_out, width)
+    prediction to memory and reading it back).  The first two row blocks must be zero.
+    """
+    nm, w, no = n_modes, width, n_out
+
+    def body(first: bool) -> list[str]:
+        out = []
+        for m in range(nm):
+            out.append(f"            wr{m} = W[{2 * m * w} + b]")
+            out.append(f"            wi{m} = W[{(2 * m + 1) * w} + b]")
+        for i in range(no):
+            terms = " + ".join(
+                f"Q[{(2 * nm + 2 * (i * nm + m)) * w} + b] * wr{m}"
+                f" - Q[{(2 * nm + 2 * (i * nm + m) + 1) * w} + b] * wi{m}"
+                for m in range(nm)
+            )
+            out.append(f"            yh = {terms}")
+            out.append(f"            r = y[yo + {i}] - yh")
+            if first:
+                out.append(f"            S[{(2 * no + i) * w} + b] = r")
+            else:
+                out.append(f"            p = S[{(3 * no + i) * w} + b]")
+                out.append(f"            S[{i * w} + b] += r * r")
+                out.append(f"            S[{(no + i) * w} + b] += r * p")
+            out.append(f"            S[{(3 * no + i) * w} + b] = r")
+        for m in range(nm):
+            out.append(f"            mr = Q[{2 * m * w} + b]")
+            out.append(f"            mi = Q[{(2 * m + 1) * w} + b]")
+            out.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + uk")
+            out.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m}")
+        return out
+
+    lines = ["def kernel(Q, u, W, y, S):", "    uk = u[0]", "    yo = 0",
+             f"    for b in range({w}):"]
+    lines += [ln[4:] for ln in body(True)]
+    lines += ["    for k in range(1, u.shape[0]):", "        uk = u[k]",
+              f"        yo = k * {no}", f"        for b in range({w}):"]
+    lines += body(False)
+    return _compile(lines, f"modal sums m={nm} o={no} w={w}")

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ._errors import DataError, ModelError
-from ._kernels import direct_kernel, modal_kernel, padded_width
+from ._kernels import direct_kernel, modal_kernel, modal_sums_kernel, padded_width
 from ._qep import modal_form_mck
 
 __all__ = [
@@ -319,13 +319,43 @@ class LinearSimulator:
             raise DataError("x0 has non-finite values")
         return np.broadcast_to(x0, (nb, s))
 
+    def residual_sums(self, prepared: tuple, y: np.ndarray):
+        """Residual sums of the simulated outputs against a record, without storing them.
+
+        Parameters
+        ----------
+        prepared : tuple
+            From :meth:`prepare_second_order` (same ``dt`` and ``n_out``).
+        y : ndarray, shape (N, n_out)
+            Measured outputs, N the length of this simulator's input.
+
+        Returns
+        -------
+        s00, s01, r0, rl : ndarray, each shape (n_out, nb)
+            Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))``, bit for bit.
+        """
+        dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
+        if dt != self.dt or n_out != self.n_out:
+            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
+                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        y = np.ascontiguousarray(y, dtype=float)
+        if y.shape != (self.u.size, self.n_out):
+            raise DataError(f"y must have shape {(self.u.size, self.n_out)}, got {y.shape}")
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, sums_against=y, **second_order)
+
     def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
-                  **second_order) -> np.ndarray:
-        """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct."""
+                  sums_against: np.ndarray | None = None, **second_order) -> np.ndarray:
+        """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct
+        (with ``sums_against``: return the residual sums, see :meth:`residual_sums`)."""
         nb, s = x0b.shape
         width = padded_width(nb)
         n_chunks = -(-nb // width)
-        Y = self._buffer(n_chunks, width)
+        sums = None
+        if sums_against is not None:
+            sums = np.zeros((n_chunks, 4 * self.n_out, width))
+            Y = None
+        else:
+            Y = self._buffer(n_chunks, width)
         direct = None
         nm = s // 2
         for c in range(n_chunks):
@@ -341,6 +371,10 @@ class LinearSimulator:
                 W = np.empty((2 * nm, width))
                 W[0::2] = w0[real].real.T
                 W[1::2] = w0[real].imag.T
+                if sums is not None:
+                    modal_sums_kernel(nm, self.n_out, width)(
+                        Q.ravel(), self.u, W.ravel(), sums_against.ravel(), sums[c].reshape(-1))
+                    continue
                 modal_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
                                                     Y[c].reshape(-1))
             else:
@@ -352,8 +386,19 @@ class LinearSimulator:
                 P[: s * s] = direct.Ad[real].reshape(width, s * s).T
                 P[s * s :] = direct.Bd[real].T
                 X = np.ascontiguousarray(x0b[real].T)
+                Yc = Y[c] if sums is None else np.empty((self.u.size, self.n_out, width))
                 direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
-                                                    Y[c].reshape(-1))
+                                                    Yc.reshape(-1))
+                if sums is not None:
+                    from ._resid_kernels import ar1_sums_lanes
+
+                    for i, a in enumerate(ar1_sums_lanes(sums_against, Yc[None], width)):
+                        sums[c, i * self.n_out : (i + 1) * self.n_out] = a
+        if sums is not None:
+            # (chunk, 4 n_out, width) -> four (n_out, nb) arrays
+            flat = sums.reshape(n_chunks, 4, self.n_out, width).transpose(1, 2, 0, 3)
+            flat = flat.reshape(4, self.n_out, n_chunks * width)[:, :, :nb]
+            return tuple(np.ascontiguousarray(a) for a in flat)
         if lanes_last:
             return Y
         # (chunk, N, out, lane) -> (lane, N, out); a view when there is one chunk

@@ -140,3 +140,21 @@ def test_a_pickled_likelihood_rebuilds_its_buffers():
     before = lik(th)
     clone = pickle.loads(pickle.dumps(lik))
     np.testing.assert_array_equal(clone(th), before)
+
+
+@pytest.mark.parametrize("nb, overdamped", [(1, False), (16, False), (20, True)])
+def test_sums_inside_the_recursion_equal_the_stored_prediction_bit_for_bit(nb, overdamped):
+    rng = np.random.default_rng(nb)
+    n, dt = 600, 0.005
+    u = 3.0 * ((np.arange(n) * dt % 1.0) < 0.05)
+    th = THETA * (1 + 0.01 * rng.standard_normal((nb, THETA.size)))
+    if overdamped:  # a lane the modal form refuses: its chunk runs the full-state kernel
+        th[nb // 2, 4:] = [200.0, 200.0, 200.0, 0.0, 0.0]
+    M, C, K, b = MODEL.matrices(th)
+    sim = LinearSimulator(u, dt, 3)
+    prep = sim.prepare_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
+    assert bool(np.all(prep[2])) is not overdamped
+    yh = simulate_linear(MODEL, th, u, dt)
+    y = yh[0] + 1e-6 * rng.standard_normal((n, 3))
+    for p, q in zip(sim.residual_sums(prep, y), ar1_sums(y, yh), strict=True):
+        np.testing.assert_array_equal(p, q)

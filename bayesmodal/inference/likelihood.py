@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
-from .._resid_kernels import ar1_sums, ar1_sums_lanes
+from .._resid_kernels import ar1_sums
 from ..data import Experiment
 from ..simulate import LinearSimulator, simulate_linear
 from ..system import LinearModel
@@ -474,17 +474,16 @@ class Likelihood:
         with np.errstate(all="ignore"):
             if self.extension is None and self.initial_state == "rest" and fast_path(
                     self.model):
-                # one modal form per sample interval, each record's simulator reusing its
-                # buffer, and compiled residual sums read from that buffer (lanes
-                # innermost): the same numbers as ``predict`` + ``ar1_sums``, bit for bit
+                # one modal form per sample interval, and the residual sums accumulated
+                # inside the simulator's recursion (the prediction is never stored): the
+                # same numbers as ``predict`` + ``ar1_sums``, bit for bit
                 prep = {}
                 for i, e in enumerate(self.experiments):
                     sim = self._sims.get(i, e.v_volt, e.dt, self.model.n_carts)
                     if e.dt not in prep:
                         prep[e.dt] = prepare_linear(self.model, mech, sim)
-                    Y = sim.run_prepared(prep[e.dt], lanes_last=True)
-                    acc += loglik_from_sums(*ar1_sums_lanes(e.y_m, Y, nb), e.n_samples,
-                                            sigma, phi)
+                    acc += loglik_from_sums(*sim.residual_sums(prep[e.dt], e.y_m),
+                                            e.n_samples, sigma, phi)
             else:
                 for e, yh in zip(self.experiments, self.predict(mech), strict=True):
                     acc += loglik_from_sums(*ar1_sums(e.y_m, yh), e.n_samples, sigma, phi)

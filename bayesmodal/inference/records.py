@@ -626,10 +626,10 @@ class RecordsLikelihood:
             sim = self._sims.get(("v", r), e.v_volt, e.dt, n_carts)
             if prep is None or prep[0] != e.dt or not np.array_equal(sim_rows, rows):
                 prep, rows, steps = prepare_linear(self.model, sim_rows, sim), sim_rows, {}
-            A = sim.run_prepared(prep, lanes_last=True)
-            if not affine:
-                sums = ar1_sums_lanes(e.y_m, A, nb)
+            if not affine:  # sums inside the recursion (the prediction is not stored)
+                sums = sim.residual_sums(prep, e.y_m)
             else:
+                A = sim.run_prepared(prep, lanes_last=True)
                 if e.dt not in steps:
                     step = self._sims.get(("step", e.dt), np.ones(longest[e.dt]), e.dt,
                                           n_carts)
