@@ -27,7 +27,13 @@ import numpy as np
 from scipy.linalg import expm
 
 from ._errors import DataError, ModelError
-from ._kernels import direct_kernel, modal_kernel, modal_sums_kernel, padded_width
+from ._kernels import (
+    direct_kernel,
+    modal_affine_sums_kernel,
+    modal_kernel,
+    modal_sums_kernel,
+    padded_width,
+)
 from ._qep import modal_form_mck
 
 __all__ = [
@@ -319,7 +325,8 @@ class LinearSimulator:
             raise DataError("x0 has non-finite values")
         return np.broadcast_to(x0, (nb, s))
 
-    def residual_sums(self, prepared: tuple, y: np.ndarray):
+    def residual_sums(self, prepared: tuple, y: np.ndarray, g: np.ndarray | None = None,
+                      v0: np.ndarray | None = None):
         """Residual sums of the simulated outputs against a record, without storing them.
 
         Parameters
@@ -328,11 +335,16 @@ class LinearSimulator:
             From :meth:`prepare_second_order` (same ``dt`` and ``n_out``).
         y : ndarray, shape (N, n_out)
             Measured outputs, N the length of this simulator's input.
+        g, v0 : ndarray, shape (nb,), optional
+            Per-lane gain and input offset: the prediction is then ``g (a + v0 b)`` with
+            ``a`` the simulated response and ``b`` the response to a constant 1 (several
+            records of one rig, ``inference.records``).
 
         Returns
         -------
         s00, s01, r0, rl : ndarray, each shape (n_out, nb)
-            Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))``, bit for bit.
+            Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))`` (or
+            ``ar1_sums_affine`` of the two responses), bit for bit.
         """
         dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
         if dt != self.dt or n_out != self.n_out:
@@ -341,10 +353,17 @@ class LinearSimulator:
         y = np.ascontiguousarray(y, dtype=float)
         if y.shape != (self.u.size, self.n_out):
             raise DataError(f"y must have shape {(self.u.size, self.n_out)}, got {y.shape}")
-        return self._dispatch(ok, mu, G, w0, A, B, x0b, sums_against=y, **second_order)
+        affine = None
+        if g is not None:
+            nb = x0b.shape[0]
+            affine = np.zeros((2, nb))
+            affine[0], affine[1] = g, v0
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, sums_against=y, affine=affine,
+                              **second_order)
 
     def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
-                  sums_against: np.ndarray | None = None, **second_order) -> np.ndarray:
+                  sums_against: np.ndarray | None = None, affine: np.ndarray | None = None,
+                  **second_order) -> np.ndarray:
         """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct
         (with ``sums_against``: return the residual sums, see :meth:`residual_sums`)."""
         nb, s = x0b.shape
@@ -371,6 +390,13 @@ class LinearSimulator:
                 W = np.empty((2 * nm, width))
                 W[0::2] = w0[real].real.T
                 W[1::2] = w0[real].imag.T
+                if sums is not None and affine is not None:
+                    # padding lanes get g = v0 = 0 (their sums are dropped)
+                    GV = np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0)
+                    modal_affine_sums_kernel(nm, self.n_out, width)(
+                        Q.ravel(), self.u, W.ravel(), W.ravel().copy(), GV.ravel(),
+                        sums_against.ravel(), sums[c].reshape(-1))
+                    continue
                 if sums is not None:
                     modal_sums_kernel(nm, self.n_out, width)(
                         Q.ravel(), self.u, W.ravel(), sums_against.ravel(), sums[c].reshape(-1))
@@ -392,7 +418,16 @@ class LinearSimulator:
                 if sums is not None:
                     from ._resid_kernels import ar1_sums_lanes
 
-                    for i, a in enumerate(ar1_sums_lanes(sums_against, Yc[None], width)):
+                    extra = ()
+                    if affine is not None:
+                        Bc = np.empty_like(Yc)
+                        X = np.ascontiguousarray(x0b[real].T)
+                        direct_kernel(s, self.n_out, width)(P.ravel(), np.ones(self.u.size),
+                                                            X.ravel(), Bc.reshape(-1))
+                        gv = np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0)
+                        extra = (Bc[None], gv[0], gv[1])
+                    for i, a in enumerate(ar1_sums_lanes(sums_against, Yc[None], width,
+                                                         *extra)):
                         sums[c, i * self.n_out : (i + 1) * self.n_out] = a
         if sums is not None:
             # (chunk, 4 n_out, width) -> four (n_out, nb) arrays

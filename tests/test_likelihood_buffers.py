@@ -158,3 +158,24 @@ def test_sums_inside_the_recursion_equal_the_stored_prediction_bit_for_bit(nb, o
     y = yh[0] + 1e-6 * rng.standard_normal((n, 3))
     for p, q in zip(sim.residual_sums(prep, y), ar1_sums(y, yh), strict=True):
         np.testing.assert_array_equal(p, q)
+
+
+@pytest.mark.parametrize("nb, overdamped", [(3, False), (20, True)])
+def test_affine_sums_inside_the_recursion_bit_for_bit(nb, overdamped):
+    rng = np.random.default_rng(10 + nb)
+    n, dt = 500, 0.005
+    u = 0.5 * np.sin(np.arange(n) * dt * 9)
+    th = THETA * (1 + 0.01 * rng.standard_normal((nb, THETA.size)))
+    th[:, 0] = 1.0
+    if overdamped:
+        th[nb // 2, 4:] = [200.0, 200.0, 200.0, 0.0, 0.0]
+    M, C, K, b = MODEL.matrices(th)
+    sim = LinearSimulator(u, dt, 3)
+    prep = sim.prepare_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
+    a = simulate_linear(MODEL, th, u, dt)
+    bb = simulate_linear(MODEL, th, np.ones(n), dt)
+    g, v0 = rng.uniform(5, 6, nb), 0.01 * rng.standard_normal(nb)
+    y = 5.5 * a[0] + 1e-6 * rng.standard_normal((n, 3))
+    for p, q in zip(sim.residual_sums(prep, y, g, v0), ar1_sums_affine(y, a, bb, g, v0),
+                    strict=True):
+        np.testing.assert_array_equal(p, q)

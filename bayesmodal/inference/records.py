@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import ConfigError, DataError
-from .._resid_kernels import ar1_sums, ar1_sums_affine, ar1_sums_lanes
+from .._resid_kernels import ar1_sums, ar1_sums_affine
 from ..data import Experiment
 from ..simulate import simulate_linear
 from ..system import LinearModel
@@ -598,23 +598,18 @@ class RecordsLikelihood:
 
     def _linear_record_loglik(self, th: np.ndarray) -> np.ndarray:
         """White or AR(1) log-likelihood per record, shape (nb, n_records), of the linear
-        model, the numbers of :meth:`_basic_loglik` bit for bit, faster: simulators keep
-        their buffers between calls; one modal form serves every record whose simulated
-        parameter rows are equal (with an input offset, the unit-gain rows, equal across
-        records whenever only ``g_v`` and ``v0`` are per record); one step response
-        ``b = S1(1)`` serves every record of a sample interval (the first ``N_r`` samples
-        of the longest record's); and the residual sums of ``g (a + v0 b)`` are read from
-        the simulators' buffers by the compiled kernel.
+        model, the numbers of :meth:`_basic_loglik` bit for bit, faster: one modal form
+        serves every record whose simulated parameter rows are equal (with an input
+        offset, the unit-gain rows, equal across records whenever only ``g_v`` and ``v0``
+        are per record), and the residual sums of ``g (a + v0 b)`` (or of the plain
+        simulation when no offset is sampled) are accumulated inside the recursion, which
+        runs the unit-gain responses ``a = S1(v)`` and ``b = S1(1)`` side by side without
+        storing either (``LinearSimulator.residual_sums``).
         """
         nb = th.shape[0]
         n_mech = len(self.mech_names)
-        n_carts = self.model.n_carts
         out = np.empty((nb, self.n_records))
-        longest = {}
-        for e in self.experiments:
-            longest[e.dt] = max(longest.get(e.dt, 0), e.n_samples)
         prep = rows = None  # the current modal form and the parameter rows it is for
-        steps = {}  # dt -> step-response buffer of the current modal form
         for r, e in enumerate(self.experiments):
             full, v0 = self.record_theta(th, r)
             mech = full[:, :n_mech]
@@ -623,18 +618,11 @@ class RecordsLikelihood:
             if affine:
                 sim_rows = mech.copy()
                 sim_rows[:, 0] = 1.0
-            sim = self._sims.get(("v", r), e.v_volt, e.dt, n_carts)
+            sim = self._sims.get(r, e.v_volt, e.dt, self.model.n_carts)
             if prep is None or prep[0] != e.dt or not np.array_equal(sim_rows, rows):
-                prep, rows, steps = prepare_linear(self.model, sim_rows, sim), sim_rows, {}
-            if not affine:  # sums inside the recursion (the prediction is not stored)
-                sums = sim.residual_sums(prep, e.y_m)
-            else:
-                A = sim.run_prepared(prep, lanes_last=True)
-                if e.dt not in steps:
-                    step = self._sims.get(("step", e.dt), np.ones(longest[e.dt]), e.dt,
-                                          n_carts)
-                    steps[e.dt] = step.run_prepared(prep, lanes_last=True)
-                sums = ar1_sums_lanes(e.y_m, A, nb, steps[e.dt], mech[:, 0], v0)
+                prep, rows = prepare_linear(self.model, sim_rows, sim), sim_rows
+            sums = (sim.residual_sums(prep, e.y_m, mech[:, 0], v0) if affine
+                    else sim.residual_sums(prep, e.y_m))
             out[:, r] = loglik_from_sums(*sums, e.n_samples,
                                          *self._sigma_phi(full[:, n_mech:]))
         return out
