@@ -97,3 +97,81 @@ def modal_kernel(n_modes: int, n_out: int, width: int):
         lines.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + uk")
         lines.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m}")
     return _compile(lines, f"modal m={nm} o={n_out} w={w}")
+
+
+@functools.lru_cache(maxsize=64)
+def modal_sums_kernel(n_modes: int, n_out: int, width: int):
+    """Compiled ``kernel(Q, u, W, y, S)``: the modal recursion of :func:`modal_kernel` that,
+    instead of storing the outputs, accumulates the residual sums against a record.
+
+    ``y`` ``(N, n_out)`` flat, the measured outputs; ``S`` ``(4 * n_out, width)`` flat, rows
+    ``i``, ``n_out + i``, ``2 n_out + i``, ``3 n_out + i`` = ``sum_{k>=1} r_k^2``,
+    ``sum_{k>=1} r_k r_{k-1}``, ``r_0`` and ``r_{N-1}`` of output ``i``, with
+    ``r_k = y_k - Re(G w[k])`` evaluated exactly as the stored output minus ``y`` would be
+    (the sums of ``_resid_kernels``, bit for bit, without writing the (N, n_out, width)
+    prediction to memory and reading it back).  The first two row blocks must be zero.
+    """
+    return _modal_sums(n_modes, n_out, width, affine=False)
+
+
+@functools.lru_cache(maxsize=64)
+def modal_affine_sums_kernel(n_modes: int, n_out: int, width: int):
+    """Compiled ``kernel(Q, u, W, V, GV, y, S)``: as :func:`modal_sums_kernel` for the
+    prediction ``g (a + v0 b)`` with ``a`` the response to ``u`` (modal state ``W``) and
+    ``b`` the response to a constant 1 (state ``V``), both from the same modal form;
+    ``GV`` ``(2, width)`` flat holds ``g`` and ``v0`` per lane.  Bit for bit the sums of
+    ``_resid_kernels.ar1_sums_affine`` of the two stored responses.
+    """
+    return _modal_sums(n_modes, n_out, width, affine=True)
+
+
+def _modal_sums(nm: int, no: int, w: int, affine: bool):
+    def terms(i, s):
+        return " + ".join(
+            f"Q[{(2 * nm + 2 * (i * nm + m)) * w} + b] * {s}r{m}"
+            f" - Q[{(2 * nm + 2 * (i * nm + m) + 1) * w} + b] * {s}i{m}"
+            for m in range(nm))
+
+    def body(first: bool) -> list[str]:
+        out = []
+        for m in range(nm):
+            out.append(f"            wr{m} = W[{2 * m * w} + b]")
+            out.append(f"            wi{m} = W[{(2 * m + 1) * w} + b]")
+            if affine:
+                out.append(f"            vr{m} = V[{2 * m * w} + b]")
+                out.append(f"            vi{m} = V[{(2 * m + 1) * w} + b]")
+        if affine:
+            out.append("            g = GV[b]")
+            out.append(f"            v0 = GV[{w} + b]")
+        for i in range(no):
+            out.append(f"            yh = {terms(i, 'w')}")
+            if affine:
+                out.append(f"            bh = {terms(i, 'v')}")
+                out.append(f"            r = y[yo + {i}] - g * (yh + v0 * bh)")
+            else:
+                out.append(f"            r = y[yo + {i}] - yh")
+            if first:
+                out.append(f"            S[{(2 * no + i) * w} + b] = r")
+            else:
+                out.append(f"            p = S[{(3 * no + i) * w} + b]")
+                out.append(f"            S[{i * w} + b] += r * r")
+                out.append(f"            S[{(no + i) * w} + b] += r * p")
+            out.append(f"            S[{(3 * no + i) * w} + b] = r")
+        for m in range(nm):
+            out.append(f"            mr = Q[{2 * m * w} + b]")
+            out.append(f"            mi = Q[{(2 * m + 1) * w} + b]")
+            out.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + uk")
+            out.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m}")
+            if affine:
+                out.append(f"            V[{2 * m * w} + b] = mr * vr{m} - mi * vi{m} + 1.0")
+                out.append(f"            V[{(2 * m + 1) * w} + b] = mi * vr{m} + mr * vi{m}")
+        return out
+
+    args = "Q, u, W, V, GV, y, S" if affine else "Q, u, W, y, S"
+    lines = [f"def kernel({args}):", "    uk = u[0]", "    yo = 0",
+             f"    for b in range({w}):"]
+    lines += [ln[4:] for ln in body(True)]
+    lines += ["    for k in range(1, u.shape[0]):", "        uk = u[k]",
+              f"        yo = k * {no}", f"        for b in range({w}):"]
+    lines += body(False)
+    return _compile(lines, f"modal {'affine ' if affine else ''}sums m={nm} o={no} w={w}")

@@ -27,7 +27,8 @@ problem in a file is collected and reported at once, each naming the file and th
 
     [likelihood]
     noise = "ar1"               # or "white"
-    temperature = 1.0           # optional: generalised posterior L^(1/T)
+    temperature = 1.0           # optional: generalised posterior L^(1/T), or "loro":
+                                # calibrated by leave-one-record-out coverage
 
     [records]                   # optional: several records, one physical system
     per_record = { g_v = "hierarchical", v0 = "hierarchical" }   # or "independent"
@@ -97,7 +98,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
             "springs": list, "dampers": dict, "drive": dict, "sensors": list},
     "model": {"damping": str, "extensions": list},
     "priors": {},  # free keys, checked against parameter names later
-    "likelihood": {"noise": str, "temperature": (int, float)},
+    "likelihood": {"noise": str, "temperature": (int, float, str)},
     "records": {"per_record": dict, "noise_per_record": bool},
     "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
@@ -154,7 +155,7 @@ class RunConfig:
     rig: dict | None = None
     per_record: dict[str, str] = field(default_factory=dict)
     noise_per_record: bool = False
-    temperature: float = 1.0
+    temperature: float | str = 1.0  # or "loro" (calibrated, inference.temperature)
     crossval: bool = False
     crossval_draws: int = 200
     crossval_walkers: int | None = None
@@ -210,7 +211,8 @@ class RunConfig:
             n_walkers=self.crossval_walkers or self.walkers,
             n_steps=self.crossval_steps or self.steps, burn=None if self.crossval_steps
             else self.burn, n_predictive=self.crossval_draws, seed=self.seed,
-            temperature=self.temperature, springs_n_m=self.springs_n_m, init=self.init,
+            temperature=1.0 if self.temperature == "loro" else self.temperature,
+            springs_n_m=self.springs_n_m, init=self.init,
             rig=None if self.rig is None else self.make_rig())
 
     def to_dict(self) -> dict:
@@ -406,7 +408,13 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     kw["extensions"] = tuple(str(e) for e in exts)
 
     temp = values.get(("likelihood", "temperature"))
-    if temp is not None:
+    if isinstance(temp, str):
+        if temp != "loro":
+            err("likelihood.temperature", "must be a number > 0 or \"loro\" (calibrated "
+                f"by leave-one-record-out coverage), got {temp!r}")
+        else:
+            kw["temperature"] = temp
+    elif temp is not None:
         if not temp > 0:
             err("likelihood.temperature", f"must be > 0, got {temp!r}")
         kw["temperature"] = float(temp)

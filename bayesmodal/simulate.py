@@ -27,7 +27,13 @@ import numpy as np
 from scipy.linalg import expm
 
 from ._errors import DataError, ModelError
-from ._kernels import direct_kernel, modal_kernel, padded_width
+from ._kernels import (
+    direct_kernel,
+    modal_affine_sums_kernel,
+    modal_kernel,
+    modal_sums_kernel,
+    padded_width,
+)
 from ._qep import modal_form_mck
 
 __all__ = [
@@ -238,6 +244,15 @@ class LinearSimulator:
         y : ndarray, shape (nb, N, n_out)
             View into the simulator's buffer (valid until the next call).
         """
+        return self.run_prepared(self.prepare_second_order(masses, C, K, b, x0))
+
+    def prepare_second_order(self, masses, C, K, b, x0=None) -> tuple:
+        """The modal form of a batch of second-order systems, for :meth:`run_prepared`.
+
+        It depends on the parameters and ``dt``, not on the input: simulators of records
+        with the same ``dt`` and ``n_out`` can share it (several records of one rig, or a
+        record and a constant input).  Arguments as :meth:`run_second_order`.
+        """
         masses = np.ascontiguousarray(masses, dtype=float)
         C = np.ascontiguousarray(C, dtype=float)
         K = np.ascontiguousarray(K, dtype=float)
@@ -273,7 +288,32 @@ class LinearSimulator:
                 good = bad[ok2]
                 mu[good], G[good], w0[good] = mu2[ok2], G2[ok2], w02[ok2]
                 ok[good] = True
-        return self._dispatch(ok, mu, G, w0, A, B, x0b, masses=masses, C=C, K=K, b=b)
+        return (self.dt, self.n_out, ok, mu, G, w0, A, B, x0b,
+                {"masses": masses, "C": C, "K": K, "b": b})
+
+    def run_prepared(self, prepared: tuple, *, lanes_last: bool = False) -> np.ndarray:
+        """Simulate this simulator's input with a form of :meth:`prepare_second_order`.
+
+        Parameters
+        ----------
+        prepared : tuple
+            From ``prepare_second_order`` of a simulator with the same ``dt`` and ``n_out``.
+        lanes_last : bool
+            Return the buffer itself, shape (n_chunks, N, n_out, width), lanes innermost
+            and padded to the kernel width (for compiled consumers); default the
+            (nb, N, n_out) view of :meth:`run_second_order`.
+
+        Returns
+        -------
+        ndarray
+            A view of the simulator's buffer (valid until the next call).
+        """
+        dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
+        if dt != self.dt or n_out != self.n_out:
+            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
+                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, lanes_last=lanes_last,
+                              **second_order)
 
     def _initial(self, x0, nb: int, s: int) -> np.ndarray:
         if x0 is None:
@@ -285,12 +325,56 @@ class LinearSimulator:
             raise DataError("x0 has non-finite values")
         return np.broadcast_to(x0, (nb, s))
 
-    def _dispatch(self, ok, mu, G, w0, A, B, x0b, **second_order) -> np.ndarray:
-        """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct."""
+    def residual_sums(self, prepared: tuple, y: np.ndarray, g: np.ndarray | None = None,
+                      v0: np.ndarray | None = None):
+        """Residual sums of the simulated outputs against a record, without storing them.
+
+        Parameters
+        ----------
+        prepared : tuple
+            From :meth:`prepare_second_order` (same ``dt`` and ``n_out``).
+        y : ndarray, shape (N, n_out)
+            Measured outputs, N the length of this simulator's input.
+        g, v0 : ndarray, shape (nb,), optional
+            Per-lane gain and input offset: the prediction is then ``g (a + v0 b)`` with
+            ``a`` the simulated response and ``b`` the response to a constant 1 (several
+            records of one rig, ``inference.records``).
+
+        Returns
+        -------
+        s00, s01, r0, rl : ndarray, each shape (n_out, nb)
+            Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))`` (or
+            ``ar1_sums_affine`` of the two responses), bit for bit.
+        """
+        dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
+        if dt != self.dt or n_out != self.n_out:
+            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
+                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        y = np.ascontiguousarray(y, dtype=float)
+        if y.shape != (self.u.size, self.n_out):
+            raise DataError(f"y must have shape {(self.u.size, self.n_out)}, got {y.shape}")
+        affine = None
+        if g is not None:
+            nb = x0b.shape[0]
+            affine = np.zeros((2, nb))
+            affine[0], affine[1] = g, v0
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, sums_against=y, affine=affine,
+                              **second_order)
+
+    def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
+                  sums_against: np.ndarray | None = None, affine: np.ndarray | None = None,
+                  **second_order) -> np.ndarray:
+        """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct
+        (with ``sums_against``: return the residual sums, see :meth:`residual_sums`)."""
         nb, s = x0b.shape
         width = padded_width(nb)
         n_chunks = -(-nb // width)
-        Y = self._buffer(n_chunks, width)
+        sums = None
+        if sums_against is not None:
+            sums = np.zeros((n_chunks, 4 * self.n_out, width))
+            Y = None
+        else:
+            Y = self._buffer(n_chunks, width)
         direct = None
         nm = s // 2
         for c in range(n_chunks):
@@ -306,6 +390,17 @@ class LinearSimulator:
                 W = np.empty((2 * nm, width))
                 W[0::2] = w0[real].real.T
                 W[1::2] = w0[real].imag.T
+                if sums is not None and affine is not None:
+                    # padding lanes get g = v0 = 0 (their sums are dropped)
+                    GV = np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0)
+                    modal_affine_sums_kernel(nm, self.n_out, width)(
+                        Q.ravel(), self.u, W.ravel(), W.ravel().copy(), GV.ravel(),
+                        sums_against.ravel(), sums[c].reshape(-1))
+                    continue
+                if sums is not None:
+                    modal_sums_kernel(nm, self.n_out, width)(
+                        Q.ravel(), self.u, W.ravel(), sums_against.ravel(), sums[c].reshape(-1))
+                    continue
                 modal_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
                                                     Y[c].reshape(-1))
             else:
@@ -317,8 +412,30 @@ class LinearSimulator:
                 P[: s * s] = direct.Ad[real].reshape(width, s * s).T
                 P[s * s :] = direct.Bd[real].T
                 X = np.ascontiguousarray(x0b[real].T)
+                Yc = Y[c] if sums is None else np.empty((self.u.size, self.n_out, width))
                 direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
-                                                    Y[c].reshape(-1))
+                                                    Yc.reshape(-1))
+                if sums is not None:
+                    from ._resid_kernels import ar1_sums_lanes
+
+                    extra = ()
+                    if affine is not None:
+                        Bc = np.empty_like(Yc)
+                        X = np.ascontiguousarray(x0b[real].T)
+                        direct_kernel(s, self.n_out, width)(P.ravel(), np.ones(self.u.size),
+                                                            X.ravel(), Bc.reshape(-1))
+                        gv = np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0)
+                        extra = (Bc[None], gv[0], gv[1])
+                    for i, a in enumerate(ar1_sums_lanes(sums_against, Yc[None], width,
+                                                         *extra)):
+                        sums[c, i * self.n_out : (i + 1) * self.n_out] = a
+        if sums is not None:
+            # (chunk, 4 n_out, width) -> four (n_out, nb) arrays
+            flat = sums.reshape(n_chunks, 4, self.n_out, width).transpose(1, 2, 0, 3)
+            flat = flat.reshape(4, self.n_out, n_chunks * width)[:, :, :nb]
+            return tuple(np.ascontiguousarray(a) for a in flat)
+        if lanes_last:
+            return Y
         # (chunk, N, out, lane) -> (lane, N, out); a view when there is one chunk
         y = Y.transpose(0, 3, 1, 2)
         if n_chunks == 1:

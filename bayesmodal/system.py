@@ -29,6 +29,7 @@ every spring between two carts) and ``"proportional"`` (``C = ca M + cb K``).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -750,7 +751,7 @@ class LinearModel:
     def n_states(self) -> int:
         return 2 * self.rig.n_carts
 
-    @property
+    @functools.cached_property  # (read on every likelihood call: built once)
     def names(self) -> tuple[str, ...]:
         if not self._chain:
             return self._layout.names

@@ -105,6 +105,8 @@ BAD = [
     ("negative springs", '[data]\nfiles=["exp.csv"]\n[rig]\nsprings_n_m=[774, -1, 396]',
      "[rig.springs_n_m]"),
     ("bad counts factor", '[data]\nfiles=["exp.csv"]\nm_per_count=0', "[data.m_per_count]"),
+    ("unknown temperature word", '[data]\nfiles=["exp.csv"]\n[likelihood]\n'
+     'temperature="auto"', "[likelihood.temperature]"),
 ]
 
 
@@ -135,3 +137,13 @@ def test_broken_toml_and_missing_file(cfg_dir):
         load_config(p)
     with pytest.raises(ConfigError, match="no such configuration file"):
         load_config(cfg_dir / "absent.toml")
+
+
+def test_calibrated_temperature_is_accepted(cfg_dir):
+    c = parse_config({**_toml(GOOD), "likelihood": {"noise": "ar1", "temperature": "loro"}},
+                     base=cfg_dir)
+    assert c.temperature == "loro"
+    assert c.crossval_spec().temperature == 1.0  # each calibration study sets its own
+    fixed = parse_config({**_toml(GOOD), "likelihood": {"noise": "ar1", "temperature": 1}},
+                         base=cfg_dir)
+    assert c.hash() != fixed.hash()

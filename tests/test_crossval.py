@@ -68,6 +68,9 @@ def test_crossval_cli_errors_name_the_fix(tmp_path, capsys):
     assert main(["crossval", str(tmp_path / "one.csv"), str(tmp_path / "two.csv"),
                  "--per-record", "g_v", "--out", str(tmp_path / "o")]) == 2
     assert "NAME=KIND" in capsys.readouterr().err
+    assert main(["crossval", str(tmp_path / "one.csv"), str(tmp_path / "two.csv"),
+                 "--temperature", "hot", "--out", str(tmp_path / "o")]) == 2
+    assert "give a number (e.g. 10) or 'loro'" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
 
 

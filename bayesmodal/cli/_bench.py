@@ -68,4 +68,11 @@ def run(args) -> int:
                   f"{r['likelihood_evals_per_s']:.0f}/s, emcee run "
                   f"{r['sampler_evals_per_s']:.0f}/s = {r['sampler_fraction']:.2f} of the "
                   f"simulator ({'ok' if r['meets_target'] else 'TOO SLOW'})")
+            rr = r["records"]
+            print(f"  {rr['n_records']} records, default layout, {rr['n_walkers']} walkers "
+                  f"(record evaluations per second): bare simulator "
+                  f"{rr['simulator_evals_per_s']:.0f}/s, likelihood "
+                  f"{rr['likelihood_record_evals_per_s']:.0f}/s, emcee run "
+                  f"{rr['sampler_record_evals_per_s']:.0f}/s = {rr['sampler_fraction']:.2f} "
+                  f"of the simulator")
     return 0

@@ -47,9 +47,16 @@ def register(sub) -> None:
     p.add_argument("--steps", type=int, default=4000, help="steps per walker (default 4000)")
     p.add_argument("--draws", type=int, default=200,
                    help="posterior draws per held-out prediction (default 200)")
-    p.add_argument("--temperature", type=float, default=1.0,
-                   help="likelihood temperature T of the generalised posterior "
+    p.add_argument("--temperature", default="1.0", metavar="T|loro",
+                   help="likelihood temperature T of the generalised posterior, or 'loro': "
+                        "calibrate it so that the held-out 90 %% bands reach nominal coverage "
+                        "(one study per --temperatures value; docs/uncertainty.md) "
                         "(default %(default)s)")
+    p.add_argument("--temperatures", default="1,10,100,1000", metavar="T1,T2,...",
+                   help="grid of the 'loro' calibration (default %(default)s)")
+    p.add_argument("--criterion", choices=["mean", "worst"], default="mean",
+                   help="'loro' calibration: mean coverage over held-out records, or the "
+                        "worst record's (default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--workers", type=int, default=None,
                    help="local processes (default: the number of CPUs)")
@@ -71,12 +78,28 @@ def spec_from_args(args):
         from ..config import load_config
 
         cfg = load_config(args.config, check_files=False)
+        if cfg.temperature == "loro":  # [likelihood] temperature = "loro": calibrate
+            args.temperature = "loro"
         return cfg.crossval_spec()
     rig = load_rig(args) if getattr(args, "rig", None) else None
     return CrossvalSpec(damping=damping_of(args, rig or Rig()), noise=args.noise, rig=rig,
                         layout=parse_layout(args.per_record), n_walkers=args.walkers,
                         n_steps=args.steps, n_predictive=args.draws, seed=args.seed,
-                        temperature=args.temperature)
+                        temperature=1.0 if _calibrating(args) else _number(
+                            args.temperature, "--temperature"))
+
+
+def _calibrating(args) -> bool:
+    return str(getattr(args, "temperature", "1")).strip().lower() == "loro"
+
+
+def _number(text: str, flag: str) -> float:
+    from .._errors import ConfigError
+
+    try:
+        return float(text)
+    except ValueError:
+        raise ConfigError(f"{flag} {text!r}: give a number (e.g. 10) or 'loro'") from None
 
 
 def run(args) -> int:
@@ -90,11 +113,24 @@ def run(args) -> int:
     if say:
         say(f"{len(exps)} folds + the joint run, {spec.n_walkers} walkers x {spec.n_steps} "
             "steps each")
-    res = crossval(exps, spec, workers=args.workers, scheduler=args.scheduler, progress=say)
-    path = write_crossval(res, Path(args.out))
+    cal = None
+    if _calibrating(args):
+        from ..inference.temperature import calibrate_loro
+
+        grid = [_number(t, "--temperatures") for t in args.temperatures.split(",")]
+        cal, res = calibrate_loro(exps, spec, temperatures=grid, criterion=args.criterion,
+                                  workers=args.workers, scheduler=args.scheduler,
+                                  progress=say)
+    else:
+        res = crossval(exps, spec, workers=args.workers, scheduler=args.scheduler,
+                       progress=say)
+    path = write_crossval(res, Path(args.out), calibration=cal)
     if args.json:
-        print_json(res.to_dict())
+        print_json({**res.to_dict(), **({} if cal is None else
+                                        {"temperature_calibration": cal.to_dict()})})
     elif not args.quiet:
+        if cal is not None:
+            print(cal.table())
         print(res.table())
         print(f"-> {path}")
     return 0

@@ -225,8 +225,9 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     burn = spec.n_steps // 2 if spec.burn is None else spec.burn
     # at least two walkers per parameter (emcee's requirement), even
     walkers = max(spec.n_walkers, 2 * len(lik.names))
-    run = sample_posterior(train, model, noise=lik.noise_model if lik.noise not in
-                           ("ar1", "white") else lik.noise, extension=spec.extension,
+    # the noise as given (a name, or the AR orders chosen above): ProcessNoise is not a
+    # NoiseModel instance that sample_posterior could take back
+    run = sample_posterior(train, model, noise=noise, extension=spec.extension,
                            layout=spec.layout, priors=priors, n_walkers=walkers,
                            n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
                            progress=progress, temperature=spec.temperature, init=spec.init)

@@ -38,6 +38,7 @@ parameters, and parameter sets the extension rejects (``Extension.valid``, e.g.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -46,7 +47,7 @@ import numpy as np
 from .._errors import ConfigError, DataError, ModelError
 from .._resid_kernels import ar1_sums
 from ..data import Experiment
-from ..simulate import simulate_linear
+from ..simulate import LinearSimulator, simulate_linear
 from ..system import LinearModel
 from .priors import noise_names
 
@@ -210,6 +211,45 @@ def simulate_noise(
     return out
 
 
+class SimulatorCache:
+    """Simulators (``LinearSimulator``) kept between likelihood calls, one per thread and key.
+
+    A simulator reuses its output buffer, so a sampler's thousands of calls do not
+    allocate and page in a fresh (N, n_out, nb) array each time; the buffer is
+    overwritten by the next call, hence one set per thread.  Pickling drops the buffers
+    (a process pool rebuilds them on first use).
+    """
+
+    def __init__(self) -> None:
+        self._by_thread: dict = {}
+
+    def get(self, key, u: np.ndarray, dt: float, n_out: int) -> LinearSimulator:
+        sims = self._by_thread.setdefault(threading.get_ident(), {})
+        sim = sims.get(key)
+        if sim is None:
+            sim = sims[key] = LinearSimulator(u, dt, n_out)
+        return sim
+
+    def __getstate__(self) -> dict:
+        return {}
+
+    def __setstate__(self, state: dict) -> None:
+        self._by_thread = {}
+
+
+def prepare_linear(model: LinearModel, theta: np.ndarray, sim: LinearSimulator) -> tuple:
+    """The modal form of admissible linear-model parameter rows ``theta`` (nb, n_params)
+    for ``sim.run_prepared`` (what ``simulate_linear`` computes before its recursion)."""
+    M, C, K, b = model.matrices(theta)
+    return sim.prepare_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
+
+
+def fast_path(model: LinearModel) -> bool:
+    """True when the model's outputs are the simulator's leading states (chain rigs), so
+    that the likelihood can read the simulator's buffer directly."""
+    return getattr(model, "output_index", None) is None
+
+
 @dataclass(frozen=True, eq=False)
 class Likelihood:
     """Log-likelihood of one or several experiments under the linear rig model.
@@ -282,6 +322,7 @@ class Likelihood:
                                  "drop the extension or use records that start at rest")
         object.__setattr__(self, "experiments", exps)
         object.__setattr__(self, "extension", resolve_extension(self.extension, self.model))
+        object.__setattr__(self, "_sims", SimulatorCache())
 
     # ---------------------------------------------------------------- layout
     @property
@@ -428,11 +469,24 @@ class Likelihood:
         if not np.any(ok):
             return total
         mech, sigma, phi = self.split(theta[ok])
-        acc = np.zeros(int(ok.sum()))
+        nb = int(ok.sum())
+        acc = np.zeros(nb)
         with np.errstate(all="ignore"):
-            for e, yh in zip(self.experiments, self.predict(mech), strict=True):
-                # compiled sums over the simulator's (batch-innermost) output, no temporaries
-                acc += loglik_from_sums(*ar1_sums(e.y_m, yh), e.n_samples, sigma, phi)
+            if self.extension is None and self.initial_state == "rest" and fast_path(
+                    self.model):
+                # one modal form per sample interval, and the residual sums accumulated
+                # inside the simulator's recursion (the prediction is never stored): the
+                # same numbers as ``predict`` + ``ar1_sums``, bit for bit
+                prep = {}
+                for i, e in enumerate(self.experiments):
+                    sim = self._sims.get(i, e.v_volt, e.dt, self.model.n_carts)
+                    if e.dt not in prep:
+                        prep[e.dt] = prepare_linear(self.model, mech, sim)
+                    acc += loglik_from_sums(*sim.residual_sums(prep[e.dt], e.y_m),
+                                            e.n_samples, sigma, phi)
+            else:
+                for e, yh in zip(self.experiments, self.predict(mech), strict=True):
+                    acc += loglik_from_sums(*ar1_sums(e.y_m, yh), e.n_samples, sigma, phi)
         total[ok] = np.where(np.isfinite(acc), acc, -np.inf)
         return total
 

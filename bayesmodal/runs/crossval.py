@@ -10,8 +10,13 @@ from .folder import atomic_savefig, atomic_write_json, atomic_write_text
 __all__ = ["write_crossval"]
 
 
-def write_crossval(result, out_dir: str | os.PathLike, *, plots: bool = True) -> Path:
+def write_crossval(result, out_dir: str | os.PathLike, *, plots: bool = True,
+                   calibration=None) -> Path:
     """Write ``crossval.json``, ``crossval.txt`` and the plots of a ``CrossvalResult``.
+
+    With ``calibration`` (a ``TemperatureCalibration``) the JSON has a
+    ``temperature_calibration`` entry (chosen temperature and coverage curve) and the
+    text file starts with the curve.
 
     Returns
     -------
@@ -20,8 +25,13 @@ def write_crossval(result, out_dir: str | os.PathLike, *, plots: bool = True) ->
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    path = atomic_write_json(out / "crossval.json", result.to_dict())
-    atomic_write_text(out / "crossval.txt", result.table() + "\n")
+    d = result.to_dict()
+    text = result.table() + "\n"
+    if calibration is not None:
+        d["temperature_calibration"] = calibration.to_dict()
+        text = calibration.table() + "\n\n" + text
+    path = atomic_write_json(out / "crossval.json", d)
+    atomic_write_text(out / "crossval.txt", text)
     if plots:
         import matplotlib
 

@@ -532,15 +532,33 @@ def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
     return {ext.name: out}
 
 
-def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool) -> dict:
+def _temperature(prep: PreparedRun) -> tuple[float, dict | None]:
+    """The likelihood temperature of the run, and its calibration (``temperature =
+    "loro"``: leave-one-record-out coverage, ``inference.temperature``) or None."""
+    cfg = prep.config
+    if cfg.temperature != "loro":
+        return float(cfg.temperature), None
+    from ..inference.temperature import calibrate_loro
+
+    cal, _ = calibrate_loro(list(prep.experiments), cfg.crossval_spec(), joint=False,
+                            progress=lambda line: log.info("temperature: %s", line))
+    log.info("calibrated temperature %.4g (%s)", cal.temperature, cal.status)
+    return cal.temperature, cal.to_dict()
+
+
+def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
+              temperature: float = 1.0) -> dict:
     """Leave-one-record-out check of the configuration, written to ``crossval/``."""
+    from dataclasses import replace
+
     from ..inference.crossval import crossval
     from .crossval import write_crossval
 
     def say(line: str) -> None:
         log.info("crossval: %s", line)
 
-    res = crossval(list(prep.experiments), prep.config.crossval_spec(), joint=False,
+    res = crossval(list(prep.experiments), replace(prep.config.crossval_spec(),
+                                                   temperature=temperature), joint=False,
                    progress=say)
     write_crossval(res, folder.path / "crossval", plots=prep.config.plots)
     d = res.to_dict()
@@ -571,13 +589,14 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             steps_before = backend.iteration if backend.initialized else 0
             log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
                      cfg.walkers, cfg.steps, steps_before, cfg.seed)
+            temperature, calibration = _temperature(prep)
             run = sample_posterior(
                 list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
                 priors=prep.priors,
                 n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
                 moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
                 warn=False, extension=prep.extension, restart=cfg.restart,
-                layout=cfg.layout, temperature=cfg.temperature, init=cfg.init)
+                layout=cfg.layout, temperature=temperature, init=cfg.init)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
@@ -596,9 +615,11 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             ext = _extensions(prep, run, summary)
             if ext:
                 summary["extensions"] = ext
+        if calibration is not None:
+            summary["temperature_calibration"] = calibration
         if cfg.crossval:
             with stages.stage("crossval"):
-                summary["crossval"] = _crossval(prep, folder, progress)
+                summary["crossval"] = _crossval(prep, folder, progress, temperature)
         diag = summary["diagnostics"]
         detail = _verdict_detail(diag)
         summary["convergence"] = {
