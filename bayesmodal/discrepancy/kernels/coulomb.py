@@ -34,6 +34,56 @@ REFINE_GROUP = 16
 #: kernel is at rest for certain over a step (rounding of the step is ~1e-16).
 REST_MARGIN = 1e-9
 
+#: Memoryless input stages the friction kernel can apply itself to the shared input, in
+#: the order given, each with one parameter per lane: ``offset`` (V, added), ``deadband``
+#: (V, sharp), ``saturation`` (V, clip level), ``gain`` (1/V, ``v (1 + kappa |v|)``).
+#: Written as numpy's own operations in ``effects`` (``transform_input``), so that the
+#: kernel's input is bit for bit the per-lane input computed there, without the
+#: ``(N, lanes)`` input block that costs a copy and a stream of 4 MB per chunk.
+INPUT_STAGES = ("offset", "deadband", "saturation", "gain")
+
+
+def _stage_code(t: str, kind: str, p: str) -> list[str]:
+    """Code applying one input stage with lane parameter ``p`` to ``uk``."""
+    if kind == "offset":
+        return [f"{t}uk = uk + {p}"]
+    if kind == "deadband":
+        # np.sign(v) * np.maximum(np.abs(v) - v_dead, 0.0); np.sign(-0.0) is 0.0
+        return [f"{t}ud = abs(uk) - {p}",
+                f"{t}ud = ud if ud > 0.0 else 0.0",
+                f"{t}uk = (1.0 if uk > 0.0 else (-1.0 if uk < 0.0 else 0.0)) * ud"]
+    if kind == "saturation":
+        # np.clip(v, -level, level)
+        return [f"{t}ul = {p}",
+                f"{t}uk = -ul if uk < -ul else (ul if uk > ul else uk)"]
+    if kind == "gain":
+        return [f"{t}uk = uk * (1.0 + {p} * abs(uk))"]
+    raise ValueError(f"unknown input stage {kind!r}; use one of {INPUT_STAGES}")
+
+
+def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
+                   packed_from: int | None) -> list[str]:
+    """Kernel source applying ``stages`` to the shared input in every lane loop.
+
+    The sample's raw input is read once (``u0``); each ``for b in range(...)`` loop starts
+    with the lane's own transformed input ``uk`` from its parameter rows (``P``, or the
+    packed copy ``PP`` in the loops after line ``packed_from``); where a loop does not use
+    ``uk`` the compiler drops the code.
+    """
+    out = []
+    for i, line in enumerate(lines):
+        if line.strip() == "uk = u[k]":
+            out.append(line.replace("uk = u[k]", "u0 = u[k]"))
+            continue
+        out.append(line)
+        if line.strip().startswith("for b in range("):
+            rows = PP if packed_from is not None and i >= packed_from else P
+            t = line[: len(line) - len(line.lstrip())] + "    "
+            out.append(f"{t}uk = u0")
+            for j, kind in enumerate(stages):
+                out += _stage_code(t, kind, rows(f"s{j}"))
+    return out
+
 
 
 def _rising_cubic_root(t: str, x: str, c: tuple[str, str, str, str]) -> list[str]:
@@ -336,21 +386,27 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 
 @functools.lru_cache(maxsize=16)
 def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
-                   asymmetric: bool = False):
+                   asymmetric: bool = False, stages: tuple[str, ...] = ()):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
     and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
     With ``per_lane`` the input is one column per lane (see ``_lane_inputs``); with
     ``asymmetric`` the kinetic level depends on the direction of sliding (parameter rows
-    ``fc`` forwards, ``fn`` backwards).
+    ``fc`` forwards, ``fn`` backwards); ``stages`` (of ``INPUT_STAGES``, shared input
+    only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``.
     """
     asym = bool(asymmetric)
+    stages = tuple(stages)
+    if stages and per_lane:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
               ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
               ("fs", n)] + ([("fn", n)] if asym else [])
+    p_rows += [(f"s{j}", 1) for j in range(len(stages))]
+    tag = f"{' asym' * asym}{''.join(' ' + k for k in stages)}"
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
@@ -368,7 +424,9 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         if per_lane:
             return _compile(_lane_inputs(L, w),
                             f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
-        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{' asym' * asym}>")
+        if stages:
+            L = _staged_inputs(L, P, P, stages, None)
+        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{tag}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
     # packed (parameters PP, state XX) into groups of g and take the sample again there;
@@ -460,11 +518,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         packed_from += 1
         return _compile(_lane_inputs(L, w, packed_from=packed_from),
                         f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
-    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{' asym' * asym}>")
+    if stages:
+        packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
+        L = _staged_inputs(L, P, PP, stages, packed_from)
+    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{tag}>")
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
-                adaptive=True, Fc_backward=None):
+                adaptive=True, Fc_backward=None, input_stages=()):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
     A step: the friction force of each cart is decided at its start (stuck carts hold the
@@ -530,6 +591,10 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         False: every sample in ``n_sub`` corrected sub-steps (slower; for checks).
     Fc_backward : ndarray, shape (nb, n), optional
         Kinetic level when sliding in the negative direction, N (default: ``Fc``).
+    input_stages : sequence of (str, ndarray of shape (nb,))
+        Memoryless stages (``INPUT_STAGES``) applied in this order to the shared input
+        ``u`` (N,) inside the kernel, each with its parameter per lane; the result is bit
+        for bit that of the same stages applied in ``effects`` and a per-lane input.
 
     Returns
     -------
@@ -542,7 +607,13 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
     if Fc_backward is not None:
         params.append(Fc_backward)
+    kinds = tuple(kind for kind, _ in input_stages)
+    if kinds and u.ndim != 1:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
+    params += [np.asarray(values, dtype=float).reshape(-1, 1) for _, values in input_stages]
     kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
     if Fc_backward is not None:
         kernel = functools.partial(kernel, asymmetric=True)
+    if kinds:
+        kernel = functools.partial(kernel, stages=kinds)
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
