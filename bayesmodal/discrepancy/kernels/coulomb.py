@@ -25,9 +25,8 @@ REVERSAL_NEWTON = 2
 
 #: Lanes of the friction kernel that take a sample together (two AVX-512 vectors of
 #: float64: LLVM does not vectorise loops of 8), and lanes with an event packed together
-#: to take it again in sub-steps; a packed group takes the event-corrected path when one
-#: of its lanes needs it and the others keep their quick result, so that no lane depends
-#: on the rest of its batch.
+#: to take it again in event-corrected sub-steps; no lane's result depends on the rest of
+#: its batch.
 REFINE_GROUP = 16
 
 #: Relative margin below the static level under which a stuck cart of the friction
@@ -429,14 +428,11 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}{tag}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
-    # packed (parameters PP, state XX) into groups of g and take the sample again there;
-    # S2: state at the start of a sub-step and flags, T2: the quick results
+    # packed (parameters PP, state XX) into groups of g and take the sample again there
     g = min(w, REFINE_GROUP)
     PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
-    flag2 = X.size * g
     L[1:1] = [f"    S = np.empty(X.shape[0] + {w})",
               f"    PP = np.empty({P.size * g})", f"    XX = np.empty({X.size * g})",
-              f"    S2 = np.empty({(X.size + 1) * g})", f"    T2 = np.empty({X.size * g})",
               f"    idx = np.empty({w}, np.int64)",
               f"    slot = np.zeros({g}, np.int64)",
               "    dt = h * n_sub",
@@ -446,25 +442,13 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
               f"            PP[r * {g} + j] = P[r * {w}]",
               f"        for r in range({X.size}):",
               f"            XX[r * {g} + j] = X[r * {w}]"]
-    rows = range(X.size)
-
-    def retake(t, start, result):
-        # keep the quick step's result, go back to the step's start
-        return ([f"{t}for b in range({g}):"]
-                + [f"{t}    {result}[{r * g} + b] = XX[{r * g} + b]" for r in rows]
-                + [f"{t}    XX[{r * g} + b] = {start}[{r * g} + b]" for r in rows])
-
-    def keep_quick(t, start, result):
-        # lanes without an event take the quick step's result: every lane's result
-        # depends on its own parameters only, never on the other lanes of its group
-        return ([f"{t}for b in range({g}):"]
-                + [f"{t}    XX[{r * g} + b] = XX[{r * g} + b] if {start}[{flag2} + b] != 0.0"
-                   f" else {result}[{r * g} + b]" for r in rows])
-
     # a group whose lanes are all at rest skips the sample (the state does not change);
     # the others take the sample in one step, and the lanes with an event in it take it
-    # again in sub-steps, packed into groups: each sub-step first without corrections and
-    # again with them where a lane of the packed group needs them
+    # again in event-corrected sub-steps, packed into groups.  A corrected step without
+    # an event in it is the quick step bit for bit (its corrections are selects that keep
+    # the quick values, or add an exact zero), so the packed lanes take only corrected
+    # sub-steps: a quick sub-step first, to spare the corrected one where no packed lane
+    # had an event, cost more than it saved (72-78 % of packed sub-steps had one)
     L += ["        nf = 0",
           f"        for g0 in range(0, {w}, {g}):",
           "            nq = 0",
@@ -495,14 +479,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
           f"                for r in range({X.size}):",
           f"                    XX[r * {g} + j] = S[r * {w} + bj]",
           "            for sub in range(n_sub):",
-          "                ev = 0",
           f"                for b in range({g}):"]
-    L += [line.replace("S[", "S2[") for line in
-          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h", asym)]
-    L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
-    L += [f"                    for b in range({g}):"]
-    L += corrected(" " * 24, PP, XX)
-    L += keep_quick(" " * 20, "S2", "T2")
+    L += corrected(" " * 20, PP, XX)
     L += ["            for j in range(m):",
           "                bj = idx[c0 + j]",
           f"                for r in range({X.size}):",
@@ -537,9 +515,10 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
 
     Each sample is first taken in one such step.  A lane that had, or may have had, an
     event in it (see ``_coulomb_quiet_step``) takes the sample again in ``n_sub``
-    sub-steps ``h``, each again first quick and then, for a lane with an event in it, with
-    the events located on cubic Hermite interpolants in time (values and rates at both
-    ends; Newton from the chord, safeguarded for the break-away) and corrected:
+    sub-steps ``h``, each with the events located on cubic Hermite interpolants in time
+    (values and rates at both ends; Newton from the chord, safeguarded for the
+    break-away) and corrected (a sub-step without an event gives the uncorrected step's
+    result bit for bit):
 
     - a stuck cart whose held net force reached ``Fs`` inside the step broke away there
       and gains the velocity and displacement of the integrals of the interpolated net
@@ -553,10 +532,9 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
 
     Lanes run in groups of ``REFINE_GROUP`` (vectorised); a group whose lanes are all at
     rest skips the sample, and the lanes with an event in a sample (from any group) are
-    packed into groups of ``REFINE_GROUP`` that take it again in sub-steps.  A packed
-    group takes the corrected path in a sub-step when one of its lanes needs it, but every
-    lane keeps the result of the path its own flags chose: the output of a parameter set
-    never depends on the others in the batch.  The error is second order in the sub-step
+    packed into groups of ``REFINE_GROUP`` that take it again in sub-steps; every lane's
+    arithmetic is its own, so the output of a parameter set never depends on the others
+    in the batch.  The error is second order in the sub-step
     where events are, but a stick-or-reverse decision taken with ``|F|`` within a fraction
     of a percent of ``Fs`` can flip and change the whole future (as in any fixed-step
     scheme).
