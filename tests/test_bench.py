@@ -5,7 +5,15 @@ import json
 import numpy as np
 import pytest
 
-from bayesmodal.bench import COMBINED, EXTENSION_MAX_RATIO, bench_extensions, rig_input
+from bayesmodal.bench import (
+    BEST_COMBINED,
+    COMBINED,
+    COMBINED_MAX_RATIO,
+    EXTENSION_MAX_RATIO,
+    bench_extensions,
+    headline,
+    rig_input,
+)
 from bayesmodal.cli import main
 from bayesmodal.discrepancy.effects import EXTENSIONS
 
@@ -38,6 +46,8 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
     for r in out["extensions"].values():
         assert {"us_per_eval", "ratio_to_linear", "meets_target"} <= set(r)
         assert isinstance(r["meets_target"], bool)
+    assert out["headline"] == headline(out["extensions"])
+    assert set(out["headline"]) == {"coulomb_friction", "best_combined"}
     s = out["sampler"]
     assert s["n_samples"] == 300
     # the emcee run does all a likelihood call does and more, which does all a bare
@@ -66,3 +76,22 @@ def test_rig_input_has_pulses_steps_and_a_sweep():
     crossings = np.flatnonzero(np.diff(np.sign(sweep)) != 0)
     gaps = np.diff(crossings)
     assert gaps[:5].mean() > 4 * gaps[-5:].mean()
+
+
+def test_headline_takes_friction_and_the_costlier_best_combination():
+    def result(random, rig):
+        return {"ratio_to_linear": random, "ratio_to_linear_rig_input": rig,
+                "ratio_per_round_rig_input": [rig, rig, rig]}
+
+    a, b = BEST_COMBINED
+    ext = {"coulomb_friction": result(20.0, 9.0), a: result(30.0, 12.0), b: result(5.0, 25.0)}
+    h = headline(ext)
+    assert h["coulomb_friction"]["ratio_rig_input"] == 9.0
+    assert h["coulomb_friction"]["ratio_random_input"] == 20.0
+    assert h["coulomb_friction"]["meets_target"] == (9.0 <= EXTENSION_MAX_RATIO)
+    # the costlier on the rig-like input, judged against the combined target
+    assert h["best_combined"]["name"] == b
+    assert h["best_combined"]["target"] == COMBINED_MAX_RATIO
+    assert h["best_combined"]["meets_target"] == (25.0 <= COMBINED_MAX_RATIO)
+    assert headline({a: result(1.0, 2.0)}).keys() == {"best_combined"}
+    assert headline({}) == {}

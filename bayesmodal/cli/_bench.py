@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..bench import EXTENSION_MAX_RATIO, bench_extensions, bench_linear
+from ..bench import EXTENSION_MAX_RATIO, bench_extensions, bench_linear, headline
 from ._common import print_json
 
 
@@ -22,6 +22,9 @@ def register(sub) -> None:
                    help="fewer timing rounds (faster, noisier)")
     p.add_argument("--no-extensions", action="store_true",
                    help="skip the model-extension simulators")
+    p.add_argument("--extensions", default=None, metavar="NAMES",
+                   help="comma-separated extensions or combinations to time (default: all), "
+                   "e.g. coulomb_friction,coulomb_friction+input_offset")
     p.add_argument("--no-sampler", action="store_true",
                    help="skip the sampler-throughput benchmark (emcee run vs bare simulator)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
@@ -31,7 +34,11 @@ def register(sub) -> None:
 def run(args) -> int:
     out = {"linear": bench_linear(args.samples, args.batch, quick=args.quick)}
     if not args.no_extensions:
-        out["extensions"] = bench_extensions(args.samples, args.batch, quick=args.quick)
+        names = None if args.extensions is None else tuple(
+            n.strip() for n in args.extensions.split(",") if n.strip())
+        out["extensions"] = bench_extensions(args.samples, args.batch, quick=args.quick,
+                                             names=names)
+        out["headline"] = headline(out["extensions"])
     if not args.no_sampler:
         from ..bench_sampler import bench_sampler
 
@@ -57,6 +64,14 @@ def run(args) -> int:
                 print(f" {r['us_per_eval']:8.1f} us/eval  "
                       f"{r['ratio_to_linear']:5.1f}x {flags[0]:8s} | "
                       f"{r['ratio_to_linear_rig_input']:5.1f}x {flags[1]}")
+            labels = {"coulomb_friction": "Coulomb friction kernel",
+                      "best_combined": "best combined model"}
+            for key, r in out["headline"].items():
+                rounds = ", ".join(f"{x:.1f}" for x in r["ratio_per_round_rig_input"])
+                print(f"{labels[key]} ({r['name']}): {r['ratio_rig_input']:.1f}x the linear "
+                      f"simulator on the rig-like input (rounds {rounds}; target <= "
+                      f"{r['target']:g}x: {'met' if r['meets_target'] else 'NOT MET'}), "
+                      f"{r['ratio_random_input']:.1f}x on the random input")
         if "sampler" in out:
             from ..bench_sampler import SAMPLER_MIN_FRACTION
 

@@ -40,6 +40,20 @@ from ._input import linear_lanes_run
 #: Input-side effects that are linear filters handled by the linear plant recursion.
 _LINEAR_FILTERS = {3: "tau", 4: "delay_s"}
 
+#: Memoryless input effects a plant kernel with ``fuses_input_stages`` applies itself to
+#: the shared input (``kernels.coulomb.INPUT_STAGES``), instead of a per-lane input block.
+_KERNEL_STAGES = {"input_offset": "offset", "drive_deadband": "deadband",
+                  "input_saturation": "saturation", "amplitude_gain": "gain"}
+
+
+def _kernel_stage(effect: Extension) -> str | None:
+    """The kernel's stage for a memoryless input effect, or None (the smooth dead band's
+    softplus is left to numpy)."""
+    kind = _KERNEL_STAGES.get(effect.name)
+    if kind == "deadband" and getattr(effect, "width_v", 0.0) != 0.0:
+        return None
+    return kind
+
 
 @dataclass(frozen=True)
 class Combined(Extension):
@@ -146,17 +160,26 @@ class Combined(Extension):
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
         own = {e.name: np.ascontiguousarray(theta_ext[:, sl])
                for e, sl in zip(self.effects, self._slices(rig), strict=True)}
+        inputs = sorted((e for e in self.effects if e.side == "input"),
+                        key=lambda e: e.input_stage)
+        plant = self.plant
+        kinds = [_kernel_stage(e) for e in inputs]
+        if (plant is not None and getattr(plant, "fuses_input_stages", False)
+                and u.ndim == 1 and None not in kinds):
+            # the plant kernel applies the stages to the shared input itself (bit for bit
+            # the numpy transforms below, without an (N, lanes) input block)
+            stages = tuple((k, own[e.name][:, 0]) for k, e in zip(kinds, inputs, strict=True))
+            return plant._simulate(rig, theta_lin, own[plant.name], u, dt, x0,
+                                   input_stages=stages)
         v = u
         filters: dict[str, np.ndarray] = {}
-        for e in sorted((e for e in self.effects if e.side == "input"),
-                        key=lambda e: e.input_stage):
+        for e in inputs:
             if e.input_stage in _LINEAR_FILTERS:
                 filters[_LINEAR_FILTERS[e.input_stage]] = own[e.name][:, 0]
             else:
                 v = e.transform_input(v, own[e.name])
         if v.ndim == 2:
             v = np.ascontiguousarray(np.broadcast_to(v, (theta_lin.shape[0], v.shape[-1])))
-        plant = self.plant
         if plant is None:
             return linear_lanes_run(rig, theta_lin, v, dt, x0, **filters)
         return plant._simulate(rig, theta_lin, own[plant.name], v, dt, x0)

@@ -61,6 +61,9 @@ class CoulombFriction(Extension):
     name = "coulomb_friction"
     description = "per-cart Coulomb friction with stick-slip (static level Fs >= Fc)"
     exact = False
+    #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the
+    #: kernel, ``kernels.coulomb.INPUT_STAGES``; used by ``Combined``)
+    fuses_input_stages = True
     validity_rule = "linear part admissible, 0 <= Fc_i <= Fs_i, finite"
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
@@ -82,7 +85,7 @@ class CoulombFriction(Extension):
         fc, fs = theta_ext[..., :n], theta_ext[..., n:]
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all((fc >= 0) & (fs >= fc), axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=()):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
@@ -93,7 +96,7 @@ class CoulombFriction(Extension):
         return coulomb_run(
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
             theta_ext[:, :n], theta_ext[:, n:], u, int(self.n_sub), h, x0,
-            adaptive=self.adaptive,
+            adaptive=self.adaptive, input_stages=input_stages,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -38,6 +38,9 @@ class DirectionalCoulombFriction(CoulombFriction):
 
     name = "coulomb_directional"
     description = "per-cart Coulomb friction, level by direction of sliding, with stick-slip"
+    #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the
+    #: kernel, ``kernels.coulomb.INPUT_STAGES``; used by ``Combined``)
+    fuses_input_stages = True
     validity_rule = "linear part admissible, 0 <= Fcp_i, Fcn_i <= Fs_i, finite"
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
@@ -61,7 +64,7 @@ class DirectionalCoulombFriction(CoulombFriction):
         ok = (fp >= 0) & (fn >= 0) & (fs >= fp) & (fs >= fn)
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all(ok, axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=()):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
@@ -73,7 +76,7 @@ class DirectionalCoulombFriction(CoulombFriction):
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
             np.ascontiguousarray(e[:, :n]), np.ascontiguousarray(e[:, 2 * n :]), u,
             int(self.n_sub), h, x0, adaptive=self.adaptive,
-            Fc_backward=np.ascontiguousarray(e[:, n : 2 * n]),
+            Fc_backward=np.ascontiguousarray(e[:, n : 2 * n]), input_stages=input_stages,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -25,14 +25,63 @@ REVERSAL_NEWTON = 2
 
 #: Lanes of the friction kernel that take a sample together (two AVX-512 vectors of
 #: float64: LLVM does not vectorise loops of 8), and lanes with an event packed together
-#: to take it again in sub-steps; a packed group takes the event-corrected path when one
-#: of its lanes needs it and the others keep their quick result, so that no lane depends
-#: on the rest of its batch.
+#: to take it again in event-corrected sub-steps; no lane's result depends on the rest of
+#: its batch.
 REFINE_GROUP = 16
 
 #: Relative margin below the static level under which a stuck cart of the friction
 #: kernel is at rest for certain over a step (rounding of the step is ~1e-16).
 REST_MARGIN = 1e-9
+
+#: Memoryless input stages the friction kernel can apply itself to the shared input, in
+#: the order given, each with one parameter per lane: ``offset`` (V, added), ``deadband``
+#: (V, sharp), ``saturation`` (V, clip level), ``gain`` (1/V, ``v (1 + kappa |v|)``).
+#: Written as numpy's own operations in ``effects`` (``transform_input``), so that the
+#: kernel's input is bit for bit the per-lane input computed there, without the
+#: ``(N, lanes)`` input block that costs a copy and a stream of 4 MB per chunk.
+INPUT_STAGES = ("offset", "deadband", "saturation", "gain")
+
+
+def _stage_code(t: str, kind: str, p: str) -> list[str]:
+    """Code applying one input stage with lane parameter ``p`` to ``uk``."""
+    if kind == "offset":
+        return [f"{t}uk = uk + {p}"]
+    if kind == "deadband":
+        # np.sign(v) * np.maximum(np.abs(v) - v_dead, 0.0); np.sign(-0.0) is 0.0
+        return [f"{t}ud = abs(uk) - {p}",
+                f"{t}ud = ud if ud > 0.0 else 0.0",
+                f"{t}uk = (1.0 if uk > 0.0 else (-1.0 if uk < 0.0 else 0.0)) * ud"]
+    if kind == "saturation":
+        # np.clip(v, -level, level)
+        return [f"{t}ul = {p}",
+                f"{t}uk = -ul if uk < -ul else (ul if uk > ul else uk)"]
+    if kind == "gain":
+        return [f"{t}uk = uk * (1.0 + {p} * abs(uk))"]
+    raise ValueError(f"unknown input stage {kind!r}; use one of {INPUT_STAGES}")
+
+
+def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
+                   packed_from: int | None) -> list[str]:
+    """Kernel source applying ``stages`` to the shared input in every lane loop.
+
+    The sample's raw input is read once (``u0``); each ``for b in range(...)`` loop starts
+    with the lane's own transformed input ``uk`` from its parameter rows (``P``, or the
+    packed copy ``PP`` in the loops after line ``packed_from``); where a loop does not use
+    ``uk`` the compiler drops the code.
+    """
+    out = []
+    for i, line in enumerate(lines):
+        if line.strip() == "uk = u[k]":
+            out.append(line.replace("uk = u[k]", "u0 = u[k]"))
+            continue
+        out.append(line)
+        if line.strip().startswith("for b in range("):
+            rows = PP if packed_from is not None and i >= packed_from else P
+            t = line[: len(line) - len(line.lstrip())] + "    "
+            out.append(f"{t}uk = u0")
+            for j, kind in enumerate(stages):
+                out += _stage_code(t, kind, rows(f"s{j}"))
+    return out
 
 
 
@@ -336,21 +385,27 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 
 @functools.lru_cache(maxsize=16)
 def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
-                   asymmetric: bool = False):
+                   asymmetric: bool = False, stages: tuple[str, ...] = ()):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
     and how many times a group at rest skipped a sample (both 0 without ``adaptive``).
     With ``per_lane`` the input is one column per lane (see ``_lane_inputs``); with
     ``asymmetric`` the kinetic level depends on the direction of sliding (parameter rows
-    ``fc`` forwards, ``fn`` backwards).
+    ``fc`` forwards, ``fn`` backwards); ``stages`` (of ``INPUT_STAGES``, shared input
+    only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``.
     """
     asym = bool(asymmetric)
+    stages = tuple(stages)
+    if stages and per_lane:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
               ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
               ("fs", n)] + ([("fn", n)] if asym else [])
+    p_rows += [(f"s{j}", 1) for j in range(len(stages))]
+    tag = f"{' asym' * asym}{''.join(' ' + k for k in stages)}"
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
@@ -368,17 +423,16 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         if per_lane:
             return _compile(_lane_inputs(L, w),
                             f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
-        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{' asym' * asym}>")
+        if stages:
+            L = _staged_inputs(L, P, P, stages, None)
+        return _compile(L, f"<bayesmodal coulomb n={n} w={w}{tag}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
-    # packed (parameters PP, state XX) into groups of g and take the sample again there;
-    # S2: state at the start of a sub-step and flags, T2: the quick results
+    # packed (parameters PP, state XX) into groups of g and take the sample again there
     g = min(w, REFINE_GROUP)
     PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
-    flag2 = X.size * g
     L[1:1] = [f"    S = np.empty(X.shape[0] + {w})",
               f"    PP = np.empty({P.size * g})", f"    XX = np.empty({X.size * g})",
-              f"    S2 = np.empty({(X.size + 1) * g})", f"    T2 = np.empty({X.size * g})",
               f"    idx = np.empty({w}, np.int64)",
               f"    slot = np.zeros({g}, np.int64)",
               "    dt = h * n_sub",
@@ -388,25 +442,13 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
               f"            PP[r * {g} + j] = P[r * {w}]",
               f"        for r in range({X.size}):",
               f"            XX[r * {g} + j] = X[r * {w}]"]
-    rows = range(X.size)
-
-    def retake(t, start, result):
-        # keep the quick step's result, go back to the step's start
-        return ([f"{t}for b in range({g}):"]
-                + [f"{t}    {result}[{r * g} + b] = XX[{r * g} + b]" for r in rows]
-                + [f"{t}    XX[{r * g} + b] = {start}[{r * g} + b]" for r in rows])
-
-    def keep_quick(t, start, result):
-        # lanes without an event take the quick step's result: every lane's result
-        # depends on its own parameters only, never on the other lanes of its group
-        return ([f"{t}for b in range({g}):"]
-                + [f"{t}    XX[{r * g} + b] = XX[{r * g} + b] if {start}[{flag2} + b] != 0.0"
-                   f" else {result}[{r * g} + b]" for r in rows])
-
     # a group whose lanes are all at rest skips the sample (the state does not change);
     # the others take the sample in one step, and the lanes with an event in it take it
-    # again in sub-steps, packed into groups: each sub-step first without corrections and
-    # again with them where a lane of the packed group needs them
+    # again in event-corrected sub-steps, packed into groups.  A corrected step without
+    # an event in it is the quick step bit for bit (its corrections are selects that keep
+    # the quick values, or add an exact zero), so the packed lanes take only corrected
+    # sub-steps: a quick sub-step first, to spare the corrected one where no packed lane
+    # had an event, cost more than it saved (72-78 % of packed sub-steps had one)
     L += ["        nf = 0",
           f"        for g0 in range(0, {w}, {g}):",
           "            nq = 0",
@@ -437,14 +479,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
           f"                for r in range({X.size}):",
           f"                    XX[r * {g} + j] = S[r * {w} + bj]",
           "            for sub in range(n_sub):",
-          "                ev = 0",
           f"                for b in range({g}):"]
-    L += [line.replace("S[", "S2[") for line in
-          _coulomb_quiet_step(" " * 20, PP, XX, n, ("A", "bh", "fh", "rh"), "h", asym)]
-    L += ["                if ev > 0:"] + retake(" " * 20, "S2", "T2")
-    L += [f"                    for b in range({g}):"]
-    L += corrected(" " * 24, PP, XX)
-    L += keep_quick(" " * 20, "S2", "T2")
+    L += corrected(" " * 20, PP, XX)
     L += ["            for j in range(m):",
           "                bj = idx[c0 + j]",
           f"                for r in range({X.size}):",
@@ -460,11 +496,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         packed_from += 1
         return _compile(_lane_inputs(L, w, packed_from=packed_from),
                         f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
-    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{' asym' * asym}>")
+    if stages:
+        packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
+        L = _staged_inputs(L, P, PP, stages, packed_from)
+    return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{tag}>")
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
-                adaptive=True, Fc_backward=None):
+                adaptive=True, Fc_backward=None, input_stages=()):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
     A step: the friction force of each cart is decided at its start (stuck carts hold the
@@ -476,9 +515,10 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
 
     Each sample is first taken in one such step.  A lane that had, or may have had, an
     event in it (see ``_coulomb_quiet_step``) takes the sample again in ``n_sub``
-    sub-steps ``h``, each again first quick and then, for a lane with an event in it, with
-    the events located on cubic Hermite interpolants in time (values and rates at both
-    ends; Newton from the chord, safeguarded for the break-away) and corrected:
+    sub-steps ``h``, each with the events located on cubic Hermite interpolants in time
+    (values and rates at both ends; Newton from the chord, safeguarded for the
+    break-away) and corrected (a sub-step without an event gives the uncorrected step's
+    result bit for bit):
 
     - a stuck cart whose held net force reached ``Fs`` inside the step broke away there
       and gains the velocity and displacement of the integrals of the interpolated net
@@ -492,10 +532,9 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
 
     Lanes run in groups of ``REFINE_GROUP`` (vectorised); a group whose lanes are all at
     rest skips the sample, and the lanes with an event in a sample (from any group) are
-    packed into groups of ``REFINE_GROUP`` that take it again in sub-steps.  A packed
-    group takes the corrected path in a sub-step when one of its lanes needs it, but every
-    lane keeps the result of the path its own flags chose: the output of a parameter set
-    never depends on the others in the batch.  The error is second order in the sub-step
+    packed into groups of ``REFINE_GROUP`` that take it again in sub-steps; every lane's
+    arithmetic is its own, so the output of a parameter set never depends on the others
+    in the batch.  The error is second order in the sub-step
     where events are, but a stick-or-reverse decision taken with ``|F|`` within a fraction
     of a percent of ``Fs`` can flip and change the whole future (as in any fixed-step
     scheme).
@@ -530,6 +569,10 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         False: every sample in ``n_sub`` corrected sub-steps (slower; for checks).
     Fc_backward : ndarray, shape (nb, n), optional
         Kinetic level when sliding in the negative direction, N (default: ``Fc``).
+    input_stages : sequence of (str, ndarray of shape (nb,))
+        Memoryless stages (``INPUT_STAGES``) applied in this order to the shared input
+        ``u`` (N,) inside the kernel, each with its parameter per lane; the result is bit
+        for bit that of the same stages applied in ``effects`` and a per-lane input.
 
     Returns
     -------
@@ -542,7 +585,13 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
     if Fc_backward is not None:
         params.append(Fc_backward)
+    kinds = tuple(kind for kind, _ in input_stages)
+    if kinds and u.ndim != 1:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
+    params += [np.asarray(values, dtype=float).reshape(-1, 1) for _, values in input_stages]
     kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
     if Fc_backward is not None:
         kernel = functools.partial(kernel, asymmetric=True)
+    if kinds:
+        kernel = functools.partial(kernel, stages=kinds)
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
