@@ -63,6 +63,7 @@ _EFFECTS = {
 COMBINED = (
     "coulomb_friction+input_offset",
     "coulomb_friction+drive_deadband",
+    "coulomb_friction+input_offset+drive_deadband",
     "lugre_friction+input_offset",
     "cubic_stiffness+drive_deadband",
     "input_offset+drive_deadband+input_saturation+motor_lag+input_delay",
@@ -70,8 +71,10 @@ COMBINED = (
 
 
 #: The friction models behind the input effects the measured records ask for (a drive
-#: offset, a dead band: docs/discrepancy.md); ``headline`` reports the costlier one.
-BEST_COMBINED = ("coulomb_friction+input_offset", "coulomb_friction+drive_deadband")
+#: offset, a dead band, both: the final model of docs/discrepancy.md section 6);
+#: ``headline`` reports the costliest one.
+BEST_COMBINED = ("coulomb_friction+input_offset", "coulomb_friction+drive_deadband",
+                 "coulomb_friction+input_offset+drive_deadband")
 
 
 def time_per_call(fn: Callable[[], object], *, min_time_s: float = 0.5, repeat: int = 5,
@@ -238,7 +241,8 @@ def bench_extensions(
     dict
         Per extension name: ``us_per_eval`` (median over rounds), ``ratio_to_linear``
         (median of the per-round ratios), ``ratio_per_round``, ``meets_target``
-        (``ratio_to_linear <= EXTENSION_MAX_RATIO``), ``linear_us_per_eval`` (median
+        (``ratio_to_linear <= target_ratio``: ``EXTENSION_MAX_RATIO`` for one effect,
+        ``COMBINED_MAX_RATIO`` for a combination), ``linear_us_per_eval`` (median
         baseline), ``n_sub`` (sub-steps per sample, None for exact extensions), and the
         same timing on ``rig_input`` (pulses, steps, sweep) instead of the random input:
         ``ratio_to_linear_rig_input``, ``ratio_per_round_rig_input``,
@@ -281,6 +285,7 @@ def bench_extensions(
     lin_rig, ext_rig = timings(rig_input(n_samples, dt))
     out = {}
     for name in names:
+        target = COMBINED_MAX_RATIO if "+" in name else EXTENSION_MAX_RATIO
         ratios = ext_t[name] / lin
         ratio = float(np.median(ratios))
         ratios_rig = ext_rig[name] / lin_rig
@@ -289,12 +294,13 @@ def bench_extensions(
             "us_per_eval": float(np.median(ext_t[name])) / batch * 1e6,
             "ratio_to_linear": ratio,
             "ratio_per_round": [float(r) for r in ratios],
-            "meets_target": bool(ratio <= EXTENSION_MAX_RATIO),
+            "target_ratio": target,
+            "meets_target": bool(ratio <= target),
             "linear_us_per_eval": float(np.median(lin)) / batch * 1e6,
             "n_sub": getattr(exts[name].plant if "+" in name else exts[name], "n_sub", None),
             "ratio_to_linear_rig_input": ratio_rig,
             "ratio_per_round_rig_input": [float(r) for r in ratios_rig],
-            "meets_target_rig_input": bool(ratio_rig <= EXTENSION_MAX_RATIO),
+            "meets_target_rig_input": bool(ratio_rig <= target),
         }
     return out
 

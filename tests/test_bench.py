@@ -26,11 +26,12 @@ def test_bench_extensions_reports_every_extension_against_the_same_run():
         assert len(r["ratio_per_round"]) == 2
         lo, hi = sorted(r["ratio_per_round"])
         assert r["ratio_to_linear"] == pytest.approx((lo + hi) / 2)  # median of two
-        assert r["meets_target"] == (r["ratio_to_linear"] <= EXTENSION_MAX_RATIO)
+        target = COMBINED_MAX_RATIO if "+" in name else EXTENSION_MAX_RATIO
+        assert r["target_ratio"] == target
+        assert r["meets_target"] == (r["ratio_to_linear"] <= target)
         lo, hi = sorted(r["ratio_per_round_rig_input"])
         assert r["ratio_to_linear_rig_input"] == pytest.approx((lo + hi) / 2)
-        assert r["meets_target_rig_input"] == (
-            r["ratio_to_linear_rig_input"] <= EXTENSION_MAX_RATIO)
+        assert r["meets_target_rig_input"] == (r["ratio_to_linear_rig_input"] <= target)
     assert out["coulomb_friction"]["n_sub"] == EXTENSIONS["coulomb_friction"].n_sub
     assert out["motor_lag"]["n_sub"] is None
 
@@ -83,7 +84,7 @@ def test_headline_takes_friction_and_the_costlier_best_combination():
         return {"ratio_to_linear": random, "ratio_to_linear_rig_input": rig,
                 "ratio_per_round_rig_input": [rig, rig, rig]}
 
-    a, b = BEST_COMBINED
+    a, b = BEST_COMBINED[:2]
     ext = {"coulomb_friction": result(20.0, 9.0), a: result(30.0, 12.0), b: result(5.0, 25.0)}
     h = headline(ext)
     assert h["coulomb_friction"]["ratio_rig_input"] == 9.0

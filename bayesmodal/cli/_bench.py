@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from ..bench import EXTENSION_MAX_RATIO, bench_extensions, bench_linear, headline
+from ..bench import (
+    COMBINED_MAX_RATIO,
+    EXTENSION_MAX_RATIO,
+    bench_extensions,
+    bench_linear,
+    headline,
+)
 from ._common import print_json
 
 
@@ -54,7 +60,8 @@ def run(args) -> int:
         print(f"  speedup {lin['speedup']:.0f}x (fresh output {lin['speedup_fresh_output']:.0f}x)")
         if "extensions" in out:
             print(f"model extensions (cost per evaluation vs the linear simulator, median of "
-                  f"rounds; target <= {EXTENSION_MAX_RATIO:g}x), random input | rig input "
+                  f"rounds; target <= {EXTENSION_MAX_RATIO:g}x, combinations "
+                  f"<= {COMBINED_MAX_RATIO:g}x), random input | rig input "
                   f"(pulses, steps, sweep):")
             for name, r in out["extensions"].items():
                 flags = ["ok" if r[k] else "TOO SLOW"
