@@ -56,8 +56,8 @@ def drive_gain_amplitude(res: LinearResiduals, *, alpha: float = 0.01,
     Returns
     -------
     Diagnostic
-        ``statistic``: ``|t|`` of the slope of gain error against amplitude; ``p_value``:
-        two-sided t with (events - 2) degrees of freedom.  Detail: ``amplitude_v``,
+        ``statistic``: the normal score ``Phi^-1(1 - p/2)`` of the slope's two-sided
+        p-value (``p_value``: t with events - 2 degrees of freedom).  Detail: ``amplitude_v``,
         ``gain`` and ``stderr`` per event, ``slope_per_v``, ``slope_se``.  Suggests
         ``drive_deadband`` and ``amplitude_gain`` for a gain rising with the amplitude,
         ``input_saturation`` and ``amplitude_gain`` for a falling one.
@@ -97,6 +97,9 @@ def drive_gain_amplitude(res: LinearResiduals, *, alpha: float = 0.01,
     slope, se = float(coef[1]), float(np.sqrt(cov[1, 1]))
     t = abs(slope) / se if se > 0 else 0.0
     p = float(2 * stats.t.sf(t, max(dof, 1)))
+    # the statistic is the normal score of p: a t with a few degrees of freedom has heavy
+    # tails, which would let single events dominate the calibrated maximum over checks
+    z = float(stats.norm.isf(max(p, 1e-300) / 2))
     change = slope * np.ptp(amps)
     detected = bool(p < alpha and abs(change) > min_change)
     if not detected:
@@ -108,7 +111,7 @@ def drive_gain_amplitude(res: LinearResiduals, *, alpha: float = 0.01,
     detail.update(slope_per_v=slope, slope_se=se)
     summary = (f"gain asked by {amps.size} input events changes by {100 * change:+.1f} % "
                f"from {amps.min():.2g} to {amps.max():.2g} V (t = {t:.1f}, p = {p:.2g})")
-    return Diagnostic(name="drive_gain", statistic=float(t), p_value=p, threshold=None,
+    return Diagnostic(name="drive_gain", statistic=z, p_value=p, threshold=None,
                       detected=detected, suggests=suggests,
                       location="motor input" if detected else None, summary=summary,
                       detail=detail)
