@@ -35,8 +35,13 @@ def register(sub) -> None:
     p.add_argument("--starts", type=int, default=3, metavar="N",
                    help="least-squares fits per candidate extension, from the N best points "
                    "of its start grid; the cheapest wins (default %(default)s)")
-    p.add_argument("--train", type=int, default=0, metavar="K",
-                   help="index of the training experiment among DATA (default %(default)s)")
+    p.add_argument("--train", type=int, nargs="+", default=[0], metavar="K",
+                   help="index (or indices) of the training experiments among DATA; with "
+                   "two or more, each forward step is judged by its leave-one-record-out "
+                   "gain (default 0)")
+    p.add_argument("--max-effects", type=int, default=3, metavar="N",
+                   help="largest number of effects forward selection puts in the model; 1 "
+                   "stops after the first cause (default %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
@@ -45,6 +50,16 @@ def _report(d) -> str:
     lines = [f"discrepancy: {'yes' if d.discrepancy else 'no'} "
              f"(T = {d.statistic:.1f}, threshold {d.threshold:.1f}, p = {d.p_value:.3f})",
              f"cause: {d.cause}" + (f" at {d.location_label}" if d.location_label else "")]
+    for k, c in enumerate(d.causes, 1):
+        ins, ho = c.gain["in_sample"], c.gain.get("held_out")
+        line = (f"  cause {k}: {c.cause}" + (f" at {c.location_label}" if c.location_label
+                                             else "")
+                + (f" (replaces {c.replaces})" if c.replaces else "")
+                + f"; gain in sample {ins['delta_lpd']:.1f} nats (LR {ins['lr_statistic']:.1f},"
+                f" {ins['n_params']} parameters)")
+        if ho:
+            line += f", held out {ho['delta_lpd']:.1f} +- {ho['se']:.1f} nats"
+        lines.append(line)
     lines.append(f"explained: {'yes' if d.explained else 'no'}")
     label = {"posterior": "90 % credible interval",
              "posterior_unconverged": "90 % interval of UNCONVERGED chains",
@@ -82,6 +97,7 @@ def run(args) -> int:
 
     exps = load_args(args)
     d = diagnose(exps, rig=load_rig(args), train=args.train, n_null=args.null,
+                 max_effects=args.max_effects,
                  posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
                  n_starts=args.starts, progress=not args.quiet)

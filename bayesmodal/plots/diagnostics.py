@@ -25,6 +25,8 @@ __all__ = [
     "plot_residual_spectrum",
     "plot_gain_error",
     "plot_consistency",
+    "plot_input_bias",
+    "plot_drive_gain",
 ]
 
 
@@ -302,6 +304,49 @@ def plot_consistency(result: Diagnostic, *, ax=None):
     return ax
 
 
+def plot_input_bias(result: Diagnostic, *, ax=None):
+    """Residual mean per output (encoder counts) against the fitted offset's response.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax, (5, 4))
+    mean = np.asarray(result.detail["mean_m"])
+    unit = np.asarray(result.detail["unit_response"])
+    v0 = float(result.detail["offset_v"])
+    x = np.arange(1, mean.size + 1)
+    ax.bar(x - 0.2, 1e6 * mean, width=0.4, label="residual mean")
+    ax.bar(x + 0.2, 1e6 * v0 * unit[-1], width=0.4, label="offset response (end)")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xticks(x, [f"x{i}" for i in x])
+    ax.set_xlabel("output")
+    ax.set_ylabel("residual [um]")
+    ax.legend(fontsize=8)
+    _title(ax, result)
+    return ax
+
+
+def plot_drive_gain(result: Diagnostic, *, ax=None):
+    """Gain error asked by each input event against its amplitude, with 2-sigma bars.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax, (5, 4))
+    a = np.asarray(result.detail["amplitude_v"])
+    g = 100 * np.asarray(result.detail["gain"])
+    se = 100 * np.asarray(result.detail["stderr"])
+    if a.size:
+        ax.errorbar(a, g, yerr=2 * se, fmt="o", capsize=4)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("input amplitude [V]")
+    ax.set_ylabel("gain error [%]")
+    _title(ax, result)
+    return ax
+
+
 _PLOTS = {
     "whiteness": plot_whiteness,
     "input_correlation": plot_input_correlation,
@@ -312,6 +357,8 @@ _PLOTS = {
     "residual_spectrum": plot_residual_spectrum,
     "gain_error": plot_gain_error,
     "consistency": plot_consistency,
+    "input_bias": plot_input_bias,
+    "drive_gain": plot_drive_gain,
 }
 
 

@@ -17,6 +17,10 @@ function                          looks for                            suggests
 ``stick_detection``               carts at rest off equilibrium        coulomb_friction
 ``residual_spectrum``             peaks away from the modelled modes   unmodelled_mode
 ``gain_error``                    residual proportional to prediction  sensor_gain, input_gain
+``input_bias``                    response to a constant input offset  input_offset
+``drive_gain_amplitude``          gain asked changing with amplitude   drive_deadband,
+                                                                       input_saturation,
+                                                                       amplitude_gain
 ``cross_experiment_consistency``  fits that do not transfer            nonlinear effects
 ================================  ===================================  =======================
 
@@ -29,8 +33,10 @@ from __future__ import annotations
 from ._result import Diagnostic
 from ._stats import ljung_box
 from .amplitude import amplitude_dependence
+from .bias import input_bias
 from .consistency import cross_experiment_consistency
 from .decay import decay_envelope
+from .drive_gain import drive_gain_amplitude, input_events
 from .friction import force_residual, friction_signature
 from .gain import gain_error
 from .input_correlation import input_residual_correlation, prediction_lag
@@ -53,9 +59,12 @@ __all__ = [
     "constant_input_segments",
     "cross_experiment_consistency",
     "decay_envelope",
+    "drive_gain_amplitude",
     "force_residual",
     "friction_signature",
     "gain_error",
+    "input_bias",
+    "input_events",
     "input_residual_correlation",
     "linear_residuals",
     "ljung_box",
@@ -77,4 +86,6 @@ RESIDUAL_DIAGNOSTICS = {
     "stick": stick_detection,
     "residual_spectrum": residual_spectrum,
     "gain_error": gain_error,
+    "input_bias": input_bias,
+    "drive_gain": drive_gain_amplitude,
 }

@@ -7,6 +7,7 @@ See ``docs/diagnose.md``.
 from __future__ import annotations
 
 from ._result import CAUSES, CandidateScore, Diagnosis, Interval, TestOutcome
+from .forward import Cause, ForwardResult, forward_select, loro_gain
 from .null import (
     NoiseModel,
     NullCalibration,
@@ -20,6 +21,8 @@ from .workflow import DEFAULT_CANDIDATES, diagnose
 __all__ = [
     "CAUSES",
     "CandidateScore",
+    "Cause",
+    "ForwardResult",
     "DEFAULT_CANDIDATES",
     "Diagnosis",
     "Interval",
@@ -29,6 +32,8 @@ __all__ = [
     "calibrate_null",
     "diagnose",
     "fit_noise",
+    "forward_select",
+    "loro_gain",
     "infer_quantum",
     "quantise",
 ]

@@ -14,7 +14,8 @@ __all__ = ["TestOutcome", "CandidateScore", "Interval", "Diagnosis", "CAUSES"]
 
 #: Causes the workflow can name.
 CAUSES = ("none", "coulomb_friction", "motor_lag", "input_delay", "backlash",
-          "cubic_stiffness", "input_saturation")
+          "cubic_stiffness", "input_saturation", "input_offset", "drive_deadband",
+          "coulomb_directional")
 
 
 def _plain(obj):
@@ -194,6 +195,11 @@ class Diagnosis:
     alpha : float
     rule : str
     notes : tuple of str
+    causes : tuple of Cause
+        Every effect found, in the order found (forward selection); the first is
+        ``cause``/``location``.  Empty for ``"none"``.
+    effects : tuple of str
+        The effects of the final model (a refinement replaces what it refines).
     """
 
     discrepancy: bool
@@ -217,6 +223,8 @@ class Diagnosis:
     alpha: float
     rule: str
     notes: tuple[str, ...] = ()
+    causes: tuple = ()
+    effects: tuple[str, ...] = ()
     detail: Mapping[str, Any] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -230,6 +238,8 @@ class Diagnosis:
             "cause": self.cause,
             "location": self.location,
             "location_label": self.location_label,
+            "causes": [c.as_dict() for c in self.causes],
+            "effects": list(self.effects),
             "explained": self.explained,
             "parameters": {k: v.as_dict() for k, v in self.parameters.items()},
             "interval_method": self.interval_method,

@@ -67,6 +67,8 @@ TRANSFORMS: dict[str, tuple[str, float]] = {
     "stick": ("identity", 0.5),
     "residual_spectrum": ("identity", 1.0),
     "gain_error": ("identity", 0.25),
+    "input_bias": ("identity", 0.25),
+    "drive_gain": ("identity", 0.25),
 }
 
 
@@ -250,8 +252,16 @@ def calibrate_null(
     names: Sequence[str] | None = None,
     refit_nfev: int = 20,
     progress: bool = False,
+    extension_fit=None,
 ) -> NullCalibration:
     """Simulate the fitted linear model with its noise, refit, run the diagnostics.
+
+    With ``extension_fit`` (an ``ExtensionFit``) the null model is that extended model
+    instead (forward selection recalibrates the diagnostics on the model accepted so
+    far): the null data are its simulation plus ``noise``, each is refitted with the
+    extended model (``fit_extension_lsq`` from the generating parameters, at most
+    ``refit_nfev`` evaluations) and the diagnostics are taken against the refitted
+    prediction, exactly as on the data.
 
     Parameters
     ----------
@@ -259,9 +269,9 @@ def calibrate_null(
         The training experiments (the linear model was fitted to all of them jointly).
     model : LinearModel
     theta : ndarray, shape (n_params,)
-        The fitted linear parameters.
+        The fitted linear parameters (ignored with ``extension_fit``).
     noise : NoiseModel
-        From ``fit_noise`` on the linear residuals.
+        From ``fit_noise`` on the residuals of the null model.
     n_null : int
         Number of null data sets; at least ``ceil(1 / alpha) - 1``.
     alpha : float
@@ -276,6 +286,8 @@ def calibrate_null(
         fewer false positives.
     progress : bool
         Progress over the null data sets on stderr (``bayesmodal._progress``).
+    extension_fit : ExtensionFit, optional
+        The extended model to calibrate on (default: the linear model at ``theta``).
 
     Returns
     -------
@@ -300,9 +312,13 @@ def calibrate_null(
     names = tuple(RESIDUAL_DIAGNOSTICS) if names is None else tuple(names)
     keys = tuple((nm, i) for i in range(len(experiments)) for nm in names)
     n_null = int(n_null)
+    ef = extension_fit
+    if ef is not None:
+        theta = np.asarray(ef.theta, float)
     sims = []
     for e in experiments:
-        y_pred = simulate_linear(model, theta, e.v_volt, e.dt)
+        y_pred = (simulate_linear(model, theta, e.v_volt, e.dt) if ef is None
+                  else ef.extension.simulate(ef.rig, theta, e.v_volt, e.dt))
         eps = simulate_noise(np.broadcast_to(noise.sigma_m, (n_null, e.n_outputs)),
                              np.broadcast_to(noise.phi, (n_null, e.n_outputs)),
                              e.n_samples, rng)
@@ -315,15 +331,26 @@ def calibrate_null(
                      for i, e in enumerate(experiments)]
         try:
             with np.errstate(all="ignore"):  # rejected wild trial steps of the optimiser
-                fit = fit_lsq(null_exps, model, theta0=theta, max_nfev=refit_nfev)
+                if ef is None:
+                    fit = fit_lsq(null_exps, model, theta0=theta, max_nfev=refit_nfev)
+                else:
+                    from ..effects import fit_extension_lsq
+
+                    fit = fit_extension_lsq(null_exps, ef.extension, ef.rig, theta0=theta,
+                                            linear=ef.linear, max_nfev=refit_nfev)
         except ModelError:
             # the refit ran off to an impossible point (e.g. a damper to infinity): keep
             # the generating parameters for this null set rather than drop it
             fit = None
         th = theta if fit is None else fit.theta
-        stats = [diagnostic_statistics(run_diagnostics(e, model, th,
-                                                       quantum_m=noise.quantum_m, names=names))
-                 for e in null_exps]
+        if ef is None:
+            preds = [None] * len(null_exps)
+        else:
+            preds = [ef.extension.simulate(ef.rig, th, e.v_volt, e.dt) for e in null_exps]
+            th = th[: model.n_params]
+        stats = [diagnostic_statistics(run_diagnostics(e, model, th, quantum_m=noise.quantum_m,
+                                                       names=names, y_pred=yp))
+                 for e, yp in zip(null_exps, preds, strict=True)]
         raw[b] = [stats[i][nm] for nm, i in keys]
         bar.update(1)
     bar.close()
@@ -342,7 +369,9 @@ def calibrate_null(
     rule = (
         f"discrepancy when T = max over {len(keys)} standardised diagnostic statistics "
         f"exceeds {threshold:.2f}, the {k}-th smallest of its {n_null} values on data "
-        f"simulated from the fitted linear model with AR(1) noise and quantisation "
+        f"simulated from the fitted "
+        f"{'linear model' if ef is None else ef.extension.name + ' model'} with AR(1) "
+        f"noise and quantisation "
         f"(Monte Carlo test, family-wise false-positive rate <= {alpha:g})"
     )
     return NullCalibration(keys=keys, null_statistics=raw, mean=mean, sd=sd,

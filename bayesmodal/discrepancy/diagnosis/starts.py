@@ -59,6 +59,16 @@ def extra_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
         out = [[f * umax] for f in (0.5, 0.6, 0.7, 0.8, 0.9, 0.97)]
     elif name == "backlash":
         out = [[g, mp] for g in (2e-4, 4e-4, 7e-4, 1e-3) for mp in (0.1, 0.2, 0.3)]
+    elif name == "coulomb_directional":
+        for i in range(n):
+            for fc in (0.1, 0.3, 0.6, 1.0, 1.5):
+                for ratio in (0.5, 1.0, 2.0):
+                    w = np.zeros(3 * n)
+                    w[i], w[n + i] = fc, ratio * fc
+                    w[2 * n + i] = 1.2 * max(fc, ratio * fc)
+                    out.append(w)
+    elif name == "input_offset":
+        out = [[x] for x in (-0.1, -0.02, 0.02, 0.1)]
     elif name in ("motor_lag", "input_delay"):
         out = [[x] for x in (0.005, 0.01, 0.02, 0.03)]
     return np.array(out, float).reshape(len(out), len(ext.specs(rig)))

@@ -36,8 +36,9 @@ from ...fit import fit_lsq
 from ...metrics import fit_percent
 from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
-from ..effects import EXTENSIONS, Extension, fit_extension_lsq
+from ..effects import EXTENSIONS, Extension, fit_extension_lsq, get_extension
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
+from .forward import REFINES, RESIDUAL_BASED, Cause, forward_select, loro_gain
 from .null import (
     NullCalibration,
     calibrate_null,
@@ -53,11 +54,8 @@ __all__ = ["diagnose", "DEFAULT_CANDIDATES"]
 
 #: Candidate causes, in the catalogue's order.
 DEFAULT_CANDIDATES = ("coulomb_friction", "motor_lag", "input_delay", "backlash",
-                      "cubic_stiffness", "input_saturation")
-
-#: Diagnostics computed from the residual (the others analyse the measured motion).
-RESIDUAL_BASED = ("whiteness", "input_correlation", "friction_signature",
-                  "residual_spectrum", "gain_error")
+                      "cubic_stiffness", "input_saturation", "input_offset",
+                      "drive_deadband", "coulomb_directional")
 
 #: Elements whose strength is at least this fraction of the strongest are reported too.
 LOCATION_FRACTION = 0.25
@@ -109,6 +107,12 @@ def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | 
         fc = np.asarray(ext.split(rig, np.asarray(theta, float))[1][: rig.n_carts])
         if fc.max() > 0:
             s = fc
+    elif ext.name == "coulomb_directional":
+        w = np.asarray(ext.split(rig, np.asarray(theta, float))[1])
+        n = rig.n_carts
+        fc = np.maximum(w[:n], w[n : 2 * n])
+        if fc.max() > 0:
+            s = fc
     idx = [int(i) + 1 for i in np.flatnonzero(s >= LOCATION_FRACTION * s.max())] \
         if s.max() > 0 else [loc.index + 1]
     if len(idx) == 1 and idx[0] != loc.index + 1:
@@ -116,6 +120,32 @@ def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | 
     kind = "carts" if loc.kind == "cart" else "springs"
     label = loc.label if len(idx) == 1 else f"{kind} {', '.join(map(str, idx))}"
     return idx, label
+
+
+def _final_causes(causes, fwd, rig, model) -> tuple:
+    """The causes found, restricted to the final model's effects: a refinement replaced by
+    what it refines takes the simpler name (and its parameters in the final fit), a
+    removed effect is dropped.  Order: as found."""
+    p = model.n_params
+    ext = get_extension(list(fwd.names))
+    own = dict(zip(ext.extension_names(rig), fwd.fit.theta[p:], strict=True))
+    out, seen = [], set()
+    for c in causes:
+        name = c.cause
+        for eff, simpler in fwd.simplified:
+            if name == eff and simpler is not None and simpler in fwd.names:
+                name = simpler
+        if name not in fwd.names or name in seen:
+            continue
+        seen.add(name)
+        if name != c.cause:
+            s_ext = EXTENSIONS[name]
+            par = {n: float(own[n]) for n in s_ext.extension_names(rig)}
+            loc, lab = _location(s_ext, rig, np.r_[fwd.fit.theta[:p], list(par.values())])
+            c = Cause(cause=name, location=loc, location_label=lab, parameters=par,
+                      gain=dict(c.gain))
+        out.append(c)
+    return tuple(out)
 
 
 def _fit_percent(exps, sims) -> list[list[float]]:
@@ -137,6 +167,7 @@ def diagnose(
     posterior_options: dict | None = None,
     max_nfev: int = 40,
     n_starts: int = 3,
+    max_effects: int = 3,
     progress: bool = False,
 ) -> Diagnosis:
     """Diagnose the linear model's misfit, name the cause and measure the gain.
@@ -181,6 +212,9 @@ def diagnose(
         friction starts end 6 % apart in cost and 3 points apart in their prediction of
         the held-out steps), so one start makes the reported gain depend on which basin
         the nearest start happens to lie in.
+    max_effects : int
+        Largest number of effects forward selection puts in the model
+        (``bayesmodal.discrepancy.diagnosis.forward``); 1 stops after the first cause.
     progress : bool
         Progress lines on stderr: each stage as it starts, and progress over the null
         data sets, the candidate fits and the sampler steps (``bayesmodal._progress``).
@@ -235,6 +269,9 @@ def diagnose(
         raise ConfigError(f"quantum_m must be finite and >= 0, got {quantum_m!r}")
     if isinstance(n_starts, bool) or not isinstance(n_starts, (int, np.integer)) or n_starts < 1:
         raise ConfigError(f"n_starts must be a positive integer, got {n_starts!r}")
+    if (isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer))
+            or max_effects < 1):
+        raise ConfigError(f"max_effects must be a positive integer, got {max_effects!r}")
 
     # 1. linear fit and its noise model
     # the optimisers probe wild parameter values on the way (overflowing exponentials of
@@ -306,6 +343,14 @@ def diagnose(
                                          -np.inf, False, False, None, {},
                                          "not fitted: weak signature"))
             continue
+        if REFINES.get(c) in cands and max_effects > 1:
+            # a refinement (more parameters on the same element) enters by forward
+            # selection, tested against the effect it refines
+            scored.append(CandidateScore(c, signature[c], False, np.nan, np.nan, k, np.nan,
+                                         -np.inf, False, False, None, {},
+                                         f"not fitted at the first step: refines "
+                                         f"{REFINES[c]} (forward selection tests it)"))
+            continue
         bar.set_postfix_str(c)
         bar.update(1)
         try:
@@ -330,6 +375,11 @@ def diagnose(
         p = float(stats.chi2.sf(max(lr, 0.0), k))
         score = lr - k * np.log(n_total)
         sig = bool(p < level and score > 0)
+        held_out = None
+        if sig and len(train_exps) >= 2:
+            # several records: the leave-one-record-out gain must be significant too
+            held_out = loro_gain(train_exps, rig, None, linear.theta, ext, ef.theta, linear)
+            sig = bool(held_out["delta_lpd"] > stats.norm.ppf(1 - level) * held_out["se"])
         lin_theta = ef.theta[: model.n_params]
         d_after = [run_diagnostics(e, model, lin_theta, quantum_m=q, y_pred=y)
                    for e, y in zip(train_exps, y_ext, strict=True)]
@@ -351,7 +401,7 @@ def diagnose(
         loc, label = _location(ext, rig, ef.theta)
         ext_params = dict(zip(ext.extension_names(rig),
                               ef.theta[model.n_params:].tolist(), strict=True))
-        fits[c] = (ef, y_ext, pw, tmax_after, label)
+        fits[c] = (ef, y_ext, pw, tmax_after, label, held_out)
         after_tests[c] = t_after
         scored.append(CandidateScore(
             c, signature[c], True, g, lr, k, p, float(score), sig, passes, loc, ext_params,
@@ -373,13 +423,39 @@ def diagnose(
 
     c = accepted.name
     ext = EXTENSIONS[c]
-    ef, y_ext, pw, tmax_after, label = fits[c]
+    ef, y_ext, pw, tmax_after, label, held_out = fits[c]
     t_after = after_tests[c]
-    # explained only when the extended model's residuals pass every residual diagnostic
+    first = Cause(
+        cause=c, location=accepted.location, location_label=label,
+        parameters=dict(accepted.params),
+        gain={"in_sample": {"delta_lpd": accepted.gain_nll,
+                            "lr_statistic": accepted.lr_statistic,
+                            "n_params": accepted.n_params, "p_value": accepted.p_value,
+                            "bic_gain": accepted.score,
+                            "fit_percent": _fit_percent(train_exps, y_ext)},
+              "held_out": held_out})
+    causes, effects, fwd = (first,), (c,), None
+    if max_effects > 1:
+        fwd = forward_select(
+            train_exps, rig, c, ef, cands, linear=linear, quantum_m=q, n_null=n_null,
+            alpha=alpha, rng=rng, outcomes=_outcomes, location=_location,
+            max_effects=int(max_effects), n_starts=n_starts, max_nfev=max_nfev,
+            progress=progress)
+        causes = _final_causes(causes + fwd.added, fwd, rig, model)
+        for eff, simpler in fwd.simplified:
+            notes.append(f"{eff} {'simplified to ' + simpler if simpler else 'removed'} "
+                         "once later effects were in the model")
+        effects = fwd.names
+        # the residuals of the final model, judged against the null recalibrated on it
+        t_after = list(fwd.tests)
+        if fwd.added:
+            notes.append("forward selection: " + " -> ".join(x.cause for x in causes)
+                         + f"; stopped: {fwd.stop}")
+    # explained only when the final model's residuals pass every residual diagnostic
     explained = not any(t.exceeded for t in t_after)
     if not explained:
         rest = sorted({t.name for t in t_after if t.exceeded})
-        notes.append(f"after {c}, still beyond threshold: {', '.join(rest)} "
+        notes.append(f"after {'+'.join(effects)}, still beyond threshold: {', '.join(rest)} "
                      "(misfit the catalogue does not explain)")
     gain["fit_percent_after"] = _fit_percent(train_exps, y_ext)
     held_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in held_exps]
@@ -439,9 +515,12 @@ def diagnose(
                 lo = max(lo, 0.0)
             parameters[n] = Interval(float(ef.theta[i]), lo, float(ef.theta[i] + zq * sd[i]))
     return Diagnosis(
-        discrepancy=True, cause=c, location=accepted.location, location_label=label,
+        discrepancy=True, cause=causes[0].cause if causes else c,
+        location=causes[0].location if causes else accepted.location,
+        location_label=causes[0].location_label if causes else label,
         explained=explained, tests_after=tuple(t_after), ranking=ranking, parameters=parameters,
         linear_parameters=linear_parameters, gain=gain, interval_method=method,
-        notes=tuple(notes),
-        detail={"calibration": cal, "linear": linear, "fits": fits, "extension_fit": ef},
+        notes=tuple(notes), causes=causes, effects=tuple(effects),
+        detail={"calibration": cal, "linear": linear, "fits": fits, "extension_fit": ef,
+                "forward": fwd},
         **base)

@@ -1,0 +1,484 @@
+"""Forward selection: after one accepted effect, look for the next one in what is left.
+
+The first step of ``diagnose`` tests the linear model and accepts one effect.  Each
+further step starts from the model accepted so far (the linear core plus the effects
+found, a ``Combined`` model):
+
+1. **Recalibrate.**  The residual diagnostics are calibrated on the *extended* model
+   (``calibrate_null(..., extension_fit=...)``: its simulation plus the AR(1) noise of its
+   own residuals, quantised, refitted with the extended model and diagnosed like the
+   data).  If the largest standardised residual diagnostic ``T`` is at or below the
+   recalibrated threshold, the residuals pass and the selection stops.
+2. **Candidates.**  Every catalogued effect not in the model that combines with it
+   (``Combined`` refuses two plant-side effects and a lag or delay with a nonlinear
+   plant) is added, and refinements replace the effect they generalise (directional
+   Coulomb levels replace equal ones).  Each gets the current fit with the candidate's
+   start grid, evaluated in one batch; the ``max_fits`` candidates with the cheapest
+   start are fitted by least squares from their ``n_starts`` cheapest points (a bounded
+   cost per step).
+3. **Test.**  In sample: the likelihood ratio ``LR = 2 (lpd_new - lpd_cur)`` of the
+   AR(1)-whitened Gaussian likelihood (noise profiled per output) against ``chi2(k)``
+   (``k`` added parameters) at ``alpha / n_candidates``, and a positive BIC gain
+   ``LR - k ln N``.  With two or more training records the criterion is the
+   leave-one-record-out gain: both models are refitted on the other records (started
+   from their full fits) and predict the held-out one; the sum over records of the
+   held-out AR(1) log density gain ``G`` must exceed ``z_(1 - alpha / n_candidates)``
+   times its standard error ``sqrt(n var(d_i))`` over the pointwise differences (an
+   optimistic SE: the differences are autocorrelated, so the in-sample LR test is kept
+   as well).  The significant candidate of largest gain (held-out when available, else
+   BIC) is accepted.
+4. **Simplify** (backward check).  After each acceptance, every refinement in the model
+   is tested against the effect it refines, and every effect against the model without
+   it (refitted from the current fit; the same LR and BIC rule at ``alpha``); one whose
+   parameters no longer gain significantly is replaced or removed, and the check
+   repeats: an input offset added later can explain what first looked like unequal
+   friction levels on the driven cart.
+5. **Stop** when the residuals pass, no candidate gains significantly, or the model holds
+   ``max_effects`` effects.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from ..._errors import DataError, ModelError
+from ..._progress import announce
+from ...data import Experiment
+from ...fit import LSQResult, fit_lsq
+from ...metrics import fit_percent
+from ...simulate import simulate_linear
+from ...system import LinearModel, Rig
+from ..effects import EXTENSIONS, ExtensionFit, fit_extension_lsq, get_extension
+from ..effects.fit import extension_residuals
+from ._result import _plain
+from .null import NullCalibration, calibrate_null, fit_noise, run_diagnostics
+from .scoring import ar1_pointwise
+from .starts import extra_starts
+
+__all__ = ["Cause", "ForwardResult", "forward_select", "loro_gain", "REFINES",
+           "RESIDUAL_BASED"]
+
+#: Diagnostics computed from the residual (the others analyse the measured motion, which
+#: no model changes, and take no part in a pass check).
+RESIDUAL_BASED = ("whiteness", "input_correlation", "friction_signature",
+                  "residual_spectrum", "gain_error", "input_bias", "drive_gain")
+
+#: Effects that generalise another one: at a forward step they replace it.
+REFINES = {"coulomb_directional": "coulomb_friction"}
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One effect found, in the order found.
+
+    Attributes
+    ----------
+    cause : str
+        Effect name (``EXTENSIONS`` key).
+    location : list of int or None
+        1-based carts or springs; None for input-side effects.
+    location_label : str or None
+    parameters : Mapping
+        The effect's least-squares parameters in the model it was accepted into, SI units.
+    gain : Mapping
+        ``in_sample``: ``delta_lpd`` (nats), ``lr_statistic``, ``n_params``, ``p_value``,
+        ``bic_gain``, ``fit_percent`` (per training record and output after the step);
+        ``held_out``: ``delta_lpd``, ``se``, ``z`` and ``records`` of the
+        leave-one-record-out gain (None with one training record).
+    replaces : str or None
+        The effect this one refines and replaces in the model (``REFINES``).
+    """
+
+    cause: str
+    location: list[int] | None
+    location_label: str | None
+    parameters: Any
+    gain: Any
+    replaces: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "parameters", MappingProxyType(dict(self.parameters)))
+        object.__setattr__(self, "gain", MappingProxyType(dict(self.gain)))
+
+    def as_dict(self) -> dict:
+        return _plain({"cause": self.cause, "location": self.location,
+                       "location_label": self.location_label,
+                       "parameters": dict(self.parameters), "replaces": self.replaces,
+                       "gain": {k: (dict(v) if isinstance(v, dict) else v)
+                                for k, v in self.gain.items()}})
+
+
+@dataclass(frozen=True)
+class ForwardResult:
+    """Outcome of the forward steps after the first accepted effect.
+
+    Attributes
+    ----------
+    added : tuple of Cause
+        Effects added after the first, in order.
+    names : tuple of str
+        Effects of the final model (a refinement replaces what it refines).
+    fit : ExtensionFit
+        Least-squares fit of the final model.
+    calibration : NullCalibration or None
+        The null calibration of the final model (None when ``max_effects`` stopped the
+        selection before it was calibrated).
+    tests : tuple of TestOutcome
+        Residual diagnostics of the final model against that calibration.
+    stop : str
+        Why the selection stopped.
+    steps : tuple of dict
+        Per step: the candidates with their in-sample and held-out gains.
+    simplified : tuple of (str, str or None)
+        Effects replaced by what they refine (``(refined, simpler)``) or removed
+        (``(effect, None)``) once a later effect made their parameters unnecessary.
+    """
+
+    added: tuple
+    names: tuple[str, ...]
+    fit: ExtensionFit
+    calibration: NullCalibration | None
+    tests: tuple
+    stop: str
+    steps: tuple = field(default=())
+    simplified: tuple = field(default=())
+
+
+def _simulate(ext, rig, theta, exps):
+    if ext is None:
+        model = LinearModel(rig, "free")
+        return [simulate_linear(model, theta, e.v_volt, e.dt) for e in exps]
+    return [ext.simulate(rig, theta, e.v_volt, e.dt) for e in exps]
+
+
+def _lpd(exps, ys) -> np.ndarray:
+    return ar1_pointwise([e.y_m - y for e, y in zip(exps, ys, strict=True)])
+
+
+def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int) -> np.ndarray:
+    """Parameters refitted on ``exps`` from ``theta`` (the linear model when ``ext`` is
+    None); the start when the fit fails."""
+    try:
+        with np.errstate(all="ignore"):
+            if ext is None:
+                return fit_lsq(exps, LinearModel(rig, "free"), theta0=theta,
+                               max_nfev=max_nfev).theta
+            return fit_extension_lsq(exps, ext, rig, theta0=theta, linear=linear,
+                                     max_nfev=max_nfev).theta
+    except (ModelError, DataError, ValueError, FloatingPointError, np.linalg.LinAlgError):
+        return np.asarray(theta, float)
+
+
+def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext, new_theta,
+              linear: LSQResult, max_nfev: int = 20) -> dict:
+    """Leave-one-record-out gain of ``new_ext`` over ``cur_ext`` (None: the linear model).
+
+    For every record, both models are refitted by least squares on the other records
+    (started from their fits to all records) and predict the held-out record; the gain
+    is the sum over records of the held-out AR(1) log density (noise profiled on each
+    prediction's residual), new minus current.
+
+    Returns
+    -------
+    dict
+        ``delta_lpd`` (nats), ``se`` (``sqrt(n var(d_i))`` of the pointwise differences),
+        ``z`` (``delta_lpd / se``), ``records`` (per held-out record, nats).
+    """
+    per, pts = [], []
+    for r in range(len(exps)):
+        others = [e for i, e in enumerate(exps) if i != r]
+        th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev)
+        th_n = _refit(new_ext, rig, new_theta, others, linear, max_nfev)
+        d = (_lpd([exps[r]], _simulate(new_ext, rig, th_n, [exps[r]]))
+             - _lpd([exps[r]], _simulate(cur_ext, rig, th_c, [exps[r]])))
+        per.append(float(d.sum()))
+        pts.append(d)
+    d = np.concatenate(pts)
+    se = float(np.sqrt(d.size * np.var(d)))
+    total = float(d.sum())
+    return {"delta_lpd": total, "se": se, "z": total / se if se > 0 else np.inf,
+            "records": per}
+
+
+def _starts(new, rig, cur_names, cur_theta, cand, theta_lin, exps, n_starts):
+    """The ``n_starts`` cheapest full vectors of ``new`` (the current fit with the
+    candidate's start grid, its own and the element-wise one) and the cheapest cost."""
+    p = theta_lin.size
+    cur = get_extension(list(cur_names))
+    cur_par = dict(zip(cur.extension_names(rig), cur_theta[p:], strict=True))
+    c_ext = EXTENSIONS[cand]
+    grid = np.concatenate([c_ext.start_grid(rig),
+                           extra_starts(c_ext, rig, theta_lin, exps)])
+    if cand in REFINES and REFINES[cand] in cur_names:
+        # directional levels from the equal ones: Fcp = Fcn = Fc, same Fs
+        n = rig.n_carts
+        fc = np.array([cur_par[f"Fc{i + 1}"] for i in range(n)])
+        fs = np.array([cur_par[f"Fs{i + 1}"] for i in range(n)])
+        rows = [np.r_[fc, fc, fs]]
+        for f in (0.6, 0.8, 1.25, 1.6):
+            rows += [np.r_[fc, f * fc, np.maximum(fs, f * fc)],
+                     np.r_[f * fc, fc, np.maximum(fs, f * fc)]]
+        grid = np.concatenate([grid, np.array(rows)])
+    rows = []
+    for g in grid:
+        own = dict(cur_par)
+        own.update(zip(c_ext.extension_names(rig), g, strict=True))
+        rows.append(np.r_[cur_theta[:p], [own[k] for k in new.extension_names(rig)]])
+    cands = np.array(rows)
+    cands = cands[new.valid(rig, cands) & np.all(np.isfinite(cands), axis=1)]
+    with np.errstate(all="ignore"):
+        cost = np.sum(extension_residuals(new, rig, cands, exps) ** 2, axis=1)
+    cost = np.where(np.isfinite(cost), cost, np.inf)
+    order = np.argsort(cost, kind="stable")
+    return cands[order[: max(int(n_starts), 1)]], float(cost[order[0]])
+
+
+def _fit_from(new, rig, starts, exps, linear, max_nfev) -> ExtensionFit | None:
+    best = None
+    for th0 in starts:
+        try:
+            with np.errstate(all="ignore"):
+                f = fit_extension_lsq(exps, new, rig, theta0=th0, linear=linear,
+                                      max_nfev=max_nfev)
+        except (ModelError, DataError, ValueError, FloatingPointError,
+                np.linalg.LinAlgError):
+            continue
+        if best is None or f.cost < best.cost:
+            best = f
+    return best
+
+
+def _residual_tests(cal, exps, model, fit, q, outcomes):
+    ys = _simulate(fit.extension, fit.rig, fit.theta, exps)
+    lin = fit.theta[: model.n_params]
+    diags = [run_diagnostics(e, model, lin, quantum_m=q, y_pred=y, names=RESIDUAL_BASED)
+             for e, y in zip(exps, ys, strict=True)]
+    tests, t_max = outcomes(cal, exps, diags)
+    return tests, t_max
+
+
+def _lr_keeps(cur, fit, simple, f, rig, exps, level) -> bool:
+    """Does ``cur`` (at ``fit``) gain significantly over the nested ``simple`` (at ``f``)?
+    The forward steps' rule: LR against chi2(k) at ``level`` and a positive BIC gain."""
+    n_total = sum(e.n_samples * e.n_outputs for e in exps)
+    lr = 2.0 * float(np.sum(_lpd(exps, _simulate(cur, rig, fit.theta, exps)))
+                     - np.sum(_lpd(exps, _simulate(simple, rig, f.theta, exps))))
+    k = len(cur.specs(rig)) - len(simple.specs(rig))
+    return bool(stats.chi2.sf(max(lr, 0.0), k) < level and lr - k * np.log(n_total) > 0)
+
+
+def _simplify(names, fit, rig, exps, linear, level, max_nfev):
+    """Backward check after each acceptance: a refinement whose extra parameters, or an
+    effect whose parameters, no longer gain significantly in the current model is
+    replaced by what it refines, or removed (e.g. directional friction levels that an
+    input offset added later explains).  Returns ``(names, fit, changes)`` with
+    ``changes`` a list of ``(effect, simpler effect or None)``."""
+    changes = []
+    changed = True
+    while changed and len(names) >= 1:
+        changed = False
+        cur = get_extension(list(names))
+        p = fit.theta.size - len(cur.specs(rig))
+        own = dict(zip(cur.extension_names(rig), fit.theta[p:], strict=True))
+        options = []
+        for new, old in REFINES.items():
+            if new in names:
+                options.append((new, old, tuple(old if n == new else n for n in names)))
+        if len(names) >= 2:
+            options += [(n, None, tuple(m for m in names if m != n)) for n in names]
+        for eff, simpler, simple_names in options:
+            simple = get_extension(list(simple_names))
+            par = dict(own)
+            if eff == "coulomb_directional" and simpler is not None:
+                for i in range(1, rig.n_carts + 1):
+                    par[f"Fc{i}"] = 0.5 * (par[f"Fcp{i}"] + par[f"Fcn{i}"])
+                    par[f"Fs{i}"] = max(par[f"Fs{i}"], par[f"Fc{i}"])
+            start = np.r_[fit.theta[:p], [par[k] for k in simple.extension_names(rig)]]
+            try:
+                start = simple.check(rig, start)
+            except ModelError:
+                continue
+            f = _fit_from(simple, rig, [start], exps, linear, max_nfev)
+            if f is None or _lr_keeps(cur, fit, simple, f, rig, exps, level):
+                continue
+            names, fit = simple_names, f
+            changes.append((eff, simpler))
+            changed = True
+            break
+    return names, fit, changes
+
+
+def forward_select(
+    exps: Sequence[Experiment],
+    rig: Rig,
+    first: str,
+    first_fit: ExtensionFit,
+    candidates: Sequence[str],
+    *,
+    linear: LSQResult,
+    quantum_m: float,
+    n_null: int,
+    alpha: float,
+    rng,
+    outcomes,
+    location,
+    max_effects: int = 3,
+    max_fits: int = 3,
+    n_starts: int = 3,
+    max_nfev: int = 40,
+    loro_nfev: int = 20,
+    refit_nfev: int = 10,
+    progress: bool = False,
+) -> ForwardResult:
+    """Add effects to ``first`` one at a time (module docstring).
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The training records.
+    rig : Rig
+    first : str
+        The effect accepted by the first step; ``first_fit`` its least-squares fit.
+    candidates : sequence of str
+        Effects that may be added (and refinements, ``REFINES``).
+    linear : LSQResult
+        The linear fit to ``exps``.
+    quantum_m : float
+        Encoder quantum of the null data, m.
+    n_null, alpha : int, float
+        Null data sets and family-wise false-positive rate of each recalibration.
+    rng : numpy.random.Generator
+    outcomes, location : callable
+        The workflow's judging of diagnostics against a calibration and its location
+        rule (``workflow._outcomes``, ``workflow._location``).
+    max_effects : int
+        Largest number of effects in the model (the first included).
+    max_fits : int
+        Candidates fitted per step: the ones whose cheapest batched start costs least
+        (the others are listed as screened out).
+    n_starts, max_nfev : int
+        Local fits per candidate and their evaluation budget.
+    loro_nfev : int
+        Evaluations of each leave-one-record-out refit (from the full-data fit).
+    refit_nfev : int
+        Evaluations of each null refit of the recalibration.
+    progress : bool
+
+    Returns
+    -------
+    ForwardResult
+    """
+    model = LinearModel(rig, "free")
+    p = model.n_params
+    names = (first,)
+    fit = first_fit
+    added: list[Cause] = []
+    steps: list[dict] = []
+    simplified: list[tuple[str, str]] = []
+    rejected: set[str] = set()
+    n_total = sum(e.n_samples * e.n_outputs for e in exps)
+    cal, tests = None, ()
+    while True:
+        ext = get_extension(list(names))
+        ys = _simulate(ext, rig, fit.theta, exps)
+        noise = fit_noise([e.y_m - y for e, y in zip(exps, ys, strict=True)], quantum_m)
+        announce(f"diagnose: recalibrating the null on {ext.name}", enabled=progress)
+        cal = calibrate_null(exps, model, fit.theta[:p], noise=noise, n_null=n_null,
+                             alpha=alpha, rng=rng, names=RESIDUAL_BASED,
+                             refit_nfev=refit_nfev, extension_fit=fit)
+        tests, t_max = _residual_tests(cal, exps, model, fit, quantum_m, outcomes)
+        if t_max <= cal.threshold:
+            stop = f"the residuals of {ext.name} pass (T = {t_max:.1f} <= {cal.threshold:.1f})"
+            break
+        if len(names) >= max_effects:
+            stop = f"max_effects = {max_effects} reached (T = {t_max:.1f} > {cal.threshold:.1f})"
+            break
+        options = []
+        for c in candidates:
+            if c in names or c in rejected:
+                continue
+            base = tuple(n for n in names if n != REFINES.get(c))
+            try:
+                new = get_extension(list(base + (c,)))
+            except ModelError:
+                continue
+            options.append((c, base + (c,), new))
+        level = alpha / max(len(options), 1)
+        cur_pw = _lpd(exps, ys)
+        # screening: the cheapest batched start of every candidate; only the
+        # ``max_fits`` most promising are fitted (bounded cost per step)
+        screened = []
+        for c, new_names, new in options:
+            try:
+                starts, cost0 = _starts(new, rig, names, fit.theta, c, fit.theta[:p], exps,
+                                        n_starts)
+            except (ModelError, DataError, ValueError):
+                continue
+            screened.append((cost0, c, new_names, new, starts))
+        screened.sort(key=lambda x: x[0])
+        rows = []
+        for _, c, new_names, new, starts in screened[: max(int(max_fits), 1)]:
+            announce(f"diagnose: forward step {len(names) + 1}: fitting {new.name}",
+                     enabled=progress)
+            f = _fit_from(new, rig, starts, exps, linear, max_nfev)
+            if f is None:
+                continue
+            pw = _lpd(exps, _simulate(new, rig, f.theta, exps))
+            g = float(np.sum(pw) - np.sum(cur_pw))
+            k = len(new.specs(rig)) - len(ext.specs(rig))
+            lr = 2.0 * g
+            pv = float(stats.chi2.sf(max(lr, 0.0), max(k, 1)))
+            bic = lr - k * np.log(n_total)
+            ho = None
+            sig = bool(pv < level and bic > 0)
+            if sig and len(exps) >= 2:
+                ho = loro_gain(exps, rig, ext, fit.theta, new, f.theta, linear, loro_nfev)
+                sig = sig and bool(ho["delta_lpd"] > stats.norm.ppf(1 - level) * ho["se"])
+            rows.append({"cause": c, "names": new_names, "fit": f, "delta_lpd": g, "lr": lr,
+                         "n_params": k, "p_value": pv, "bic_gain": bic, "held_out": ho,
+                         "significant": sig})
+        steps.append({"model": ext.name, "T": t_max, "threshold": cal.threshold,
+                      "candidates": [{key: r[key] for key in
+                                      ("cause", "delta_lpd", "lr", "n_params", "p_value",
+                                       "bic_gain", "held_out", "significant")}
+                                     for r in rows]})
+        good = [r for r in rows if r["significant"]]
+        if not good:
+            stop = (f"no candidate gains significantly after {ext.name} "
+                    f"(T = {t_max:.1f} > {cal.threshold:.1f})")
+            break
+        best = max(good, key=lambda r: r["held_out"]["delta_lpd"] if r["held_out"]
+                   else r["bic_gain"])
+        prev_names = names
+        names, fit = best["names"], best["fit"]
+        names, fit, changes = _simplify(names, fit, rig, exps, linear, alpha, max_nfev)
+        if changes:
+            simplified.extend(changes)
+            steps[-1]["simplified"] = [f"{a} -> {b}" for a, b in changes]
+            if best["cause"] not in names:  # the effect just added is not needed after all
+                rejected.add(best["cause"])
+                continue
+        new = get_extension(list(names))
+        c_ext = EXTENSIONS[best["cause"]]
+        own = dict(zip(new.extension_names(rig), fit.theta[p:], strict=True))
+        c_par = {n: float(own[n]) for n in c_ext.extension_names(rig)}
+        loc, label = location(c_ext, rig, np.r_[fit.theta[:p], list(c_par.values())])
+        fp = [fit_percent(e.y_m, y).tolist()
+              for e, y in zip(exps, _simulate(new, rig, fit.theta, exps), strict=True)]
+        added.append(Cause(
+            cause=best["cause"], location=loc, location_label=label, parameters=c_par,
+            gain={"in_sample": {"delta_lpd": best["delta_lpd"], "lr_statistic": best["lr"],
+                                "n_params": best["n_params"], "p_value": best["p_value"],
+                                "bic_gain": best["bic_gain"], "fit_percent": fp},
+                  "held_out": best["held_out"]},
+            replaces=REFINES.get(best["cause"]) if REFINES.get(best["cause"]) in
+            prev_names else None))
+    return ForwardResult(added=tuple(added), names=names, fit=fit, calibration=cal,
+                         tests=tuple(tests), stop=stop, steps=tuple(steps),
+                         simplified=tuple(simplified))

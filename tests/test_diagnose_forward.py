@@ -1,0 +1,127 @@
+"""Forward selection in diagnose: several hidden effects are named one after another.
+
+Data: tests/hidden_pairs.py (independent reference simulators, never the package's
+kernels; sizes and locations drawn from the seed).  The reduced version of
+benchmarks/detection_pairs.py: one seed per case, which the benchmark's measured rate
+(docs/diagnose.md) makes a test that fails with probability at most the benchmark's
+miss rate; a wrong answer prints what was found.
+"""
+
+import json
+
+import numpy as np
+import pytest
+from hidden_effects import make
+from hidden_pairs import CASES, judge, make_case
+
+from bayesmodal import ConfigError
+from bayesmodal.data import ECP_M_PER_COUNT, Experiment
+from bayesmodal.discrepancy.diagnosis import diagnose
+from bayesmodal.discrepancy.diagnosis.forward import REFINES, loro_gain
+from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.fit import fit_lsq
+from bayesmodal.system import LinearModel, Rig
+
+N_NULL = 19
+N_SAMPLES = 2400
+
+
+def _two_records(case, seed):
+    """Two records of one rig: the same draw of parameters, different noise and input
+    scale (the second record's input is 0.8 times the first's)."""
+    h = make_case(case, seed, 1600) if case else make(None, seed, 1600)
+    e = h.experiment
+    rng = np.random.default_rng(seed + 1)
+    q = ECP_M_PER_COUNT
+    y2 = np.round((e.y_m + rng.normal(0, 0.5 * q, e.y_m.shape)) / q) * q
+    return [e, Experiment(e.t_s, e.v_volt, y2, name=e.name + "-b")]
+
+
+def test_loro_gain_is_significant_for_a_hidden_offset_and_not_without():
+    rig = Rig()
+    model = LinearModel(rig, "free")
+    off = EXTENSIONS["input_offset"]
+    out = {}
+    for case in ("input_offset", None):
+        exps = _two_records(case, 4)
+        lin = fit_lsq(exps, model)
+        f = fit_extension_lsq(exps, off, rig, linear=lin, n_starts=2)
+        out[case] = loro_gain(exps, rig, None, lin.theta, off, f.theta, lin)
+        assert len(out[case]["records"]) == 2
+        assert out[case]["delta_lpd"] == pytest.approx(sum(out[case]["records"]))
+    # the offset predicts each held-out record far better than the linear model ...
+    assert out["input_offset"]["z"] > 5, out
+    # ... and without an offset it gains nothing beyond its standard error (negative
+    # control; one extra parameter fitted on the other record)
+    assert out[None]["z"] < 3, out
+
+
+#: Measured failures (24 Nov, seed 1), kept strict so that a fix shows: directional levels
+#: on cart 1 are explained as equal friction on every cart plus an offset and a dead band
+#: (the refinement is not accepted; elsewhere it scored a BIC gain of -2588 against the
+#: equal-level model it starts from: unresolved); friction on cart 3
+#: behind a 0.1 V dead band ends as directional friction (T = 10.9 left).
+KNOWN_MISSES = {"coulomb_directional", "coulomb_friction+drive_deadband"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(
+    strict=True, reason="measured miss, see KNOWN_MISSES")) if c in KNOWN_MISSES else c
+    for c in CASES])
+def test_forward_selection_names_every_effect(case):
+    h = make_case(case, 1, N_SAMPLES)
+    d = diagnose(h.experiment, posterior=False, n_null=N_NULL, rng=1)
+    ok, found = judge(h, d)
+    fw = d.detail["forward"]
+    assert ok, (f"truth {h.effects} sizes {h.sizes}; found {found}; stop: "
+                f"{fw.stop if fw else None}; notes {d.notes}")
+    # the first cause is the top-level one; causes are listed in the order found
+    assert d.cause == d.causes[0].cause and d.location == d.causes[0].location
+    out = json.loads(d.to_json())
+    assert [c["cause"] for c in out["causes"]] == [c.cause for c in d.causes]
+    for c in out["causes"]:
+        assert {"cause", "location", "parameters", "gain"} <= set(c)
+        assert {"in_sample", "held_out"} <= set(c["gain"])
+        assert c["gain"]["in_sample"]["delta_lpd"] > 0
+    # every effect added after the first passed its likelihood-ratio test
+    for step in fw.steps:
+        acc = [r for r in step["candidates"] if r["significant"]]
+        assert all(r["p_value"] < d.alpha and r["bic_gain"] > 0 for r in acc)
+
+
+def test_max_effects_is_validated():
+    h = make(None, 7, n_samples=800)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ConfigError, match="max_effects"):
+            diagnose(h.experiment, posterior=False, n_null=19, max_effects=bad)
+
+
+def test_refinements_are_catalogued():
+    for new, old in REFINES.items():
+        assert new in EXTENSIONS and old in EXTENSIONS
+        assert len(EXTENSIONS[new].specs(Rig())) > len(EXTENSIONS[old].specs(Rig()))
+
+
+def test_text_and_json_list_the_causes_in_order():
+    from bayesmodal.cli._diagnose import _report
+    from bayesmodal.discrepancy.diagnosis import Cause, Diagnosis
+
+    ins = {"delta_lpd": 2000.0, "lr_statistic": 4000.0, "n_params": 6, "p_value": 0.0,
+           "bic_gain": 3950.0, "fit_percent": [[99.0, 99.0, 99.0]]}
+    ho = {"delta_lpd": 500.0, "se": 20.0, "z": 25.0, "records": [250.0, 250.0]}
+    c1 = Cause("coulomb_friction", [2], "cart 2", {"Fc2": 0.4},
+               {"in_sample": ins, "held_out": None})
+    c2 = Cause("input_offset", None, "motor input", {"v_offset": -0.1},
+               {"in_sample": dict(ins, n_params=1), "held_out": ho})
+    d = Diagnosis(True, "coulomb_friction", [2], "cart 2", True, 5.0, 3.0, 0.05, (), (),
+                  (), {}, {}, {}, "laplace", ("a", "b"), (0, 1), 19, 0.05, "rule",
+                  causes=(c1, c2), effects=("coulomb_friction", "input_offset"))
+    text = _report(d)
+    i1 = text.index("cause 1: coulomb_friction at cart 2")
+    i2 = text.index("cause 2: input_offset at motor input")
+    assert i1 < i2 and "held out 500.0 +- 20.0 nats" in text
+    out = json.loads(d.to_json())
+    assert [c["cause"] for c in out["causes"]] == ["coulomb_friction", "input_offset"]
+    assert out["causes"][1]["gain"]["held_out"]["records"] == [250.0, 250.0]
+    assert out["causes"][0]["gain"]["held_out"] is None
+    assert out["effects"] == ["coulomb_friction", "input_offset"]
