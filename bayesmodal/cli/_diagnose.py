@@ -38,7 +38,7 @@ def register(sub) -> None:
     p.add_argument("--train", type=int, nargs="+", default=[0], metavar="K",
                    help="index (or indices) of the training experiments among DATA; with "
                    "two or more, each forward step is judged by its leave-one-record-out "
-                   "gain (default 0)")
+                   "gain (default %(default)s: the first)")
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
                    help="largest number of effects forward selection puts in the model; 1 "
                    "stops after the first cause (default %(default)s)")
