@@ -9,13 +9,52 @@ from scipy.linalg import expm
 
 from bayesmodal.data import ECP_M_PER_COUNT as COUNT
 from bayesmodal.discrepancy.effects import EXTENSIONS
-from bayesmodal.discrepancy.effects._base import zoh_blocks
 from bayesmodal.discrepancy.effects._linear import linear_parts
 from bayesmodal.discrepancy.kernels import expm_batched, zoh
 from bayesmodal.system import Rig
 
 RIG = Rig()
 DT = 0.005
+
+
+def zoh_blocks(A, inputs, h, *, ramp=False):
+    """Reference for the compiled ``zoh``: the Van Loan block exponential by scipy's expm.
+
+    For ``w`` held constant over the step (zero-order hold), ``z(h) = Ah z(0) + G0 w`` with
+    ``Ah = e^{A h}`` and ``G0 = int_0^h e^{A s} ds inputs``.  With ``ramp=True`` also the
+    response ``G1 = int_0^h e^{A (h - s)} (s / h) ds inputs`` to the unit ramp ``s / h``,
+    taken from the top-right block of ``expm([[A h, inputs h, 0], [0, 0, I], [0, 0, 0]])``
+    (Van Loan).
+
+    Parameters
+    ----------
+    A : ndarray, shape (nb, s, s)
+    inputs : ndarray, shape (nb, s, m)
+    h : float
+        Step, s.
+    ramp : bool
+
+    Returns
+    -------
+    Ah : ndarray, shape (nb, s, s)
+    G0 : ndarray, shape (nb, s, m)
+    G1 : ndarray, shape (nb, s, m)
+        Only with ``ramp=True``.
+    """
+    nb, s, _ = A.shape
+    m = inputs.shape[-1]
+    size = s + m + (m if ramp else 0)
+    Z = np.zeros((nb, size, size))
+    Z[:, :s, :s] = A * h
+    Z[:, :s, s : s + m] = inputs * h
+    if ramp:
+        Z[:, s : s + m, s + m :] = np.eye(m)
+    E = expm(Z)
+    Ah = E[:, :s, :s]
+    G0 = E[:, :s, s : s + m]
+    if ramp:
+        return Ah, G0, E[:, :s, s + m :]
+    return Ah, G0
 
 
 def expm_atol(Z, ref):

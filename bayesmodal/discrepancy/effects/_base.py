@@ -12,12 +12,11 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from ..._errors import DataError, ModelError
 from ...system import LinearModel, Rig
 
-__all__ = ["ParamSpec", "EffectLocation", "Extension", "zoh_blocks"]
+__all__ = ["ParamSpec", "EffectLocation", "Extension"]
 
 
 @dataclass(frozen=True)
@@ -69,46 +68,6 @@ class EffectLocation:
     index: int | None
     label: str
     strength: np.ndarray
-
-
-def zoh_blocks(A: np.ndarray, inputs: np.ndarray, h: float, *, ramp: bool = False):
-    """Exact one-step matrices of ``z' = A z + inputs w`` for a batch of systems.
-
-    For ``w`` held constant over the step (zero-order hold), ``z(h) = Ah z(0) + G0 w`` with
-    ``Ah = e^{A h}`` and ``G0 = int_0^h e^{A s} ds inputs``.  With ``ramp=True`` also the
-    response ``G1 = int_0^h e^{A (h - s)} (s / h) ds inputs`` to the unit ramp ``s / h``,
-    taken from the top-right block of ``expm([[A h, inputs h, 0], [0, 0, I], [0, 0, 0]])``
-    (Van Loan).
-
-    Parameters
-    ----------
-    A : ndarray, shape (nb, s, s)
-    inputs : ndarray, shape (nb, s, m)
-    h : float
-        Step, s.
-    ramp : bool
-
-    Returns
-    -------
-    Ah : ndarray, shape (nb, s, s)
-    G0 : ndarray, shape (nb, s, m)
-    G1 : ndarray, shape (nb, s, m)
-        Only with ``ramp=True``.
-    """
-    nb, s, _ = A.shape
-    m = inputs.shape[-1]
-    size = s + m + (m if ramp else 0)
-    Z = np.zeros((nb, size, size))
-    Z[:, :s, :s] = A * h
-    Z[:, :s, s : s + m] = inputs * h
-    if ramp:
-        Z[:, s : s + m, s + m :] = np.eye(m)
-    E = expm(Z)
-    Ah = E[:, :s, :s]
-    G0 = E[:, :s, s : s + m]
-    if ramp:
-        return Ah, G0, E[:, :s, s + m :]
-    return Ah, G0
 
 
 def check_input(u: np.ndarray, dt: float) -> tuple[np.ndarray, float]:

@@ -103,10 +103,14 @@ def expm_batched(Z: np.ndarray) -> np.ndarray:
 
 
 def zoh(A: np.ndarray, inputs: np.ndarray, h, *, ramp: bool = False):
-    """Exact one-step matrices of ``z' = A z + inputs w`` (compiled ``zoh_blocks``).
+    """Exact one-step matrices of ``z' = A z + inputs w`` for a batch of systems.
 
-    Same as ``extensions._base.zoh_blocks`` (Van Loan block exponential) with
-    ``expm_batched`` for the exponential; ``h`` may be a scalar or one step per system.
+    For ``w`` held over the step, ``z(h) = Ah z(0) + G0 w`` with ``Ah = e^{A h}`` and
+    ``G0 = int_0^h e^{A s} ds inputs``; with ``ramp`` also the response ``G1`` to the unit
+    ramp ``s / h``: blocks of the Van Loan exponential
+    ``expm([[A h, inputs h, 0], [0, 0, I], [0, 0, 0]])``, by ``expm_batched``
+    (``tests/test_nl_kernels.py`` checks it against scipy's ``expm``).  ``h`` may be a
+    scalar or one step per system.
 
     Parameters
     ----------
