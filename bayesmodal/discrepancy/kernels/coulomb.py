@@ -397,6 +397,9 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     """
     asym = bool(asymmetric)
     stages = tuple(stages)
+    unknown = [k for k in stages if k not in INPUT_STAGES]
+    if unknown:  # only names of this module's stages reach the generated source
+        raise ValueError(f"unknown input stage {unknown[0]!r}; use one of {INPUT_STAGES}")
     if stages and per_lane:
         raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
     w = width
