@@ -6,9 +6,8 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from .._errors import DataError
+from .._json import to_jsonable
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
 from ..reading import ReadOptions, parse_columns, parse_scale
 from ..system import Rig
@@ -111,24 +110,6 @@ def load_args(args) -> list[Experiment]:
         if getattr(args, "initial_state", "rest") == "rest":
             check_identifiable(e)  # (a free decay has no input: checked by the fit)
     return exps
-
-
-def to_jsonable(obj):
-    """Convert numpy containers to plain JSON types (NaN becomes null)."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        f = float(obj)
-        return f if np.isfinite(f) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 def print_json(obj) -> None:

@@ -409,25 +409,39 @@ def _start_ball(priors: PriorSet, centre: np.ndarray, scale: np.ndarray, n_walke
     absolute value of the perturbation.
     """
     z0 = priors.to_sampling(centre)
-    out = np.empty((n_walkers, priors.n_params))
-    filled = 0
-    for _ in range(100):
+
+    def draw():
         z = z0 + scale * rng.standard_normal((n_walkers, priors.n_params))
         for i, tr in enumerate(priors.transforms):
             lo = priors.priors[i].support[0]
             if tr == "identity" and centre[i] - lo < 3 * scale[i]:
                 z[:, i] = lo + np.abs(z[:, i] - lo)
+        return z
+
+    return _fill_walkers(
+        draw, log_post, n_walkers,
+        "could not place the walkers: the start point has zero posterior density "
+        f"({dict(zip(priors.names, np.round(centre, 6).tolist(), strict=True))}); "
+        "check the priors against the least-squares estimate")
+
+
+def _fill_walkers(draw, log_post: LogPosterior, n_walkers: int, failure: str) -> np.ndarray:
+    """``n_walkers`` start points of finite posterior density, z coordinates.
+
+    ``draw()`` gives ``(n_walkers, n_params)`` candidates; those with zero density are
+    dropped and drawn again, up to 100 rounds, then ``ConfigError(failure)``.
+    """
+    out = np.empty((n_walkers, log_post.priors.n_params))
+    filled = 0
+    for _ in range(100):
+        z = draw()
         good = z[np.isfinite(log_post(z)[:, 0])]
         take = min(len(good), n_walkers - filled)
         out[filled : filled + take] = good[:take]
         filled += take
         if filled == n_walkers:
             return out
-    raise ConfigError(
-        "could not place the walkers: the start point has zero posterior density "
-        f"({dict(zip(priors.names, np.round(centre, 6).tolist(), strict=True))}); "
-        "check the priors against the least-squares estimate"
-    )
+    raise ConfigError(failure)
 
 
 def _laplace_start(log_post: LogPosterior, mode: np.ndarray, n_walkers: int,
@@ -440,17 +454,8 @@ def _laplace_start(log_post: LogPosterior, mode: np.ndarray, n_walkers: int,
 
     priors = log_post.priors
     la = laplace_approximation(lambda z: log_post(z)[:, 0], priors.to_sampling(mode))
-    out = np.empty((n_walkers, priors.n_params))
-    filled = 0
-    for _ in range(100):
-        z = la.sample(n_walkers, rng)
-        good = z[np.isfinite(log_post(z)[:, 0])]
-        take = min(len(good), n_walkers - filled)
-        out[filled : filled + take] = good[:take]
-        filled += take
-        if filled == n_walkers:
-            return out
-    raise ConfigError(
+    return _fill_walkers(
+        lambda: la.sample(n_walkers, rng), log_post, n_walkers,
         "could not place the walkers: draws of the Laplace approximation at the posterior "
         "mode fall outside the priors; use init='ball'")
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._json import to_jsonable
 from .._versions import dependency_versions
 from .idata import model_from_idata, posterior_matrix
 from .propagate import Interval, ModalSamples, credible_interval, modal_intervals, propagate_modes
@@ -238,24 +239,8 @@ def _write_json(obj, path) -> None:
 
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(obj), indent=2) + "\n")
+    tmp.write_text(json.dumps(to_jsonable(obj), indent=2) + "\n")
     os.replace(tmp, path)
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if np.isfinite(obj) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 def write_run(idata, out_dir, *, prob: float = 0.9, plots: bool = True) -> dict:

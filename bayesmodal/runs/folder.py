@@ -24,6 +24,7 @@ import socket
 from pathlib import Path
 
 from .._errors import ConfigError
+from .._json import to_jsonable
 
 __all__ = [
     "RunFolder",
@@ -104,28 +105,9 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def _jsonable(obj):
-    """Plain JSON types from numpy containers and scalars; non-finite floats become None."""
-    import numpy as np
-
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if np.isfinite(obj) else None
-    return obj
-
-
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
     """Write ``obj`` as indented JSON atomically (NaN and infinity become null)."""
-    return atomic_write_text(path, json.dumps(_jsonable(obj), indent=2, allow_nan=False)
+    return atomic_write_text(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False)
                              + "\n")
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-import numpy as np
+from ..._json import to_jsonable
 
 __all__ = ["TestOutcome", "CandidateScore", "Interval", "Diagnosis", "CAUSES"]
 
@@ -16,24 +16,6 @@ __all__ = ["TestOutcome", "CandidateScore", "Interval", "Diagnosis", "CAUSES"]
 CAUSES = ("none", "coulomb_friction", "motor_lag", "input_delay", "backlash",
           "cubic_stiffness", "input_saturation", "input_offset", "drive_deadband",
           "coulomb_directional")
-
-
-def _plain(obj):
-    """numpy containers to JSON types (non-finite floats become None)."""
-    if isinstance(obj, Mapping):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _plain(obj.tolist())
-    if isinstance(obj, (float, np.floating)):
-        f = float(obj)
-        return f if np.isfinite(f) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 @dataclass(frozen=True)
@@ -70,7 +52,7 @@ class TestOutcome:
     summary: str
 
     def as_dict(self) -> dict:
-        return _plain({"name": self.name, "experiment": self.experiment,
+        return to_jsonable({"name": self.name, "experiment": self.experiment,
                        "statistic": self.statistic, "threshold": self.threshold,
                        "z": self.z, "exceeded": self.exceeded,
                        "suggests": list(self.suggests), "location": self.location,
@@ -125,7 +107,7 @@ class CandidateScore:
     message: str = ""
 
     def as_dict(self) -> dict:
-        return _plain({"name": self.name, "score": self.score, "signature": self.signature,
+        return to_jsonable({"name": self.name, "score": self.score, "signature": self.signature,
                        "fitted": self.fitted, "gain_nll": self.gain_nll,
                        "lr_statistic": self.lr_statistic, "n_params": self.n_params,
                        "p_value": self.p_value, "significant": self.significant,
@@ -142,7 +124,7 @@ class Interval:
     hi: float
 
     def as_dict(self) -> dict:
-        return _plain({"median": self.median, "lo": self.lo, "hi": self.hi})
+        return to_jsonable({"median": self.median, "lo": self.lo, "hi": self.hi})
 
 
 @dataclass(frozen=True)
@@ -233,7 +215,7 @@ class Diagnosis:
 
     def as_dict(self) -> dict:
         """JSON-ready mapping (the CLI's ``--json`` output)."""
-        return _plain({
+        return to_jsonable({
             "discrepancy": self.discrepancy,
             "cause": self.cause,
             "location": self.location,

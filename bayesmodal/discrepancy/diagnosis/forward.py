@@ -48,6 +48,7 @@ import numpy as np
 from scipy import stats
 
 from ..._errors import DataError, ModelError
+from ..._json import to_jsonable
 from ..._progress import announce
 from ...data import Experiment
 from ...fit import LSQResult, fit_lsq
@@ -56,7 +57,6 @@ from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
 from ..effects import EXTENSIONS, ExtensionFit, fit_extension_lsq, get_extension
 from ..effects.fit import extension_residuals
-from ._result import _plain
 from .null import NullCalibration, calibrate_null, fit_noise, run_diagnostics
 from .scoring import ar1_pointwise
 from .starts import extra_starts
@@ -107,7 +107,7 @@ class Cause:
         object.__setattr__(self, "gain", MappingProxyType(dict(self.gain)))
 
     def as_dict(self) -> dict:
-        return _plain({"cause": self.cause, "location": self.location,
+        return to_jsonable({"cause": self.cause, "location": self.location,
                        "location_label": self.location_label,
                        "parameters": dict(self.parameters), "replaces": self.replaces,
                        "gain": {k: (dict(v) if isinstance(v, dict) else v)
