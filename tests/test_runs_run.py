@@ -429,3 +429,35 @@ def test_bad_config_exit_code_from_the_console(bad_dir, tmp_path):
     # every problem, on that one line
     assert "[sampler.seed]" in lines[0] and "[model.damping]" in lines[0]
     assert not (tmp_path / "never").exists()
+
+
+@pytest.mark.slow  # four small leave-one-record-out studies (45 s)
+def test_calibrated_temperature_run_reuses_the_calibrations_check(tmp_path, monkeypatch):
+    """With ``temperature = "loro"`` the leave-one-record-out study at the chosen
+    temperature is measured by the calibration; the run's [crossval] check is that study,
+    not a second identical one: one study per calibrated temperature, no more."""
+    import bayesmodal.inference.crossval as cv
+
+    calls = []
+    real = cv.crossval
+
+    def counting(*args, **kwargs):
+        calls.append(args[1].temperature)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cv, "crossval", counting)
+    _record(tmp_path / "a.csv", 600, 0.1, 1)
+    _record(tmp_path / "b.csv", 600, 0.2, 2)
+    cfg = tmp_path / "loro.toml"
+    cfg.write_text('[data]\nfiles = ["a.csv", "b.csv"]\n'
+                   '[likelihood]\nnoise = "white"\ntemperature = "loro"\n'
+                   "[sampler]\nwalkers = 24\nsteps = 30\nburn = 10\nthin = 2\nseed = 3\n"
+                   "[crossval]\nenabled = true\ndraws = 10\nsteps = 20\n"
+                   "[outputs]\nplots = false\nreport = false\n")
+    assert main(["run", str(cfg), "--out-root", str(tmp_path / "out"), "--quiet"]) == 0
+    s = _summary(tmp_path / "out" / "loro")
+    measured = [c["temperature"] for c in s["temperature_calibration"]["curve"]]
+    assert sorted(calls) == sorted(measured)
+    chosen = s["temperature_calibration"]["temperature"]
+    assert chosen in calls
+    assert s["crossval"]["spec"]["temperature"] == chosen

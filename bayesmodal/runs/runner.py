@@ -532,23 +532,25 @@ def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
     return {ext.name: out}
 
 
-def _temperature(prep: PreparedRun) -> tuple[float, dict | None]:
-    """The likelihood temperature of the run, and its calibration (``temperature =
-    "loro"``: leave-one-record-out coverage, ``inference.temperature``) or None."""
+def _temperature(prep: PreparedRun):
+    """The likelihood temperature of the run, its calibration (``temperature = "loro"``:
+    leave-one-record-out coverage, ``inference.temperature``) or None, and the
+    leave-one-record-out study at that temperature the calibration measured (or None)."""
     cfg = prep.config
     if cfg.temperature != "loro":
-        return float(cfg.temperature), None
+        return float(cfg.temperature), None, None
     from ..inference.temperature import calibrate_loro
 
-    cal, _ = calibrate_loro(list(prep.experiments), cfg.crossval_spec(), joint=False,
-                            progress=lambda line: log.info("temperature: %s", line))
+    cal, study = calibrate_loro(list(prep.experiments), cfg.crossval_spec(), joint=False,
+                                progress=lambda line: log.info("temperature: %s", line))
     log.info("calibrated temperature %.4g (%s)", cal.temperature, cal.status)
-    return cal.temperature, cal.to_dict()
+    return cal.temperature, cal.to_dict(), study
 
 
 def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
-              temperature: float = 1.0) -> dict:
-    """Leave-one-record-out check of the configuration, written to ``crossval/``."""
+              temperature: float = 1.0, study=None) -> dict:
+    """Leave-one-record-out check of the configuration, written to ``crossval/``;
+    ``study`` is that check already computed at ``temperature`` (by the calibration)."""
     from dataclasses import replace
 
     from ..inference.crossval import crossval
@@ -557,9 +559,9 @@ def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
     def say(line: str) -> None:
         log.info("crossval: %s", line)
 
-    res = crossval(list(prep.experiments), replace(prep.config.crossval_spec(),
-                                                   temperature=temperature), joint=False,
-                   progress=say)
+    res = study if study is not None else crossval(
+        list(prep.experiments), replace(prep.config.crossval_spec(), temperature=temperature),
+        joint=False, progress=say)
     write_crossval(res, folder.path / "crossval", plots=prep.config.plots)
     d = res.to_dict()
     return {"records": d["records"], "total": d["total"], "own_lsq": d["own_lsq"],
@@ -589,7 +591,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             steps_before = backend.iteration if backend.initialized else 0
             log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
                      cfg.walkers, cfg.steps, steps_before, cfg.seed)
-            temperature, calibration = _temperature(prep)
+            temperature, calibration, study = _temperature(prep)
             run = sample_posterior(
                 list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
                 priors=prep.priors,
@@ -619,7 +621,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             summary["temperature_calibration"] = calibration
         if cfg.crossval:
             with stages.stage("crossval"):
-                summary["crossval"] = _crossval(prep, folder, progress, temperature)
+                summary["crossval"] = _crossval(prep, folder, progress, temperature, study)
         diag = summary["diagnostics"]
         detail = _verdict_detail(diag)
         summary["convergence"] = {
