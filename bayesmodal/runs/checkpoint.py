@@ -106,14 +106,9 @@ class AtomicCheckpoint(emcee.backends.Backend):
             self.accepted = np.array(g["accepted"][:], dtype=self.dtype)
             if g.attrs["has_blobs"]:
                 self.blobs = np.array(g["blobs"][:it])
-            keys = sorted(k for k in g.attrs if k.startswith("random_state_"))
-            if keys:
-                self.random_state = tuple(g.attrs[f"random_state_{i}"]
-                                          for i in range(len(keys)))
-                # MT19937 state: (name, key array, pos, has_gauss, cached_gaussian)
-                rs = list(self.random_state)
-                rs[0] = rs[0].decode() if isinstance(rs[0], bytes) else str(rs[0])
-                self.random_state = tuple(rs)
+            rs = _read_random_state(g.attrs)
+            if rs is not None:
+                self.random_state = rs
             for k, v in g.attrs.items():
                 if k.startswith("bayesmodal_"):
                     setattr(self, "_" + k, v.decode() if isinstance(v, bytes) else v)
@@ -189,12 +184,30 @@ class AtomicCheckpoint(emcee.backends.Backend):
             if self.has_blobs():
                 g.create_dataset("blobs", data=self.blobs[:it],
                                  maxshape=(None, *self.blobs.shape[1:]), **z)
-            if self.random_state is not None:
-                for i, v in enumerate(self.random_state):
-                    g.attrs[f"random_state_{i}"] = v
-            for k, v in vars(self).items():
-                if k.startswith(_TAG):
-                    g.attrs[k[1:]] = v
+            _write_state_attrs(g, self)
+
+
+def _write_state_attrs(g, backend) -> None:
+    """The generator state (``random_state_0..4``) and configuration tags of ``backend``
+    as attributes of the HDF5 group ``g``."""
+    for i, v in enumerate(backend.random_state or ()):
+        g.attrs[f"random_state_{i}"] = v
+    for k, v in vars(backend).items():
+        if k.startswith(_TAG):
+            g.attrs[k[1:]] = v
+
+
+def _read_random_state(attrs) -> tuple | None:
+    """The generator state written by :func:`_write_state_attrs`, or None.
+
+    MT19937 state: (name, key array, pos, has_gauss, cached_gaussian); the name comes
+    back from HDF5 as bytes or a numpy string and is returned as ``str``."""
+    n = sum(1 for k in attrs if k.startswith("random_state_"))
+    if n == 0:
+        return None
+    rs = [attrs[f"random_state_{i}"] for i in range(n)]
+    rs[0] = rs[0].decode() if isinstance(rs[0], bytes) else str(rs[0])
+    return tuple(rs)
 
 
 def checkpoint_iteration(path: str | os.PathLike, name: str = "mcmc") -> int:
@@ -288,11 +301,7 @@ def compact_checkpoint(path: str | os.PathLike, *, burn: int, thin: int,
             g.create_dataset("last_log_prob", data=be.log_prob[it - 1])
             if be.has_blobs():
                 g.create_dataset("last_blobs", data=be.blobs[it - 1])
-            for i, v in enumerate(be.random_state or ()):
-                g.attrs[f"random_state_{i}"] = v
-            for key, v in vars(be).items():
-                if key.startswith(_TAG):
-                    g.attrs[key[1:]] = v
+            _write_state_attrs(g, be)
     except OSError as exc:
         raise write_failed(exc, path, tmp) from exc
     _fsync_replace(tmp, path)
@@ -315,13 +324,9 @@ def last_state(path: str | os.PathLike) -> emcee.State:
         if not g.attrs.get("compact", False):
             be = AtomicCheckpoint(path)
             return be.get_last_sample()
-        keys = sorted(k for k in g.attrs if k.startswith("random_state_"))
-        rs = [g.attrs[f"random_state_{i}"] for i in range(len(keys))]
-        if rs:
-            rs[0] = rs[0].decode() if isinstance(rs[0], bytes) else str(rs[0])
         return emcee.State(np.array(g["last_coords"]), log_prob=np.array(g["last_log_prob"]),
                            blobs=np.array(g["last_blobs"]) if "last_blobs" in g else None,
-                           random_state=tuple(rs) if rs else None)
+                           random_state=_read_random_state(g.attrs))
 
 
 @dataclass(frozen=True)
