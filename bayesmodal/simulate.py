@@ -308,10 +308,7 @@ class LinearSimulator:
         ndarray
             A view of the simulator's buffer (valid until the next call).
         """
-        dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
-        if dt != self.dt or n_out != self.n_out:
-            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
-                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        ok, mu, G, w0, A, B, x0b, second_order = self._own(prepared)
         return self._dispatch(ok, mu, G, w0, A, B, x0b, lanes_last=lanes_last,
                               **second_order)
 
@@ -346,10 +343,7 @@ class LinearSimulator:
             Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))`` (or
             ``ar1_sums_affine`` of the two responses), bit for bit.
         """
-        dt, n_out, ok, mu, G, w0, A, B, x0b, second_order = prepared
-        if dt != self.dt or n_out != self.n_out:
-            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
-                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        ok, mu, G, w0, A, B, x0b, second_order = self._own(prepared)
         y = np.ascontiguousarray(y, dtype=float)
         if y.shape != (self.u.size, self.n_out):
             raise DataError(f"y must have shape {(self.u.size, self.n_out)}, got {y.shape}")
@@ -360,6 +354,15 @@ class LinearSimulator:
             affine[0], affine[1] = g, v0
         return self._dispatch(ok, mu, G, w0, A, B, x0b, sums_against=y, affine=affine,
                               **second_order)
+
+    def _own(self, prepared: tuple) -> tuple:
+        """The modal form of :meth:`prepare_second_order` without its ``dt`` and ``n_out``,
+        after checking that they are this simulator's."""
+        dt, n_out, *form = prepared
+        if dt != self.dt or n_out != self.n_out:
+            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
+                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        return tuple(form)
 
     def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
                   sums_against: np.ndarray | None = None, affine: np.ndarray | None = None,
@@ -380,6 +383,9 @@ class LinearSimulator:
         for c in range(n_chunks):
             lanes = np.arange(c * width, (c + 1) * width)
             real = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
+            # per-lane gain and offset; padding lanes get g = v0 = 0 (their sums are dropped)
+            gv = (None if affine is None
+                  else np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0))
             if np.all(ok[real]):
                 Q = np.empty((2 * nm + 2 * nm * self.n_out, width))
                 Q[0 : 2 * nm : 2] = mu[real].real.T
@@ -391,10 +397,8 @@ class LinearSimulator:
                 W[0::2] = w0[real].real.T
                 W[1::2] = w0[real].imag.T
                 if sums is not None and affine is not None:
-                    # padding lanes get g = v0 = 0 (their sums are dropped)
-                    GV = np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0)
                     modal_affine_sums_kernel(nm, self.n_out, width)(
-                        Q.ravel(), self.u, W.ravel(), W.ravel().copy(), GV.ravel(),
+                        Q.ravel(), self.u, W.ravel(), W.ravel().copy(), gv.ravel(),
                         sums_against.ravel(), sums[c].reshape(-1))
                     continue
                 if sums is not None:
@@ -421,10 +425,9 @@ class LinearSimulator:
                     extra = ()
                     if affine is not None:
                         Bc = np.empty_like(Yc)
-                        X = np.ascontiguousarray(x0b[real].T)
+                        X = np.ascontiguousarray(x0b[real].T)  # the kernel advanced X
                         direct_kernel(s, self.n_out, width)(P.ravel(), np.ones(self.u.size),
                                                             X.ravel(), Bc.reshape(-1))
-                        gv = np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0)
                         extra = (Bc[None], gv[0], gv[1])
                     for i, a in enumerate(ar1_sums_lanes(sums_against, Yc[None], width,
                                                          *extra)):
