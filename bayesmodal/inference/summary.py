@@ -281,14 +281,10 @@ TRACE_DPI = 90
 
 
 def _save(fig, path, dpi: float = PLOT_DPI) -> None:
-    import matplotlib.pyplot as plt
+    # the run folder's atomic, palette-PNG writer (imported here: runs builds on inference)
+    from ..runs.folder import atomic_savefig
 
-    from ..plots._png import save_png
-
-    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    save_png(fig, tmp, dpi=dpi)
-    plt.close(fig)
-    tmp.replace(path)
+    atomic_savefig(fig, path, dpi=dpi)
 
 
 def _write_plots(idata, modal, out, prob) -> None:
