@@ -125,3 +125,16 @@ def test_text_and_json_list_the_causes_in_order():
     assert out["causes"][1]["gain"]["held_out"]["records"] == [250.0, 250.0]
     assert out["causes"][0]["gain"]["held_out"] is None
     assert out["effects"] == ["coulomb_friction", "input_offset"]
+
+
+def test_train_takes_indices_in_one_argument_so_data_may_follow(capsys):
+    from bayesmodal.cli import build_parser, main
+
+    a = build_parser().parse_args(["diagnose", "--train", "0,1", "a.mat", "b.mat"])
+    assert a.train == [0, 1] and a.data == ["a.mat", "b.mat"]
+    assert build_parser().parse_args(["diagnose", "a.mat", "--train", "1"]).train == [1]
+    with pytest.raises(SystemExit) as stop:
+        main(["diagnose", "--train", "x", "a.mat"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "record indices such as 0 or 0,1" in err[0]

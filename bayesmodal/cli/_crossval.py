@@ -22,8 +22,8 @@ def register(sub) -> None:
         help="leave-one-record-out validation: sample on the others, predict each record",
         description="For each record, sample the posterior on the other records (shared "
                     "physics, per-record gain and offset from a population by default) and "
-                    "predict it: fit percent of the predictive median, coverage of the 50 %% "
-                    "and 90 %% bands, band width / record sd, CRPS and log predictive "
+                    "predict it: fit percent of the predictive median, coverage of the 50 % "
+                    "and 90 % bands, band width / record sd, CRPS and log predictive "
                     "density, and the summed lpd with its standard error over records.  "
                     "Writes crossval.json, crossval.txt, heldout_<record>.png and forest.png "
                     "into --out.",

@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 from .._format import sig
 from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
+
+
+def _indices(text: str) -> list[int]:
+    """``--train`` indices, ``"0"`` or ``"0,1"`` (one argument, so DATA may follow it)."""
+    try:
+        return [int(s) for s in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"takes record indices such as 0 or 0,1, got {text!r}") from None
 
 
 def register(sub) -> None:
@@ -35,10 +45,10 @@ def register(sub) -> None:
     p.add_argument("--starts", type=int, default=3, metavar="N",
                    help="least-squares fits per candidate extension, from the N best points "
                    "of its start grid; the cheapest wins (default %(default)s)")
-    p.add_argument("--train", type=int, nargs="+", default=[0], metavar="K",
-                   help="index (or indices) of the training experiments among DATA; with "
-                   "two or more, each forward step is judged by its leave-one-record-out "
-                   "gain (default %(default)s: the first)")
+    p.add_argument("--train", type=_indices, default=[0], metavar="K[,K...]",
+                   help="index (or comma-separated indices) of the training experiments "
+                   "among DATA; with two or more, each forward step is judged by its "
+                   "leave-one-record-out gain (default %(default)s: the first)")
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
                    help="largest number of effects forward selection puts in the model; 1 "
                    "stops after the first cause (default %(default)s)")
