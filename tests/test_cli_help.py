@@ -84,3 +84,19 @@ def test_usage_error_is_one_line(capsys, argv, prog):
     assert lines[0].startswith(f"{prog}: error: ")
     assert lines[0].endswith(f"(see {prog} --help)")
     assert "usage:" not in cap.err
+
+
+RIG_COMMANDS = ("lsq", "sample", "static", "ema", "diagnose", "modal", "crossval")
+DATA_OPTIONS = ("--columns", "--input-scale", "--time-scale", "--m-per-count")
+
+
+def test_rig_and_column_options_are_documented_on_every_command_that_reads_a_rig():
+    # issue 17: every command takes --rig; every one that reads records takes the column map
+    # and the scales, each with help (the test above checks the help text itself).
+    _, choices = _subparsers()
+    for name in RIG_COMMANDS:
+        opts = {o: a for a in choices[name]._actions for o in a.option_strings}
+        wanted = ("--rig",) + (DATA_OPTIONS if name != "modal" else ())
+        missing = [o for o in wanted if o not in opts or not (opts[o].help or "").strip()]
+        assert missing == [], f"{name}: {missing}"
+        assert "--rig" in choices[name].format_help()
