@@ -88,6 +88,27 @@ TRANSFORMS = ("identity", "log", "tanh")
 _LOG_2PI = float(np.log(2 * np.pi))
 
 
+# The densities, elementwise: a prior's ``logpdf`` calls them with its scalars, ``PriorSet``
+# with the stacked parameters of all priors of one kind (the same operations, bit for bit).
+def _uniform_logpdf(x, lo, hi):
+    inside = (x >= lo) & (x <= hi)
+    return np.where(inside, -np.log(hi - lo), -np.inf)
+
+
+def _loguniform_logpdf(x, lo, hi):
+    inside = (x >= lo) & (x <= hi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # log(hi) - log(lo), not log(hi / lo): the ratio overflows for wide priors
+        val = -np.log(x) - np.log(np.log(hi) - np.log(lo))
+    return np.where(inside, val, -np.inf)
+
+
+def _normal_logpdf(x, mu, sd, lo, hi, log_mass):
+    val = -0.5 * ((x - mu) / sd) ** 2 - np.log(sd) - 0.5 * _LOG_2PI
+    val = val - log_mass
+    return np.where((x >= lo) & (x <= hi), val, -np.inf)
+
+
 @dataclass(frozen=True)
 class Uniform:
     """Uniform prior on ``[lo, hi]``.
@@ -110,9 +131,12 @@ class Uniform:
         return (float(self.lo), float(self.hi))
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        inside = (x >= self.lo) & (x <= self.hi)
-        return np.where(inside, -np.log(self.hi - self.lo), -np.inf)
+        return _uniform_logpdf(np.asarray(x, dtype=float), self.lo, self.hi)
+
+    def _columns(self) -> tuple[float, ...]:
+        return (self.lo, self.hi)
+
+    _batch = staticmethod(_uniform_logpdf)
 
     def ppf(self, u: np.ndarray) -> np.ndarray:
         """Quantile function (used as the nested-sampling prior transform)."""
@@ -137,12 +161,12 @@ class LogUniform:
         return (float(self.lo), float(self.hi))
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        inside = (x >= self.lo) & (x <= self.hi)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            # log(hi) - log(lo), not log(hi / lo): the ratio overflows for wide priors
-            val = -np.log(x) - np.log(np.log(self.hi) - np.log(self.lo))
-        return np.where(inside, val, -np.inf)
+        return _loguniform_logpdf(np.asarray(x, dtype=float), self.lo, self.hi)
+
+    def _columns(self) -> tuple[float, ...]:
+        return (self.lo, self.hi)
+
+    _batch = staticmethod(_loguniform_logpdf)
 
     def ppf(self, u: np.ndarray) -> np.ndarray:
         log_lo, log_hi = np.log(self.lo), np.log(self.hi)
@@ -179,10 +203,12 @@ class Normal:
         return float(norm.cdf(self.hi, self.mu, self.sd) - norm.cdf(self.lo, self.mu, self.sd))
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        val = -0.5 * ((x - self.mu) / self.sd) ** 2 - np.log(self.sd) - 0.5 * _LOG_2PI
-        val = val - np.log(self._mass())
-        return np.where((x >= self.lo) & (x <= self.hi), val, -np.inf)
+        return _normal_logpdf(np.asarray(x, dtype=float), *self._columns())
+
+    def _columns(self) -> tuple[float, ...]:
+        return (self.mu, self.sd, self.lo, self.hi, np.log(self._mass()))
+
+    _batch = staticmethod(_normal_logpdf)
 
     def ppf(self, u: np.ndarray) -> np.ndarray:
         from scipy.stats import norm
@@ -242,6 +268,13 @@ class PriorSet:
                 raise ConfigError(f"{name}: a tanh transform needs a prior inside [-1, 1]")
         object.__setattr__(self, "_log", np.array([t == "log" for t in self.transforms]))
         object.__setattr__(self, "_tanh", np.array([t == "tanh" for t in self.transforms]))
+        # one batched density call per kind of prior (log_prior runs once per emcee half-step)
+        groups = []
+        for kind in dict.fromkeys(type(p) for p in self.priors):
+            idx = np.array([i for i, p in enumerate(self.priors) if type(p) is kind])
+            cols = np.array([self.priors[i]._columns() for i in idx], dtype=float).T
+            groups.append((kind._batch, idx, tuple(cols)))
+        object.__setattr__(self, "_groups", tuple(groups))
 
     @property
     def n_params(self) -> int:
@@ -292,15 +325,22 @@ class PriorSet:
     def log_prior(self, theta: np.ndarray) -> np.ndarray:
         """Log prior density in physical units, shape (...,); ``-inf`` outside the support."""
         theta = np.asarray(theta, dtype=float)
+        vals = np.empty(theta.shape)
+        for logpdf, idx, cols in self._groups:
+            vals[..., idx] = logpdf(theta[..., idx], *cols)
         out = np.zeros(theta.shape[:-1])
-        for i, prior in enumerate(self.priors):
-            out = out + prior.logpdf(theta[..., i])
+        for i in range(theta.shape[-1]):  # in parameter order, as the sum always was
+            out = out + vals[..., i]
         return np.where(np.isnan(out), -np.inf, out)
 
-    def log_prior_z(self, z: np.ndarray) -> np.ndarray:
-        """Log density of the sampling coordinates, ``log p(f(z)) + log |f'(z)|``."""
+    def log_prior_z(self, z: np.ndarray, theta: np.ndarray | None = None) -> np.ndarray:
+        """Log density of the sampling coordinates, ``log p(f(z)) + log |f'(z)|``.
+
+        ``theta``, when given, must be ``to_physical(z)`` (a caller that needs it anyway
+        saves the second transform).
+        """
         z = np.asarray(z, dtype=float)
-        lp = self.log_prior(self.to_physical(z))
+        lp = self.log_prior(self.to_physical(z) if theta is None else theta)
         with np.errstate(invalid="ignore", over="ignore"):  # wild walkers: -inf below
             out = lp + self.log_jacobian(z)
         return np.where(np.isfinite(lp), out, -np.inf)

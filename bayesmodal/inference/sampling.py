@@ -86,11 +86,12 @@ class LogPosterior:
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         z = np.atleast_2d(np.asarray(z, dtype=float))
-        lp = self.priors.log_prior_z(z)
+        theta = self.priors.to_physical(z)
+        lp = self.priors.log_prior_z(z, theta)
         ll = np.full(z.shape[0], -np.inf)
         ok = np.isfinite(lp)
         if np.any(ok):
-            th = self.priors.to_physical(z[ok])
+            th = theta[ok]
             ll[ok] = self.likelihood(th)
             population = getattr(self.likelihood, "log_population", None)
             if population is not None:  # hierarchical per-record parameters
