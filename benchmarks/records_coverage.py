@@ -17,6 +17,10 @@ binomial standard error ``sqrt(0.9 * 0.1 / R)`` (0.03 for R = 100).
 Usage::
 
     python benchmarks/records_coverage.py --replicates 100 --processes 2 --out rc.json
+
+Each finished replicate is appended at once to ``<out>.jsonl`` (one JSON line with its seed
+and settings); a rerun with the same ``--out`` and settings skips the seeds already there,
+so an interrupted study loses at most the replicates in flight.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import argparse
 import json
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -56,8 +60,28 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     seeds = [args.seed + i for i in range(args.replicates)]
+    settings = {"samples": args.samples, "steps": args.steps}
+    log = Path(args.out).with_suffix(".jsonl") if args.out else None
+    done = {}
+    if log is not None and log.is_file():
+        for line in log.read_text().splitlines():
+            rec = json.loads(line)
+            if rec["settings"] == settings and rec["seed"] in seeds:
+                done[rec["seed"]] = rec["result"]
+    todo = [s for s in seeds if s not in done]
+    print(f"{len(done)} replicates found in {log}, {len(todo)} to run", file=sys.stderr)
     with ProcessPoolExecutor(args.processes) as pool:
-        reps = list(pool.map(_one, [(s, args.samples, args.steps) for s in seeds]))
+        futures = {pool.submit(_one, (s, args.samples, args.steps)): s for s in todo}
+        for k, fut in enumerate(as_completed(futures), 1):
+            seed = futures[fut]
+            done[seed] = fut.result()
+            if log is not None:
+                with log.open("a") as fh:
+                    fh.write(json.dumps({"seed": seed, "settings": settings,
+                                         "result": done[seed]}) + "\n")
+            print(f"replicate {k}/{len(todo)} (seed {seed}) done, "
+                  f"{time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    reps = [done[s] for s in seeds]
     res = summarise(reps)
     res["wall_time_s"] = time.perf_counter() - t0
     res["settings"] = vars(args)
