@@ -38,8 +38,6 @@ from pathlib import Path
 import numpy as np
 
 _ROOT = Path(__file__).resolve().parents[1]
-# this folder's coverage.py would shadow the coverage package numba imports
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).parent]
 sys.path.insert(0, str(_ROOT))
 
 ESS_TARGET = 400.0

@@ -103,3 +103,18 @@ def test_headline_takes_friction_and_the_costlier_best_combination():
     assert h["best_combined"]["meets_target"] == (25.0 <= COMBINED_MAX_RATIO)
     assert headline({a: result(1.0, 2.0)}).keys() == {"best_combined"}
     assert headline({}) == {}
+
+
+def test_no_benchmark_script_shadows_an_installed_module():
+    # a script run as `python benchmarks/x.py` has benchmarks/ first on sys.path: a file
+    # named like an installed module (benchmarks/coverage.py shadowed `coverage`, which
+    # numba imports) breaks every benchmark that imports numba
+    import importlib.util
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[1] / "benchmarks"
+    scripts = sorted(p.stem for p in folder.glob("*.py"))
+    assert scripts  # the folder is there
+    shadowing = [s for s in scripts if importlib.util.find_spec(s) is not None]
+    assert shadowing == []
+    assert importlib.util.find_spec("numpy") is not None  # control: the check can fire

@@ -1,5 +1,5 @@
 """Reduced frequentist coverage check of the 90 % intervals (slow; the full study is
-benchmarks/coverage.py, reported in docs/inference.md).
+benchmarks/linear_coverage.py, reported in docs/inference.md).
 
 R replicated synthetic records (short, fresh AR(1) noise each) are fitted with the matching
 AR(1) likelihood and with the white-noise likelihood.  For each of the 10 quantities
@@ -22,7 +22,7 @@ R = 24
 
 
 def _benchmark():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "coverage.py"
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "linear_coverage.py"
     spec = importlib.util.spec_from_file_location("bayesmodal_coverage_benchmark", path)
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod  # dataclasses look their module up while being created

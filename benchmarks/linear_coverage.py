@@ -11,7 +11,7 @@ settings:
 
 Usage::
 
-    python benchmarks/coverage.py --replicates 100 --processes 2 --out coverage.json
+    python benchmarks/linear_coverage.py --replicates 100 --processes 2 --out coverage.json
 
 The coverage of one quantity over R replicates has binomial standard error
 ``sqrt(0.9 * 0.1 / R)`` (0.03 for R = 100).
