@@ -461,3 +461,18 @@ def test_calibrated_temperature_run_reuses_the_calibrations_check(tmp_path, monk
     chosen = s["temperature_calibration"]["temperature"]
     assert chosen in calls
     assert s["crossval"]["spec"]["temperature"] == chosen
+    # a resumed run of the same configuration takes the temperature it started with from
+    # the folder (no study at all); another configuration calibrates again
+    from bayesmodal.runs.folder import RunFolder
+    from bayesmodal.runs.runner import _temperature, prepare_run
+
+    folder = RunFolder(tmp_path / "out" / "loro")
+    prep = prepare_run(load_config(cfg))
+    calls.clear()
+    t, cal, study = _temperature(prep, folder)
+    assert (t, calls, study) == (chosen, [], None)
+    assert cal == s["temperature_calibration"]
+    other = cfg.read_text().replace("seed = 3", "seed = 4")
+    (tmp_path / "other.toml").write_text(other)
+    t2, _, study2 = _temperature(prepare_run(load_config(tmp_path / "other.toml")), folder)
+    assert len(calls) == len(measured) and study2 is not None

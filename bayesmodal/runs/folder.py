@@ -42,7 +42,8 @@ STATES = ("running", "finished", "failed")
 
 #: Files a run writes (besides its plots, ``*.png``); ``--force`` removes only these.
 RUN_FILES = ("chain.h5", "posterior.nc", "summary.json", "timing.json", "status.json",
-             "report.html", "run.log", "lsq_vs_posterior.md", "config.toml", "config.json")
+             "report.html", "run.log", "lsq_vs_posterior.md", "config.toml", "config.json",
+             "temperature.json")
 
 
 class RunLockedError(ConfigError):

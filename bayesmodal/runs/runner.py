@@ -532,18 +532,37 @@ def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
     return {ext.name: out}
 
 
-def _temperature(prep: PreparedRun):
+#: The calibrated temperature of a run, kept in its folder for a resumed run.
+TEMPERATURE_FILE = "temperature.json"
+
+
+def _temperature(prep: PreparedRun, folder: RunFolder):
     """The likelihood temperature of the run, its calibration (``temperature = "loro"``:
     leave-one-record-out coverage, ``inference.temperature``) or None, and the
-    leave-one-record-out study at that temperature the calibration measured (or None)."""
+    leave-one-record-out study at that temperature the calibration measured (or None).
+
+    The calibration is written to the run folder (``TEMPERATURE_FILE``, with the
+    configuration hash) before sampling starts; a resumed run of the same configuration
+    reads it back instead of repeating the studies, and continues its chain at the
+    temperature it started with (its [crossval] check is then measured again)."""
     cfg = prep.config
     if cfg.temperature != "loro":
         return float(cfg.temperature), None, None
     from ..inference.temperature import calibrate_loro
 
+    path = folder.path / TEMPERATURE_FILE
+    chash = cfg.hash()
+    if path.is_file():
+        kept = json.loads(path.read_text(encoding="utf-8"))
+        if kept.get("config_hash") == chash:
+            cal = kept["calibration"]
+            log.info("temperature %.4g from %s (calibrated when the run started)",
+                     cal["temperature"], path.name)
+            return float(cal["temperature"]), cal, None
     cal, study = calibrate_loro(list(prep.experiments), cfg.crossval_spec(), joint=False,
                                 progress=lambda line: log.info("temperature: %s", line))
     log.info("calibrated temperature %.4g (%s)", cal.temperature, cal.status)
+    folder.write_json(TEMPERATURE_FILE, {"config_hash": chash, "calibration": cal.to_dict()})
     return cal.temperature, cal.to_dict(), study
 
 
@@ -591,7 +610,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             steps_before = backend.iteration if backend.initialized else 0
             log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
                      cfg.walkers, cfg.steps, steps_before, cfg.seed)
-            temperature, calibration, study = _temperature(prep)
+            temperature, calibration, study = _temperature(prep, folder)
             run = sample_posterior(
                 list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
                 priors=prep.priors,
