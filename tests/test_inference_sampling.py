@@ -171,3 +171,19 @@ def test_configuration_errors():
         sample_posterior(exp, model, n_walkers=10, n_steps=5)
     with pytest.raises(ConfigError, match="burn"):
         sample_posterior(exp, model, n_steps=5, burn=5)
+
+
+def test_backend_in_a_missing_folder_is_refused_before_any_work(tmp_path, monkeypatch):
+    import bayesmodal.inference.sampling as sampling
+
+    model, exp = _synthetic(n=300, seed=1)
+    fits = []
+    monkeypatch.setattr(sampling, "fit_lsq", lambda *a, **k: fits.append(1) or 1 / 0)
+    missing = tmp_path / "no" / "chain.h5"
+    with pytest.raises(ConfigError, match="does not exist; create it"):
+        sample_posterior(exp, model, n_walkers=24, n_steps=20, backend=missing)
+    assert fits == [] and not missing.parent.exists()
+    # control: an existing folder gets as far as the start point
+    with pytest.raises(ZeroDivisionError):
+        sample_posterior(exp, model, n_walkers=24, n_steps=20, backend=tmp_path / "c.h5")
+    assert fits == [1]

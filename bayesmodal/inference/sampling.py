@@ -702,6 +702,10 @@ def sample_posterior(
             raise ConfigError(
                 f"restart must be in [1, burn) = [1, {burn}) so that every retained draw "
                 f"comes after it, got {restart}")
+    if isinstance(backend, (str, Path)) and not Path(backend).parent.is_dir():
+        # before the least-squares start and the sampling, not when the first step is saved
+        raise ConfigError(f"backend {str(backend)!r}: folder {str(Path(backend).parent)!r} "
+                          "does not exist; create it or give a path in an existing folder")
 
     # start point: LSQ mechanical estimate plus moment estimates of the noise
     if ext is None:
