@@ -95,6 +95,20 @@ def time_per_call(fn: Callable[[], object], *, min_time_s: float = 0.5, repeat: 
     return best
 
 
+def reused_linear(model: LinearModel, theta: np.ndarray, u: np.ndarray, dt: float
+                  ) -> Callable[[], np.ndarray]:
+    """The linear simulator as every benchmark here times it: a call validates ``theta``
+    (nb, n_params), builds the matrices and the exact ZOH discretisation and runs the
+    recursion into the buffer of one ``LinearSimulator`` reused between calls."""
+    sim = LinearSimulator(u, dt, model.n_carts)
+
+    def run():
+        M, C, K, b = model.matrices(model.check(theta))
+        return sim.run_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
+
+    return run
+
+
 def bench_linear(
     n_samples: int = 8000, batch: int = 64, *, dt: float = 0.005, rng=0, quick: bool = False
 ) -> dict:
@@ -124,14 +138,8 @@ def bench_linear(
     model = LinearModel(Rig(), "free")
     theta = _TABLE3 * (1 + 0.1 * rng.random((batch, model.n_params)))
     u = rng.normal(size=n_samples)
-    sim = LinearSimulator(u, dt, model.n_carts)
     min_time = 0.2 if quick else 1.0
-
-    def reused():
-        M, C, K, b = model.matrices(model.check(theta))
-        return sim.run_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
-
-    t_sim = time_per_call(reused, min_time_s=min_time)
+    t_sim = time_per_call(reused_linear(model, theta, u, dt), min_time_s=min_time)
     t_fresh = time_per_call(lambda: simulate_linear(model, theta, u, dt), min_time_s=min_time)
 
     t = np.arange(n_samples) * dt
@@ -263,12 +271,7 @@ def bench_extensions(
     }
 
     def timings(u):
-        sim = LinearSimulator(u, dt, model.n_carts)
-
-        def linear():
-            M, C, K, b = model.matrices(model.check(theta))
-            return sim.run_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
-
+        linear = reused_linear(model, theta, u, dt)
         t_lin, t_ext = [], {name: [] for name in names}
         for _ in range(rounds):
             t_lin.append(time_per_call(linear, min_time_s=min_time, repeat=3,

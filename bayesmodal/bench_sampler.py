@@ -5,7 +5,9 @@ Three rates, each in parameter sets (likelihood evaluations) per second on one r
 ``n_samples`` samples of the rig-like input (``bench.rig_input``):
 
 ``simulator``
-    ``simulate_linear`` on a half-ensemble batch (what one emcee half-step simulates);
+    the linear simulator with a reused output buffer (``bench.reused_linear``: validation,
+    matrices, discretisation and recursion) on a half-ensemble batch (what one emcee
+    half-step simulates);
 ``likelihood``
     ``Likelihood.__call__`` (AR(1)) on the same batch: simulation plus residual statistics;
 ``sampler``
@@ -28,7 +30,7 @@ import time
 
 import numpy as np
 
-from .bench import _TABLE3, rig_input, time_per_call
+from .bench import _TABLE3, reused_linear, rig_input, time_per_call
 
 __all__ = ["SAMPLER_MIN_FRACTION", "bench_sampler"]
 
@@ -37,20 +39,6 @@ SAMPLER_MIN_FRACTION = 0.5
 
 #: emcee steps per timed call of the sampler.
 CHUNK_STEPS = 10
-
-
-def _bare_simulator(model, theta, u, dt):
-    """The bare simulator as ``bench.bench_extensions`` times it: matrices from the
-    parameters, the exact ZOH discretisation and the recursion into a reused buffer."""
-    from .simulate import LinearSimulator
-
-    sim = LinearSimulator(u, dt, model.n_carts)
-
-    def run():
-        M, C, K, b = model.matrices(model.check(theta))
-        return sim.run_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
-
-    return run
 
 
 def _paired_rates(simulate, likelihood, sampler, state, n_sets: int, n_walkers: int,
@@ -127,7 +115,7 @@ def bench_sampler(n_samples: int = 7400, n_walkers: int = 32, n_steps: int = 100
     sampler = emcee.EnsembleSampler(n_walkers, centre.size, log_post, vectorize=True)
     state = emcee.State(z0, random_state=np.random.RandomState(1).get_state())
     state = sampler.run_mcmc(state, max(2, n_steps // (4 if quick else 1)))  # leave the ball
-    r = _paired_rates(_bare_simulator(model, theta[:, :9], u, dt),
+    r = _paired_rates(reused_linear(model, theta[:, :9], u, dt),
                       lambda: lik(theta), sampler, state, half, n_walkers, min_time, rounds)
     return {"n_samples": int(n_samples), "n_walkers": int(n_walkers), "rounds": rounds,
             "simulator_evals_per_s": r["simulator"], "likelihood_evals_per_s": r["likelihood"],
@@ -145,7 +133,6 @@ def _bench_records(model, u, y, dt, min_time, rounds, rng, n_records: int = 3) -
     from .inference.records import DEFAULT_LAYOUT, RecordsLikelihood, record_priors
     from .inference.records import records_start as start
     from .inference.sampling import LogPosterior
-    from .simulate import simulate_linear
 
     n = u.size
     exps = tuple(Experiment(np.arange(n) * dt, u, y * (1 + 0.03 * r), name=f"r{r}")
@@ -164,7 +151,7 @@ def _bench_records(model, u, y, dt, min_time, rounds, rng, n_records: int = 3) -
     state = sampler.run_mcmc(
         emcee.State(z0, random_state=np.random.RandomState(1).get_state()), 2)
     # rates in record evaluations: a likelihood call evaluates every record
-    r = _paired_rates(_bare_simulator(model, mech, u, dt), lambda: lik(theta),
+    r = _paired_rates(reused_linear(model, mech, u, dt), lambda: lik(theta),
                       sampler, state, half, n_walkers, min_time, rounds)
     return {"n_records": n_records, "n_walkers": n_walkers,
             "simulator_evals_per_s": r["simulator"],

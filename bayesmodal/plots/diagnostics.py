@@ -305,7 +305,7 @@ def plot_consistency(result: Diagnostic, *, ax=None):
 
 
 def plot_input_bias(result: Diagnostic, *, ax=None):
-    """Residual mean per output (encoder counts) against the fitted offset's response.
+    """Residual mean per output (micrometres) against the fitted offset's response.
 
     Returns
     -------
