@@ -88,6 +88,7 @@ from .system import DAMPING_MODELS, ECP210_SPRINGS_N_M
 
 __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
 
+#: Move names of ``[sampler] moves`` (``bayesmodal.inference.moves.MOVES``).
 MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
 NOISE_MODELS = ("ar1", "white")
 

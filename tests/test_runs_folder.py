@@ -156,7 +156,7 @@ def test_sample_acf_of_ar1_and_white_noise():
 
 def test_parse_moves_and_one_line():
     mv = parse_moves("de:0.8, de-snooker:0.2")
-    assert [type(m).__name__ for m, _ in mv] == ["DEMove", "DESnookerMove"]
+    assert [type(m).__name__ for m, _ in mv] == ["DEMove", "SnookerMove"]
     assert [w for _, w in mv] == [0.8, 0.2]
     assert type(parse_moves("stretch")[0][0]).__name__ == "StretchMove"
     with pytest.raises(ConfigError, match=r"\[sampler.moves\]"):

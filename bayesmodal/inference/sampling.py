@@ -39,6 +39,7 @@ from ..data import Experiment
 from ..fit import LSQResult, fit_lsq
 from ..system import LinearModel
 from .likelihood import Likelihood, as_experiments
+from .moves import default_moves
 from .priors import PriorSet, default_priors
 
 __all__ = [
@@ -296,11 +297,6 @@ class PosteriorRun:
     @property
     def config_hash(self) -> str:
         return config_hash(self.config)
-
-
-def default_moves() -> list:
-    """Differential-evolution (weight 0.8) and snooker (0.2) moves."""
-    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
 
 
 def _moves_key(moves) -> str:

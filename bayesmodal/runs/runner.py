@@ -28,6 +28,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
+from ..inference.moves import parse_moves
 from ..metrics import fit_percent
 from ..system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
@@ -103,28 +104,6 @@ def one_line(exc: BaseException) -> str:
     if len(lines) > 1 and lines[0].endswith("in the configuration:"):
         lines = lines[1:]
     return "; ".join(lines) or type(exc).__name__
-
-
-def parse_moves(text: str) -> list:
-    """emcee moves from a configuration string such as ``"de:0.8,de-snooker:0.2"``.
-
-    Examples
-    --------
-    >>> [type(m).__name__ for m, w in parse_moves("de:0.8,de-snooker:0.2")]
-    ['DEMove', 'DESnookerMove']
-    """
-    import emcee
-
-    kinds = {"stretch": emcee.moves.StretchMove, "de": emcee.moves.DEMove,
-             "de-snooker": emcee.moves.DESnookerMove, "walk": emcee.moves.WalkMove,
-             "kde": emcee.moves.KDEMove}
-    out = []
-    for part in text.split(","):
-        name, _, w = part.strip().partition(":")
-        if name not in kinds:
-            raise ConfigError(f"[sampler.moves] unknown move {name!r}; expected {sorted(kinds)}")
-        out.append((kinds[name](), float(w) if w else 1.0))
-    return out
 
 
 def _prior(ov):

@@ -1,0 +1,72 @@
+"""The snooker move leaves the posterior invariant (emcee 3.1.6's does not).
+
+A correlated 12-dimensional Gaussian, the walkers started at stationarity: after the
+chain the marginal variances must still be the target's.  The tolerance is the Monte
+Carlo error of a variance from the chain's own effective sample size.
+"""
+
+import emcee
+import numpy as np
+import pytest
+
+from bayesmodal import config
+from bayesmodal._errors import ConfigError
+from bayesmodal.inference.moves import MOVES, SnookerMove, default_moves, parse_moves
+
+NDIM, WALKERS, STEPS = 12, 40, 2500
+
+
+def _target(seed=0):
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.standard_normal((NDIM, NDIM)))
+    cov = q @ np.diag(np.logspace(0, -4, NDIM)) @ q.T
+    return cov, np.linalg.inv(cov)
+
+
+def _variance_ratio(moves, seed=1):
+    """Mean over dimensions of (chain variance / target variance) and its standard error."""
+    cov, prec = _target()
+    rng = np.random.default_rng(seed)
+    p0 = (np.linalg.cholesky(cov) @ rng.standard_normal((NDIM, WALKERS))).T
+
+    def logp(x):
+        return -0.5 * np.einsum("ij,jk,ik->i", x, prec, x)
+
+    s = emcee.EnsembleSampler(WALKERS, NDIM, logp, moves=moves, vectorize=True)
+    state = emcee.State(p0, random_state=np.random.RandomState(seed).get_state())
+    s.run_mcmc(state, STEPS)
+    chain = s.get_chain()
+    ratio = chain.reshape(-1, NDIM).var(axis=0) / np.diag(cov)
+    tau = emcee.autocorr.integrated_time(chain, quiet=True)
+    ess = chain.shape[0] * chain.shape[1] / tau
+    # var of a sample variance of a Gaussian: 2 s^4 / ESS; the mean over dimensions is
+    # bounded by the largest single standard error (dimensions are not independent)
+    se = np.sqrt(2.0 / ess).max()
+    return float(ratio.mean()), float(se)
+
+
+def test_corrected_snooker_keeps_the_variance():
+    r, se = _variance_ratio([(emcee.moves.DEMove(), 0.8), (SnookerMove(), 0.2)])
+    assert abs(r - 1.0) < 4 * se, (r, se)
+
+
+def test_snooker_alone_keeps_the_variance():
+    r, se = _variance_ratio(SnookerMove())
+    assert abs(r - 1.0) < 4 * se, (r, se)
+
+
+@pytest.mark.skipif(emcee.__version__ != "3.1.6",
+                    reason="negative control for emcee 3.1.6's DESnookerMove")
+def test_emcee_316_snooker_contracts_the_posterior():
+    """Negative control: the released move shrinks the variances (the bug SnookerMove fixes)."""
+    r, se = _variance_ratio([(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)])
+    assert r < 1.0 - 4 * se, (r, se)
+
+
+def test_default_and_configured_moves_use_the_corrected_snooker():
+    assert any(isinstance(m, SnookerMove) for m, _ in default_moves())
+    assert [type(m).__name__ for m, _ in parse_moves("de:0.8, de-snooker:0.2")] == [
+        "DEMove", "SnookerMove"]
+    assert set(config.MOVES) == set(MOVES)
+    with pytest.raises(ConfigError, match="weight"):
+        parse_moves("de:heavy")
