@@ -14,6 +14,10 @@ coulomb_directional                 one cart; one direction's level 0.3-1.0 N, t
                                     1.5-2.5 times it; Fs 1.0-1.3 times the larger
 coulomb_friction+input_offset       friction as in hidden_effects, plus an offset
 coulomb_friction+drive_deadband     friction as in hidden_effects, plus a dead band
+backlash+motor_lag                  backlash and a lag as in hidden_effects (gap 0.3-1 mm,
+                                    motor mass 0.1-0.3 kg, tau 10-30 ms), one reference
+                                    with the lagged force as a state
+                                    (``simulate_backlash_ref(..., tau=)``)
 ==================================  ====================================================
 
 The input stages act before the plant, so the friction pairs pass the offset or
@@ -28,12 +32,13 @@ from dataclasses import dataclass
 import numpy as np
 from hidden_effects import BASE, DT, SPRINGS, Q, rig_input
 from reference_effects import input_chain_ref, simulate_directional_coulomb_ref
-from reference_sim import simulate_coulomb_ref, simulate_linear_ref
+from reference_sim import simulate_backlash_ref, simulate_coulomb_ref, simulate_linear_ref
 
 from bayesmodal.data import Experiment
 
 CASES = ("input_offset", "drive_deadband", "coulomb_directional",
-         "coulomb_friction+input_offset", "coulomb_friction+drive_deadband")
+         "coulomb_friction+input_offset", "coulomb_friction+drive_deadband",
+         "backlash+motor_lag")
 
 
 @dataclass(frozen=True)
@@ -95,6 +100,12 @@ def make_case(case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
         w[i], w[3 + i], w[6 + i] = fp, fn, max(fp, fn) * rng.uniform(1.0, 1.3)
         effects["coulomb_directional"], sizes["coulomb_directional"] = [i + 1], w.tolist()
         y = simulate_directional_coulomb_ref(SPRINGS, np.r_[theta_lin, w], v, DT)
+    elif "backlash" in names:
+        gap, m_p = rng.uniform(3e-4, 1e-3), rng.uniform(0.1, 0.3)
+        tau = rng.uniform(0.010, 0.030)
+        effects.update(backlash=[1], motor_lag=None)
+        sizes.update(backlash=[gap, m_p], motor_lag=[tau])
+        y = simulate_backlash_ref(SPRINGS, np.r_[theta_lin, gap, m_p], v, DT, tau=tau)
     else:
         y = simulate_linear_ref(SPRINGS, theta_lin, v, DT)
     sigma = rng.uniform(0.3, 1.0) * Q

@@ -275,8 +275,11 @@ def simulate_coulomb_ref(springs, theta, u, dt):
 
 
 # ---------------------------------------------------------------------------- backlash
-def simulate_backlash_ref(springs, theta, u, dt):
+def simulate_backlash_ref(springs, theta, u, dt, tau=0.0):
     """Rack-pinion backlash between a motor of mass m_p and cart 1, plastic contact.
+
+    With ``tau > 0`` the motor force lags the voltage, ``tau f' = g_v v - f`` (an extra
+    state, continuous through the contact events), and ``f`` replaces ``g_v v`` below.
 
     Engaged on side s (delta = x_m - x_1 = s gap/2): motor and cart 1 move together
     (total mass m1); the contact force on cart 1 is g_v v - m_p a_1 and the contact opens
@@ -295,25 +298,31 @@ def simulate_backlash_ref(springs, theta, u, dt):
     Y = np.empty((N, n))
     half = gap / 2
     state = {"engaged": False, "side": 1.0}
-    z = np.zeros(2 * n + 2)  # x, x', x_m, x_m'
+    lag = tau > 0.0
+    z = np.zeros(2 * n + 2 + lag)  # x, x', x_m, x_m' (and the lagged force f)
+
+    def drive(z, v):
+        return z[2 * n + 2] if lag else g_v * v
 
     def accel_engaged(z, v):
-        F = b * v - K @ z[:n] - C @ z[n : 2 * n]
+        F = -K @ z[:n] - C @ z[n : 2 * n]
+        F[0] += drive(z, v)
         return F / m
 
     def contact_force(z, v):
-        return g_v * v - m_p * accel_engaged(z, v)[0]
+        return drive(z, v) - m_p * accel_engaged(z, v)[0]
 
     def rhs(t, z, v):
         x, xd = z[:n], z[n : 2 * n]
         if state["engaged"]:
             a = accel_engaged(z, v)
-            return np.r_[xd, a, xd[0], a[0]]
-        F = -K @ x - C @ xd
-        mm = m.copy()
-        mm[0] -= m_p
-        a = F / mm
-        return np.r_[xd, a, z[2 * n + 1], g_v * v / m_p]
+            out = np.r_[xd, a, xd[0], a[0]]
+        else:
+            F = -K @ x - C @ xd
+            mm = m.copy()
+            mm[0] -= m_p
+            out = np.r_[xd, F / mm, z[2 * n + 1], drive(z, v) / m_p]
+        return np.r_[out, (g_v * v - z[2 * n + 2]) / tau] if lag else out
 
     def events(v):
         if state["engaged"]:

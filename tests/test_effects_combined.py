@@ -45,8 +45,6 @@ def test_names_are_linear_then_each_effect_in_order():
 
 @pytest.mark.parametrize("names,match", [
     (["coulomb_friction", "backlash"], "two plant-side effects"),
-    (["coulomb_friction", "motor_lag"], "not supported"),
-    (["input_delay", "lugre_friction"], "not supported"),
     (["input_offset", "input_offset"], "repeated"),
     (["input_offset", "friction"], "unknown model extension"),
 ])

@@ -16,6 +16,7 @@ Lag and delay are both linear and time-invariant, so their order does not matter
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 
 from ..kernels import linear_input_run, zoh
 from ._linear import linear_parts
@@ -89,3 +90,60 @@ def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None):
     A2, G2 = zoh(A, B[..., None], (1.0 - phi) * dt)
     B1 = np.einsum("bij,bj->bi", A2, G1[..., 0])
     return linear_input_run(A2 @ A1, B1, G2[..., 0], v, z0, n, shift=m)
+
+
+def held_average(v: np.ndarray, dt: float, nb: int, *, tau=None, delay_s=None) -> np.ndarray:
+    """The delayed and lagged input as one held value per sample: its mean over each interval.
+
+    A nonlinear plant's kernel takes an input held over each sample.  A delayed input
+    changes inside an interval, and a lagged force relaxes exponentially across it; this
+    gives each interval the exact mean of that signal (in volts, ``f / g_v``), so the
+    impulse per interval is exact and what is lost is the signal's shape inside it, a
+    second-order error in ``dt`` (``tests/test_effects_combined_filters.py`` measures the
+    order against the exact linear recursion).
+
+    With ``D = (m + phi) dt`` the delayed input's mean over ``[k dt, (k + 1) dt)`` is
+    ``w[k] = phi v[k-m-1] + (1 - phi) v[k-m]`` (zero before the record).  The lag
+    ``tau f' = w - f`` held over the interval gives ``f[k+1] = w[k] + (f[k] - w[k]) a`` and
+    the mean ``w[k] + (f[k] - w[k]) c`` with ``a = exp(-dt / tau)``,
+    ``c = tau (1 - a) / dt``; the force starts at zero.
+
+    Parameters
+    ----------
+    v : ndarray, shape (N,) or (nb, N)
+        Voltage held over each sample, V.
+    dt : float
+        Sample interval, s.
+    nb : int
+        Number of parameter sets (lanes).
+    tau, delay_s : ndarray, shape (nb,), optional
+        Lag time constants and delays, s (>= 0).
+
+    Returns
+    -------
+    ndarray, shape (nb, N)
+    """
+    w = np.array(np.broadcast_to(v, (nb, np.shape(v)[-1])), dtype=float)
+    N = w.shape[1]
+    if delay_s is not None:
+        d = np.asarray(delay_s, dtype=float) / dt
+        m = np.floor(d + 1e-12).astype(int)
+        phi = np.clip(d - m, 0.0, 1.0)
+        pad = np.concatenate([np.zeros((nb, int(m.max()) + 1)), w], axis=1)
+        k = np.arange(N)
+        rows = np.arange(nb)[:, None]
+        start = pad.shape[1] - N  # pad[start + j] = w[j]
+        late = pad[rows, start + k[None] - m[:, None]]
+        early = pad[rows, start + k[None] - m[:, None] - 1]
+        w = phi[:, None] * early + (1.0 - phi[:, None]) * late
+    if tau is None:
+        return w
+    tau = np.asarray(tau, dtype=float)
+    out = w.copy()
+    for b in np.flatnonzero(tau > 0.0):
+        a = np.exp(-dt / tau[b])
+        c = tau[b] * (1.0 - a) / dt
+        # f[k] before the interval: f[k+1] = a f[k] + (1 - a) w[k], f[0] = 0
+        f = lfilter([0.0, 1.0 - a], [1.0, -a], w[b])
+        out[b] = w[b] + (f - w[b]) * c
+    return out
