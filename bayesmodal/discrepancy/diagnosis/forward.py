@@ -10,8 +10,8 @@ found, a ``Combined`` model):
    data).  If the largest standardised residual diagnostic ``T`` is at or below the
    recalibrated threshold, the residuals pass and the selection stops.
 2. **Candidates.**  Every catalogued effect not in the model that combines with it
-   (``Combined`` refuses two plant-side effects) is added, and refinements replace the effect they generalise (directional
-   Coulomb levels replace equal ones).  Each gets the current fit with the candidate's
+   (``Combined`` refuses two plant-side effects) is added, and refinements replace the
+   effect they generalise (directional Coulomb levels replace equal ones).  Each gets the current fit with the candidate's
    start grid, evaluated in one batch; the ``max_fits`` candidates with the cheapest
    start are fitted by least squares from their ``n_starts`` cheapest points (a bounded
    cost per step).
