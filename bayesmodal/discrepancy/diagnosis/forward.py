@@ -11,10 +11,10 @@ found, a ``Combined`` model):
    recalibrated threshold, the residuals pass and the selection stops.
 2. **Candidates.**  Every catalogued effect not in the model that combines with it
    (``Combined`` refuses two plant-side effects) is added, and refinements replace the
-   effect they generalise (directional Coulomb levels replace equal ones).  Each gets the current fit with the candidate's
-   start grid, evaluated in one batch; the ``max_fits`` candidates with the cheapest
-   start are fitted by least squares from their ``n_starts`` cheapest points (a bounded
-   cost per step).
+   effect they generalise (directional Coulomb levels replace equal ones).  Each gets the
+   current fit with the candidate's start grid, evaluated in one batch; the ``max_fits``
+   candidates with the cheapest start are fitted by least squares from their ``n_starts``
+   cheapest points (a bounded cost per step).
 3. **Test.**  In sample: the likelihood ratio ``LR = 2 (lpd_new - lpd_cur)`` of the
    AR(1)-whitened Gaussian likelihood (noise profiled per output) against ``chi2(k)``
    (``k`` added parameters) at ``alpha / n_candidates``, and a positive BIC gain
