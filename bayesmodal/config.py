@@ -90,6 +90,11 @@ __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
 
 #: Move names of ``[sampler] moves`` (``bayesmodal.inference.moves.MOVES``).
 MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
+#: Moves whose implementation changed the result: a configuration naming one hashes with
+#: its revision, so a run sampled before the change does not resume (the snooker move is
+#: emcee's with the fix of its pull request #531 since 25 Nov 2026; the released one
+#: made the posteriors about 18 % too narrow, docs/uncertainty.md).
+MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
 NOISE_MODELS = ("ar1", "white")
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
@@ -237,6 +242,9 @@ class RunConfig:
         # where the data live does not change the result; their content is hashed separately
         d["data_files"] = [Path(f).name for f in self.data_files]
         d["heldout_files"] = [Path(f).name for f in self.heldout_files]
+        revised = {m: r for m, r in MOVE_REVISIONS.items() if m in d["moves"]}
+        if revised:
+            d["move_revisions"] = revised
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
 
 

@@ -147,3 +147,19 @@ def test_calibrated_temperature_is_accepted(cfg_dir):
     fixed = parse_config({**_toml(GOOD), "likelihood": {"noise": "ar1", "temperature": 1}},
                          base=cfg_dir)
     assert c.hash() != fixed.hash()
+
+
+def test_snooker_runs_hash_apart_from_the_released_move(cfg_dir, monkeypatch):
+    """A configuration naming the snooker move hashes with the corrected move's revision,
+    so a run sampled with emcee 3.1.6's contracting move (same TOML) does not resume; a
+    configuration without it keeps its hash."""
+    import bayesmodal.config as config
+
+    snooker = parse_config(_toml(GOOD), base=cfg_dir)
+    assert "de-snooker" in snooker.moves
+    de = parse_config({**_toml(GOOD), "sampler": {**_toml(GOOD)["sampler"], "moves": "de"}},
+                      base=cfg_dir)
+    now = snooker.hash(), de.hash()
+    monkeypatch.setattr(config, "MOVE_REVISIONS", {})
+    assert snooker.hash() != now[0]
+    assert de.hash() == now[1]
