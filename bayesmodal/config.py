@@ -92,7 +92,7 @@ __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
 MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
 #: Moves whose implementation changed the result: a configuration naming one hashes with
 #: its revision, so a run sampled before the change does not resume (the snooker move is
-#: emcee's with the fix of its pull request #531 since 25 Nov 2026; the released one
+#: emcee's with the fix of its pull request #531 since 24 Nov 2026; the released one
 #: made the posteriors about 18 % too narrow, docs/uncertainty.md).
 MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
 NOISE_MODELS = ("ar1", "white")
