@@ -248,6 +248,31 @@ class RunConfig:
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
 
 
+def move_spec(text: str) -> tuple[list[tuple[str, float]], list[str]]:
+    """The ``name[:weight]`` items of a ``[sampler] moves`` string and its problems.
+
+    Returns
+    -------
+    items : list of (str, float)
+        Move names from :data:`MOVES` with their weights (1 when not given).
+    problems : list of str
+        One line per unknown name or non-positive weight (empty when the string is good).
+    """
+    items, problems = [], []
+    for part in text.split(","):
+        name, _, w = part.strip().partition(":")
+        if name not in MOVES:
+            problems.append(f"unknown move {name!r}; expected {MOVES}")
+        try:
+            weight = float(w) if w else 1.0
+        except ValueError:
+            weight = float("nan")
+        if not weight > 0:
+            problems.append(f"weight of {name!r} must be a positive number")
+        items.append((name, weight))
+    return items, problems
+
+
 def _type_name(t) -> str:
     if isinstance(t, tuple):
         return " or ".join(x.__name__ for x in t)
@@ -479,16 +504,8 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         kw["init"] = init
     moves = values.get(("sampler", "moves"))
     if moves is not None:
-        for part in moves.split(","):
-            mv, _, w = part.strip().partition(":")
-            if mv not in MOVES:
-                err("sampler.moves", f"unknown move {mv!r}; expected {MOVES}")
-            if w:
-                try:
-                    if float(w) <= 0:
-                        raise ValueError
-                except ValueError:
-                    err("sampler.moves", f"weight of {mv!r} must be a positive number")
+        for problem in move_spec(moves)[1]:
+            err("sampler.moves", problem)
         kw["moves"] = moves
 
     out = values.get(("outputs", "dir"))

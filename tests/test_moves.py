@@ -68,5 +68,10 @@ def test_default_and_configured_moves_use_the_corrected_snooker():
     assert [type(m).__name__ for m, _ in parse_moves("de:0.8, de-snooker:0.2")] == [
         "DEMove", "SnookerMove"]
     assert set(config.MOVES) == set(MOVES)
-    with pytest.raises(ConfigError, match="weight"):
-        parse_moves("de:heavy")
+    # the run configuration's own check: names and positive weights
+    for bad in ("de:heavy", "de:0", "de:0.8,snooker:0.2"):
+        with pytest.raises(ConfigError, match=r"\[sampler.moves\]"):
+            parse_moves(bad)
+        assert config.move_spec(bad)[1]
+    assert config.move_spec("de:0.8, de-snooker:0.2") == (
+        [("de", 0.8), ("de-snooker", 0.2)], [])

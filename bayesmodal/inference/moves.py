@@ -18,6 +18,7 @@ import emcee
 import numpy as np
 
 from .._errors import ConfigError
+from ..config import move_spec
 
 
 class SnookerMove(emcee.moves.DESnookerMove):
@@ -71,7 +72,8 @@ def parse_moves(text: str) -> list:
     Parameters
     ----------
     text : str
-        Comma-separated ``name[:weight]`` items, names from :data:`MOVES`.
+        Comma-separated ``name[:weight]`` items, names from :data:`MOVES`, positive
+        weights (checked by ``config.move_spec``, as a run configuration is).
 
     Returns
     -------
@@ -82,15 +84,8 @@ def parse_moves(text: str) -> list:
     >>> [type(m).__name__ for m, w in parse_moves("de:0.8,de-snooker:0.2")]
     ['DEMove', 'SnookerMove']
     """
-    out = []
-    for part in text.split(","):
-        name, _, w = part.strip().partition(":")
-        if name not in MOVES:
-            raise ConfigError(f"[sampler.moves] unknown move {name!r}; expected {sorted(MOVES)}")
-        try:
-            weight = float(w) if w else 1.0
-        except ValueError:
-            raise ConfigError(f"[sampler.moves] weight of {name!r} must be a number, got "
-                              f"{w!r}; write e.g. 'de:0.8,de-snooker:0.2'") from None
-        out.append((MOVES[name](), weight))
-    return out
+    items, problems = move_spec(text)
+    if problems:
+        raise ConfigError("[sampler.moves] " + "; ".join(problems)
+                          + "; write e.g. 'de:0.8,de-snooker:0.2'")
+    return [(MOVES[name](), weight) for name, weight in items]
