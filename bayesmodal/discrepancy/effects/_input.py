@@ -22,6 +22,21 @@ from ..kernels import linear_input_run, zoh
 from ._linear import linear_parts
 
 
+def split_delay(delay_s, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``D = (m + phi) dt``: whole samples ``m`` (int) and the fraction ``0 <= phi <= 1``.
+
+    Parameters
+    ----------
+    delay_s : ndarray, shape (nb,)
+        Delays, s (>= 0).
+    dt : float
+        Sample interval, s.
+    """
+    delay = np.asarray(delay_s, dtype=float) / dt
+    m = np.floor(delay + 1e-12).astype(int)
+    return m, np.clip(delay - m, 0.0, 1.0)
+
+
 def lagged_system(rig, theta_lin: np.ndarray, tau: np.ndarray | None):
     """State matrix and input vector of ``(x, x', f)`` with the lag ``tau`` (s) per lane.
 
@@ -83,9 +98,7 @@ def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None):
     if delay_s is None:
         Ad, Bd = zoh(A, B[..., None], dt)
         return linear_input_run(Ad, np.zeros((nb, s)), Bd[..., 0], v, z0, n)
-    delay = np.asarray(delay_s, dtype=float) / dt
-    m = np.floor(delay + 1e-12).astype(int)
-    phi = np.clip(delay - m, 0.0, 1.0)
+    m, phi = split_delay(delay_s, dt)
     A1, G1 = zoh(A, B[..., None], phi * dt)
     A2, G2 = zoh(A, B[..., None], (1.0 - phi) * dt)
     B1 = np.einsum("bij,bj->bi", A2, G1[..., 0])
@@ -126,9 +139,7 @@ def held_average(v: np.ndarray, dt: float, nb: int, *, tau=None, delay_s=None) -
     w = np.array(np.broadcast_to(v, (nb, np.shape(v)[-1])), dtype=float)
     N = w.shape[1]
     if delay_s is not None:
-        d = np.asarray(delay_s, dtype=float) / dt
-        m = np.floor(d + 1e-12).astype(int)
-        phi = np.clip(d - m, 0.0, 1.0)
+        m, phi = split_delay(delay_s, dt)
         pad = np.concatenate([np.zeros((nb, int(m.max()) + 1)), w], axis=1)
         k = np.arange(N)
         rows = np.arange(nb)[:, None]

@@ -23,6 +23,7 @@ import numpy as np
 from ...system import Rig
 from ..kernels import linear_input_run, zoh
 from ._base import Extension, ParamSpec
+from ._input import split_delay
 from ._linear import linear_parts
 
 
@@ -48,9 +49,7 @@ class InputDelay(Extension):
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
         n = rig.n_carts
-        delay = theta_ext[:, 0] / dt
-        m = np.floor(delay + 1e-12).astype(int)
-        phi = np.clip(delay - m, 0.0, 1.0)
+        m, phi = split_delay(theta_ext[:, 0], dt)
         p = linear_parts(rig, theta_lin)
         # e^{A phi dt}, Gamma(phi dt) B and e^{A (1-phi) dt}, Gamma((1-phi) dt) B per lane
         A1, G1 = _blocks_variable_step(p.A, p.B, phi * dt)
