@@ -83,13 +83,7 @@ def information(draws: int, seed: int = 0) -> None:
     def records():
         out = []
         for (name, v), y in zip(ins.items(), clean, strict=True):
-            e = np.empty_like(y)
-            e[0] = rt.SIGMA / np.sqrt(1 - rt.PHI**2) * rng.standard_normal(3)
-            w = rt.SIGMA * rng.standard_normal(y.shape)
-            for k in range(1, n):
-                e[k] = rt.PHI * e[k - 1] + w[k]
-            y_meas = np.round((y + e) / rt.M_PER_COUNT) * rt.M_PER_COUNT
-            out.append(Experiment(np.arange(n) * rt.DT, v, y_meas, name=name))
+            out.append(Experiment(np.arange(n) * rt.DT, v, rt.measure(y, rng), name=name))
         return out
 
     lik = RecordsLikelihood(MODEL, records(), "ar1", layout=LAYOUT)

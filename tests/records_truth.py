@@ -53,6 +53,17 @@ def simulate(theta_lin, v, dt=DT):
     return y
 
 
+def measure(y, rng):
+    """Encoder readings of positions ``y`` (N, 3), m: stationary AR(1) noise (innovation
+    ``SIGMA``, coefficient ``PHI``) rounded to encoder counts."""
+    e = np.empty_like(y)
+    e[0] = SIGMA / np.sqrt(1 - PHI**2) * rng.standard_normal(y.shape[1])
+    w = SIGMA * rng.standard_normal(y.shape)
+    for k in range(1, y.shape[0]):
+        e[k] = PHI * e[k - 1] + w[k]
+    return np.round((y + e) / M_PER_COUNT) * M_PER_COUNT
+
+
 def make_replicate(rng, n: int = 2000):
     """Records and their truths.
 
@@ -67,13 +78,7 @@ def make_replicate(rng, n: int = 2000):
         g = MU_GV * np.exp(TAU_GV * rng.standard_normal())
         v0 = V0_SD * rng.standard_normal()
         y = simulate(np.r_[g, PHYSICS], v + v0)
-        e = np.empty_like(y)
-        e[0] = SIGMA / np.sqrt(1 - PHI**2) * rng.standard_normal(3)
-        w = SIGMA * rng.standard_normal(y.shape)
-        for k in range(1, y.shape[0]):
-            e[k] = PHI * e[k - 1] + w[k]
-        y_meas = np.round((y + e) / M_PER_COUNT) * M_PER_COUNT  # encoder quantisation
-        out.append(Experiment(np.arange(n) * DT, v, y_meas, name=name))
+        out.append(Experiment(np.arange(n) * DT, v, measure(y, rng), name=name))
         gains.append(g)
         offsets.append(v0)
     return out, {"g_v": gains, "v0": offsets, "mu_gv": MU_GV, "physics": PHYSICS}
