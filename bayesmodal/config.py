@@ -45,7 +45,7 @@ problem in a file is collected and reported at once, each naming the file and th
     burn = 1000
     thin = 5
     seed = 1
-    moves = "stretch"           # stretch, de, de-snooker, walk, kde or "de:0.8,de-snooker:0.2"
+    moves = "de"                # de, stretch, de-snooker, walk, kde or "de:0.8,de-snooker:0.2"
     restart = 500               # optional: re-centre the walkers on the best one at this
                                 # step (< burn), for walkers stuck in a negligible mode
     init = "ball"               # or "laplace": walkers drawn from the Gaussian at the
@@ -143,7 +143,7 @@ class RunConfig:
     burn: int = 1000
     thin: int = 5
     seed: int = 1
-    moves: str = "stretch"
+    moves: str = "de"
     restart: int | None = None
     init: str = "ball"
     out_dir: str = ""

@@ -62,8 +62,15 @@ MOVES = {"stretch": emcee.moves.StretchMove, "de": emcee.moves.DEMove,
 
 
 def default_moves() -> list:
-    """Differential evolution (weight 0.8) and the corrected snooker move (0.2)."""
-    return [(emcee.moves.DEMove(), 0.8), (SnookerMove(), 0.2)]
+    """Differential evolution alone, the package's default (``[sampler] moves = "de"``).
+
+    Measured against differential evolution (0.8) with the corrected snooker move (0.2):
+    on the measured impulses (free damping, AR(1), 32 walkers x 5000 steps) the largest
+    autocorrelation time is 77 steps against 89, in 10 s against 16 s (the snooker
+    proposal is a Python loop over walkers); on a 22-dimensional Gaussian 63 against 75
+    steps, and both leave it invariant (docs/inference.md, "Moves").
+    """
+    return [(emcee.moves.DEMove(), 1.0)]
 
 
 def parse_moves(text: str) -> list:
