@@ -33,6 +33,8 @@ problem in a file is collected and reported at once, each naming the file and th
     [records]                   # optional: several records, one physical system
     per_record = { g_v = "hierarchical", v0 = "hierarchical" }   # or "independent"
     noise_per_record = false
+    noise_scale = "none"        # or "response": each record's noise level sized by the
+                                # model's response to its input (docs/uncertainty.md)
 
     [crossval]                  # optional: leave-one-record-out check of the run
     enabled = true
@@ -105,7 +107,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "model": {"damping": str, "extensions": list},
     "priors": {},  # free keys, checked against parameter names later
     "likelihood": {"noise": str, "temperature": (int, float, str)},
-    "records": {"per_record": dict, "noise_per_record": bool},
+    "records": {"per_record": dict, "noise_per_record": bool, "noise_scale": str},
     "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
                 "moves": str, "restart": int, "init": str},
@@ -161,6 +163,7 @@ class RunConfig:
     rig: dict | None = None
     per_record: dict[str, str] = field(default_factory=dict)
     noise_per_record: bool = False
+    noise_scale: str = "none"
     temperature: float | str = 1.0  # or "loro" (calibrated, inference.temperature)
     crossval: bool = False
     crossval_draws: int = 200
@@ -172,7 +175,8 @@ class RunConfig:
 
     #: Fields left out of the hash at their defaults (configs written before them keep
     #: their hashes).
-    _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "temperature": 1.0,
+    _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "noise_scale": "none",
+                     "temperature": 1.0,
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None, "columns": None, "input_scale": 1.0,
                      "time_scale": 1.0, "init": "ball"}
@@ -199,11 +203,11 @@ class RunConfig:
         """The per-record layout (``RecordLayout``), or None for shared parameters."""
         from .inference.records import RecordLayout
 
-        if not self.per_record and not self.noise_per_record:
+        if not self.per_record and not self.noise_per_record and self.noise_scale == "none":
             # AR(p) noise lives in the several-record likelihood: shared layout
             return None if self.noise in NOISE_MODELS else RecordLayout({})
 
-        return RecordLayout(dict(self.per_record), self.noise_per_record)
+        return RecordLayout(dict(self.per_record), self.noise_per_record, self.noise_scale)
 
     def crossval_spec(self):
         """The ``CrossvalSpec`` of this configuration (model, noise, layout, sampler)."""
@@ -462,6 +466,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         kw["per_record"] = {str(k): str(v) for k, v in per.items()}
     if ("records", "noise_per_record") in values:
         kw["noise_per_record"] = values[("records", "noise_per_record")]
+    if ("records", "noise_scale") in values:
+        v = values[("records", "noise_scale")]
+        if v not in ("none", "response"):
+            err("records.noise_scale", f"must be 'none' or 'response', got {v!r}")
+        kw["noise_scale"] = v
     if ("crossval", "enabled") in values:
         kw["crossval"] = values[("crossval", "enabled")]
     for key, lo in (("draws", 2), ("walkers", 4), ("steps", 10)):

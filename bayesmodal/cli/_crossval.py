@@ -43,6 +43,9 @@ def register(sub) -> None:
                    metavar="NAME=KIND,...",
                    help="per-record parameters, KIND independent, hierarchical or shared (v0), "
                         "or 'none' (default %(default)s)")
+    p.add_argument("--noise-scale", choices=["none", "response"], default="none",
+                   help="response: each record's noise level times the relative size of "
+                   "the model's response to its input (default none: one level in m)")
     p.add_argument("--walkers", type=int, default=48, help="ensemble size (default 48)")
     p.add_argument("--steps", type=int, default=4000, help="steps per walker (default 4000)")
     p.add_argument("--draws", type=int, default=200,
@@ -83,7 +86,8 @@ def spec_from_args(args):
         return cfg.crossval_spec()
     rig = load_rig(args) if getattr(args, "rig", None) else None
     return CrossvalSpec(damping=damping_of(args, rig or Rig()), noise=args.noise, rig=rig,
-                        layout=parse_layout(args.per_record), n_walkers=args.walkers,
+                        layout=parse_layout(args.per_record,
+                                            noise_scale=args.noise_scale), n_walkers=args.walkers,
                         n_steps=args.steps, n_predictive=args.draws, seed=args.seed,
                         temperature=1.0 if _calibrating(args) else _number(
                             args.temperature, "--temperature"))

@@ -56,6 +56,9 @@ def add_sampler_args(p) -> None:
                    help="several DATA records, one physical system: parameters with one "
                    "value per record, KIND independent or hierarchical, e.g. "
                    "g_v=hierarchical,v0=hierarchical; none shares every parameter")
+    p.add_argument("--noise-scale", choices=["none", "response"], default="none",
+                   help="response: each record's noise level times the relative size of "
+                   "the model's response to its input (default none: one level in m)")
     p.add_argument("--walkers", type=int, default=32, help="ensemble size")
     p.add_argument("--steps", type=int, default=5000, help="steps per walker")
     p.add_argument("--burn", type=int, default=None,
@@ -88,10 +91,11 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     try:
         from ..inference.records import parse_layout
 
-        layout = parse_layout(getattr(args, "per_record", "none"))
+        layout = parse_layout(getattr(args, "per_record", "none"),
+                              noise_scale=getattr(args, "noise_scale", "none"))
         run = sample_posterior(
             exps, model, noise=args.noise, n_walkers=args.walkers,
-            layout=layout if layout.per_record else None,
+            layout=layout if layout.per_record or layout.noise_scale != "none" else None,
             n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
             progress=not args.quiet, initial_state=getattr(args, "initial_state", "rest"),
             init=getattr(args, "init", "ball"),

@@ -127,6 +127,10 @@ def _attrs(run) -> dict:
     layout = getattr(lik, "layout", None)
     if layout is not None:
         attrs["record_layout_json"] = json.dumps(layout.to_dict())
+        scales = getattr(lik, "record_scales", None)
+        if scales is not None:  # the parameter row each record's noise level was sized at
+            attrs["record_scale_at_json"] = json.dumps(
+                {"at": scales.at.tolist(), "reference_m": scales.reference_m})
     if run.lsq is not None:
         # (with estimated initial states they follow, as in the mechanical names)
         x0 = getattr(run.lsq, "x0", None)
@@ -395,11 +399,15 @@ def likelihood_from_idata(idata, experiments=None):
     a = idata.posterior.attrs
     layout = a.get("record_layout_json")
     if layout:
+        from .record_scale import RecordScales
         from .records import RecordLayout, RecordsLikelihood
 
+        at = a.get("record_scale_at_json")
         return RecordsLikelihood(model_from_idata(idata), tuple(exps), a["noise"],
                                  extension_from_idata(idata),
-                                 RecordLayout.from_dict(json.loads(layout)))
+                                 RecordLayout.from_dict(json.loads(layout)),
+                                 scale_at=None if at is None else RecordScales.reference(
+                                     **json.loads(at)))
     return Likelihood(model_from_idata(idata), tuple(exps), a["noise"],
                       extension_from_idata(idata), a.get("initial_state", "rest"))
 

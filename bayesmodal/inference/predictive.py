@@ -200,9 +200,11 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
                            experiment.dt, initial="rest")
         return y_hat, y_pred, np.where(np.isfinite(ll), ll, -np.inf)
     if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
-        e = lik.noise_simulate(noise, experiment.n_samples, rng)
+        # (with noise_scale "response": the level sized by the record's simulated response)
+        s = lik.scale_of(experiment)
+        e = lik.noise_simulate(noise, experiment.n_samples, rng, s)
         with np.errstate(all="ignore"):
-            ll = lik.noise_loglik(R, noise)
+            ll = lik.noise_loglik(R, noise, s)
     else:
         n = lik.n_outputs
         sigma = noise[:, :n]

@@ -62,6 +62,7 @@ from .likelihood import (
     white_terms,
 )
 from .priors import Normal, PriorSet, default_priors
+from .record_scale import NOISE_SCALES, RecordScales, record_scales, response_rms
 
 __all__ = [
     "RecordLayout",
@@ -179,6 +180,10 @@ class RecordLayout:
         "hierarchical"}``.  Empty: every parameter is shared, as in a single-record run.
     noise_per_record : bool
         Each record has its own noise parameters (default: shared).
+    noise_scale : {"none", "response"}
+        ``"response"``: each record's noise level is the shared one times the relative
+        size of the model's response to its input (``bayesmodal.inference.record_scale``);
+        ``"none"`` (default): one level in metres for every record.
 
     Examples
     --------
@@ -188,6 +193,7 @@ class RecordLayout:
 
     per_record: Mapping[str, str] = field(default_factory=dict)
     noise_per_record: bool = False
+    noise_scale: str = "none"
 
     def __post_init__(self) -> None:
         items = tuple((str(k), str(v)) for k, v in dict(self.per_record).items())
@@ -198,17 +204,24 @@ class RecordLayout:
                     f"got {kind!r}")
         object.__setattr__(self, "per_record", dict(items))
         object.__setattr__(self, "noise_per_record", bool(self.noise_per_record))
+        if self.noise_scale not in NOISE_SCALES:
+            raise ConfigError(f"noise_scale must be one of {NOISE_SCALES}, got "
+                              f"{self.noise_scale!r}")
 
     @property
     def kinds(self) -> tuple[tuple[str, str], ...]:
         return tuple(self.per_record.items())
 
     def to_dict(self) -> dict:
-        return {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
+        d = {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
+        if self.noise_scale != "none":  # (absent at the default: earlier hashes stay valid)
+            d["noise_scale"] = self.noise_scale
+        return d
 
     @classmethod
     def from_dict(cls, d: Mapping) -> RecordLayout:
-        return cls(dict(d.get("per_record", {})), bool(d.get("noise_per_record", False)))
+        return cls(dict(d.get("per_record", {})), bool(d.get("noise_per_record", False)),
+                   str(d.get("noise_scale", "none")))
 
 
 #: The package's default for several records: a drive gain per record drawn from a
@@ -233,6 +246,12 @@ class RecordsLikelihood:
         A model extension on the free-damping model.
     layout : RecordLayout
         Per-record parameters (default :data:`DEFAULT_LAYOUT`).
+    scale_at : array_like, shape (n_mech,), or RecordScales, optional
+        With ``layout.noise_scale == "response"``: the model parameters (single-record
+        order, ``mech_names``) at which each record's response size is simulated, e.g. the
+        least-squares estimate (``sample_posterior`` passes its start).  Required then.
+        A ``RecordScales`` (a fitted likelihood's ``record_scales``) also keeps its
+        reference size, for the same likelihood on other records.
 
     Attributes
     ----------
@@ -258,6 +277,7 @@ class RecordsLikelihood:
     noise: str = "ar1"
     extension: object = None
     layout: RecordLayout = DEFAULT_LAYOUT
+    scale_at: object = None
 
     def __post_init__(self) -> None:
         exps = (self.experiments,) if isinstance(self.experiments, Experiment) else tuple(
@@ -290,7 +310,7 @@ class RecordsLikelihood:
                     "input_offset effect: extensions = [..., 'input_offset']")
             # the effect's offset is the record's v0: one parameter, not two
             per = {("v_offset" if k == "v0" else k): v for k, v in layout.per_record.items()}
-            layout = RecordLayout(per, layout.noise_per_record)
+            layout = RecordLayout(per, layout.noise_per_record, layout.noise_scale)
         if noise_model.name == "process":
             if ext is not None:
                 raise ConfigError(
@@ -302,6 +322,11 @@ class RecordsLikelihood:
                 raise ConfigError(
                     "process noise with a per-record input offset v0 is not built; declare "
                     "only g_v per record (per_record = { g_v = ... })")
+            if layout.noise_scale != "none":
+                raise ConfigError(
+                    "process noise has no noise level to scale per record (its random "
+                    "force goes through the dynamics); use noise_scale = 'none' or noise "
+                    "'ar1' / 'arP'")
         object.__setattr__(self, "experiments", exps)
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "extension", ext)
@@ -311,6 +336,33 @@ class RecordsLikelihood:
         object.__setattr__(self, "record_keys", keys)
         object.__setattr__(self, "_index", self._build_index(mech))
         object.__setattr__(self, "_sims", SimulatorCache())
+        scales = None
+        if layout.noise_scale == "response":
+            if self.scale_at is None:
+                raise ConfigError(
+                    "noise_scale 'response' needs scale_at, the model parameters at which "
+                    "each record's response size is simulated (e.g. a least-squares "
+                    "estimate's theta); sample_posterior passes its start")
+            given = self.scale_at
+            ref = given.reference_m if isinstance(given, RecordScales) else None
+            at = given.at if isinstance(given, RecordScales) else given
+            scales = record_scales(self._response, at, exps, len(mech), ref)
+        object.__setattr__(self, "record_scales", scales)
+
+    # ---------------------------------------------------------------- noise scale
+    def _response(self, mech: np.ndarray, e: Experiment) -> np.ndarray:
+        return self.predict_mech(mech, np.zeros(mech.shape[0]), e)
+
+    def scale(self, r: int) -> float:
+        """Record ``r``'s noise scale (1 without ``noise_scale = "response"``)."""
+        return 1.0 if self.record_scales is None else float(self.record_scales.scales[r])
+
+    def scale_of(self, experiment: Experiment) -> float:
+        """The noise scale of another record (a held-out one) from its input."""
+        if self.record_scales is None:
+            return 1.0
+        rs: RecordScales = self.record_scales
+        return rs.scale_of(response_rms(self._response, rs.at, experiment))
 
     # ---------------------------------------------------------------- layout
     def _build_index(self, mech: tuple[str, ...]) -> dict:
@@ -527,20 +579,27 @@ class RecordsLikelihood:
         """``(sigma, phi)`` of white or AR(1) noise from single-record rows."""
         return self._sigma_phi(full[:, len(self.mech_names):])
 
-    def noise_loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
+    def noise_loglik(self, R: np.ndarray, params: np.ndarray, scale: float = 1.0
+                     ) -> np.ndarray:
         """Log density, shape (nb,), of residuals ``R`` (N, n_out, nb) under the noise model
-        with parameter rows ``params`` (nb, n_noise)."""
+        with parameter rows ``params`` (nb, n_noise), its level times ``scale``."""
         if self.noise in ("white", "ar1"):  # the sufficient-statistics path
-            return residual_loglik(R, *self._sigma_phi(params))
-        return self.noise_model.loglik(R, params)
+            sigma, phi = self._sigma_phi(params)
+            return residual_loglik(R, sigma * scale, phi)
+        if scale == 1.0:
+            return self.noise_model.loglik(R, params)
+        return self.noise_model.loglik(R / scale, params) - R.shape[0] * R.shape[1] * np.log(
+            scale)
 
-    def noise_simulate(self, params: np.ndarray, n_samples: int, rng) -> np.ndarray:
-        """Residual draws, shape (nb, n_samples, n_out), from noise parameter rows
-        (not for process noise, whose draws go through the dynamics: see
+    def noise_simulate(self, params: np.ndarray, n_samples: int, rng, scale: float = 1.0
+                       ) -> np.ndarray:
+        """Residual draws, shape (nb, n_samples, n_out), from noise parameter rows, times
+        ``scale`` (not for process noise, whose draws go through the dynamics: see
         ``predictive.predict_new_record``)."""
         if self.noise in ("white", "ar1"):
-            return simulate_noise(*self._sigma_phi(params), n_samples, rng)
-        return self.noise_model.simulate(params, n_samples, rng)
+            sigma, phi = self._sigma_phi(params)
+            return simulate_noise(sigma * scale, phi, n_samples, rng)
+        return scale * self.noise_model.simulate(params, n_samples, rng)
 
     def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
         """Pointwise log-likelihood terms per record, each shape (nb, N_r, n_out)."""
@@ -555,8 +614,10 @@ class RecordsLikelihood:
             yh = self.predict_record(theta[ok], r)
             with np.errstate(all="ignore"):
                 r_ = e.y_m[None] - yh
+                s = self.scale(r)
                 if self.noise in ("white", "ar1"):
                     sigma, phi = self._noise(full)
+                    sigma = sigma * s
                     t = white_terms(r_, sigma) if phi is None else ar1_terms(r_, sigma, phi)
                 elif self.noise == "process":
                     from .noise import kalman_pointwise
@@ -564,7 +625,8 @@ class RecordsLikelihood:
                     mech, q, sig = self._process_split(full)
                     t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt)
                 else:
-                    t = self.noise_model.pointwise(r_, full[:, len(self.mech_names):])
+                    t = self.noise_model.pointwise(r_ / s, full[:, len(self.mech_names):]
+                                                   ) - np.log(s)
             out[r][ok] = np.where(np.isfinite(t), t, -np.inf)
         return out
 
@@ -587,12 +649,13 @@ class RecordsLikelihood:
                 full, v0 = self.record_theta(th, r)
                 params = full[:, len(self.mech_names):]
                 if self.noise in ("white", "ar1"):
-                    ll = self._basic_loglik(e, full, v0, params)
+                    ll = self._basic_loglik(e, full, v0, params, self.scale(r))
                 elif self.noise == "process":
                     ll = self._process_loglik(e, full)
                 else:
                     yh = self.predict_record(th, r)
-                    ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params)
+                    ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params,
+                                           self.scale(r))
                 out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
         return out
 
@@ -623,8 +686,8 @@ class RecordsLikelihood:
                 prep, rows = prepare_linear(self.model, sim_rows, sim), sim_rows
             sums = (sim.residual_sums(prep, e.y_m, mech[:, 0], v0) if affine
                     else sim.residual_sums(prep, e.y_m))
-            out[:, r] = loglik_from_sums(*sums, e.n_samples,
-                                         *self._sigma_phi(full[:, n_mech:]))
+            sigma, phi = self._sigma_phi(full[:, n_mech:])
+            out[:, r] = loglik_from_sums(*sums, e.n_samples, sigma * self.scale(r), phi)
         return out
 
     def _process_split(self, full):
@@ -640,16 +703,19 @@ class RecordsLikelihood:
         return kalman_loglik(self.model, mech, q, sigma, e.v_volt, e.y_m, e.dt,
                              initial="rest")
 
-    def _basic_loglik(self, e: Experiment, full, v0, params) -> np.ndarray:
+    def _basic_loglik(self, e: Experiment, full, v0, params, scale: float = 1.0
+                      ) -> np.ndarray:
         """White or AR(1) log-likelihood of one record from compiled residual sums (the
-        per-record gain and offset applied inside the kernel, no temporaries)."""
+        per-record gain and offset applied inside the kernel, no temporaries), the noise
+        level times ``scale``."""
         mech = full[:, : len(self.mech_names)]
         if self.extension is not None or not np.any(v0):
             sums = ar1_sums(e.y_m, self.predict_mech(mech, v0, e))
         else:
             a, b = self._unit_responses(mech, e)
             sums = ar1_sums_affine(e.y_m, a, b, mech[:, 0], v0)
-        return loglik_from_sums(*sums, e.n_samples, *self._sigma_phi(params))
+        sigma, phi = self._sigma_phi(params)
+        return loglik_from_sums(*sums, e.n_samples, sigma * scale, phi)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Total log-likelihood over the records, shape (nb,)."""
@@ -694,7 +760,8 @@ class RecordsLikelihood:
                 y = simulate_process_noise(self.model, mech, q, sig, e.v_volt, e.dt, rng)
                 out.append(y - simulate_linear(self.model, mech, e.v_volt, e.dt))
                 continue
-            out.append(self.noise_simulate(full[:, len(self.mech_names):], e.n_samples, rng))
+            out.append(self.noise_simulate(full[:, len(self.mech_names):], e.n_samples, rng,
+                                           self.scale(r)))
         return out
 
     def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
@@ -704,7 +771,7 @@ class RecordsLikelihood:
             full, v0 = self.record_theta(theta[None], r)
             mech = full[0, : len(self.mech_names)]
             e = self.experiments[r]
-            res = e.y_m - self.predict_mech(mech[None], v0, e)[0]
+            res = (e.y_m - self.predict_mech(mech[None], v0, e)[0]) / self.scale(r)
             if self.noise in ("white", "ar1"):
                 starts.append(noise_moments(res, self.noise))
             elif self.noise == "process":
@@ -865,7 +932,8 @@ def _assemble_start(lik: RecordsLikelihood, values: dict, theta_mech: np.ndarray
     return out
 
 
-def parse_layout(text: str, *, noise_per_record: bool = False) -> RecordLayout:
+def parse_layout(text: str, *, noise_per_record: bool = False, noise_scale: str = "none"
+                 ) -> RecordLayout:
     """A :class:`RecordLayout` from ``"g_v=hierarchical,v0=independent"`` (or ``"none"``).
 
     Examples
@@ -875,7 +943,7 @@ def parse_layout(text: str, *, noise_per_record: bool = False) -> RecordLayout:
     """
     text = str(text).strip()
     if text in ("", "none", "shared"):
-        return RecordLayout({}, noise_per_record)
+        return RecordLayout({}, noise_per_record, noise_scale)
     per = {}
     for item in text.split(","):
         name, sep, kind = item.partition("=")
@@ -883,7 +951,7 @@ def parse_layout(text: str, *, noise_per_record: bool = False) -> RecordLayout:
             raise ConfigError(
                 f"per-record item {item!r}: write NAME=KIND, e.g. g_v=hierarchical,v0=independent")
         per[name.strip()] = kind.strip()
-    return RecordLayout(per, noise_per_record)
+    return RecordLayout(per, noise_per_record, noise_scale)
 
 
 def as_records(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:

@@ -510,6 +510,13 @@ def _set_backend_attr(backend, key, value) -> None:
         f[backend.name].attrs[key] = value
 
 
+def _unscaled(layout):
+    """The layout without its noise scale (the likelihood used to find the start)."""
+    from dataclasses import replace
+
+    return layout if layout.noise_scale == "none" else replace(layout, noise_scale="none")
+
+
 def sample_posterior(
     experiments: Experiment | Sequence[Experiment],
     model: LinearModel,
@@ -661,7 +668,8 @@ def sample_posterior(
         if initial_state != "rest":
             raise ConfigError("estimated initial states (free decays) are built for the "
                               "single-record likelihood; drop the per-record layout")
-        lik = RecordsLikelihood(model, exps, noise, extension, layout)
+        # (with noise_scale "response" the records' sizes need the start: built again there)
+        lik = RecordsLikelihood(model, exps, noise, extension, _unscaled(layout))
     ext = lik.extension
     if priors is None:
         if layout is None:
@@ -729,8 +737,12 @@ def sample_posterior(
     if layout is None:
         centre = np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
     else:
-        from .records import records_start
+        from .records import RecordsLikelihood, records_start
 
+        if layout.noise_scale != "none":
+            # each record's noise level sized by its response at the start, a constant
+            lik = RecordsLikelihood(model, exps, noise, ext, layout, scale_at=theta_mech)
+            log_post = LogPosterior(lik, priors, float(temperature))
         centre = _inside_priors(records_start(lik, theta_mech), priors)
 
     gen = np.random.default_rng(rng)

@@ -1,0 +1,170 @@
+"""A noise level per record size (``RecordLayout(noise_scale="response")``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayesmodal._errors import ConfigError
+from bayesmodal.config import load_config
+from bayesmodal.data import Experiment
+from bayesmodal.inference.idata import likelihood_from_idata, to_inference_data
+from bayesmodal.inference.predictive import predict_new_record
+from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
+from bayesmodal.inference.sampling import sample_posterior
+from bayesmodal.simulate import simulate_linear
+from bayesmodal.system import LinearModel, Rig
+
+EPS = np.finfo(float).eps
+MODEL = LinearModel(Rig(), "free")
+THETA = np.array([5.5, 1.5, 1.45, 1.15, 3.0, 2.0, 1.5, 0.5, 0.5])
+DT = 0.005
+#: Input amplitudes of the records (V): small, middle, big, as impulses against sweeps.
+AMPS = (0.3, 1.0, 3.0)
+SCALED = RecordLayout({}, noise_scale="response")
+
+
+def _inputs(n=800):
+    t = np.arange(n) * DT
+    return t, [a * np.sin(2 * np.pi * (0.5 + k) * t) * (t < 3.0)
+               for k, a in enumerate(AMPS)]
+
+
+def _records(sigma_rel, seed, n=800):
+    """Records whose noise sd is ``sigma_rel`` times the response's RMS."""
+    rng = np.random.default_rng(seed)
+    t, vs = _inputs(n)
+    out = []
+    for k, v in enumerate(vs):
+        y = simulate_linear(MODEL, THETA, v, DT)
+        rms = np.sqrt(np.mean(y**2))
+        out.append(Experiment(t, v, y + sigma_rel * rms * rng.standard_normal(y.shape),
+                              name=f"r{k}"))
+    return out
+
+
+def _scale_truth(exps):
+    """rms of each record's simulated response over their geometric mean (direct)."""
+    rms = np.array([np.sqrt(np.mean(simulate_linear(MODEL, THETA, e.v_volt, DT) ** 2))
+                    for e in exps])
+    return rms / np.exp(np.mean(np.log(rms)))
+
+
+@pytest.mark.parametrize("noise", ["white", "ar1", "ar2"])
+def test_a_scaled_level_is_the_plain_likelihood_of_records_divided_by_their_scale(noise):
+    """Change of variables: ``y_r / s_r`` under the plain likelihood, plus ``-N n log s_r``.
+
+    The other route divides the input and the positions by ``s_r`` (the linear model is
+    linear in its input) and uses the unscaled likelihood: different code, same density.
+    """
+    exps = _records(0.05, seed=1)
+    lik = RecordsLikelihood(MODEL, exps, noise, layout=SCALED, scale_at=THETA)
+    s = _scale_truth(exps)
+    assert np.allclose(lik.record_scales.scales, s, rtol=0, atol=800 * EPS * s.max())
+    divided = [Experiment(e.t_s, e.v_volt / s[r], e.y_m / s[r], name=e.name)
+               for r, e in enumerate(exps)]
+    plain = RecordsLikelihood(MODEL, divided, noise, layout=RecordLayout({}))
+    rng = np.random.default_rng(2)
+    n_noise = lik.n_params - THETA.size
+    noise_par = {"white": [2e-5] * 3, "ar1": [2e-5] * 3 + [0.5, 0.6, 0.7],
+                 "ar2": [2e-5] * 3 + [0.5, -0.1, 0.4, 0.1, 0.2, 0.0]}[noise]
+    assert len(noise_par) == n_noise
+    theta = np.r_[THETA, noise_par] * (1 + 0.01 * rng.standard_normal((4, lik.n_params)))
+    jac = sum(e.n_samples * e.n_outputs * np.log(s[r]) for r, e in enumerate(exps))
+    got, want = lik(theta), plain(theta) - jac
+    # roundoff of sums of N n terms of size |ll| / (N n)
+    tol = lik.n_data * EPS * np.max(np.abs(want))
+    assert np.max(np.abs(got - want)) <= tol, (got - want, tol)
+    # the pointwise terms sum to the same totals (the other evaluation path)
+    pw = sum(np.sum(p, axis=(1, 2)) for p in lik.pointwise(theta))
+    assert np.max(np.abs(pw - got)) <= tol
+
+
+def test_a_new_record_is_sized_from_its_input_and_its_noise_draws_follow():
+    exps = _records(0.05, seed=3)
+    lik = RecordsLikelihood(MODEL, exps, "ar1", layout=SCALED, scale_at=THETA)
+    base = exps[1]
+    tripled = Experiment(base.t_s, 3.0 * base.v_volt, 3.0 * base.y_m, name="x3")
+    # the model is linear in its input: three times the input, three times the scale
+    s1, s3 = lik.scale_of(base), lik.scale_of(tripled)
+    assert abs(s1 - lik.scale(1)) <= 800 * EPS * s1
+    assert abs(s3 - 3 * s1) <= 800 * EPS * s3
+    # predictive draws of the new record: residual sd three times the record's own
+    theta = np.tile(np.r_[THETA, [2e-5] * 3, [0.0] * 3], (400, 1))
+    rng = np.random.default_rng(4)
+    _, yp1, _ = predict_new_record(lik, theta, base, rng=rng)
+    _, yp3, _ = predict_new_record(lik, theta, tripled, rng=rng)
+    sd1 = np.std(yp1 - np.median(yp1, axis=0), axis=0).mean()
+    sd3 = np.std(yp3 - np.median(yp3, axis=0), axis=0).mean()
+    # Monte Carlo error of an sd from 400 x N x 3 white draws, relative, with margin 5
+    se = 5 / np.sqrt(2 * yp1.size)
+    assert abs(sd3 / sd1 / 3 - 1) < se, (sd3 / sd1, se)
+    assert abs(sd1 / (2e-5 * s1) - 1) < se
+
+
+def _sigma_sampled(layout, exps, seed):
+    run = sample_posterior(exps, MODEL, noise="white", layout=layout, n_walkers=32,
+                           n_steps=600, burn=300, rng=seed, warn=False)
+    flat = run.flat_draws
+    j = [run.names.index(f"sigma_{i}") for i in (1, 2, 3)]
+    return run, flat[:, j]
+
+
+def test_the_scaled_posterior_recovers_a_relative_noise_level_and_a_shared_one_does_not():
+    """Known truth: noise sd 2 % of each record's response RMS, record sizes 9 times apart.
+
+    With the scale, ``sigma_j * s_r`` is each record's noise sd: ``sigma_j`` is the level
+    of a record of the reference size, 2 % of the geometric-mean RMS, and the posterior
+    must cover it.  Negative control: one level in metres for all records settles between
+    the smallest and the biggest record's sd and covers neither.
+    """
+    rel = 0.02
+    exps = _records(rel, seed=5)
+    rms = np.array([np.sqrt(np.mean(simulate_linear(MODEL, THETA, e.v_volt, DT) ** 2))
+                    for e in exps])
+    ref = np.exp(np.mean(np.log(rms)))
+    run, sig = _sigma_sampled(SCALED, exps, seed=6)
+    mean, sd = sig.mean(axis=0), sig.std(axis=0)
+    # posterior sd of sigma ~ sigma / sqrt(2 N n): 4 posterior sd plus the start's offset
+    assert np.all(np.abs(mean - rel * ref) < 4 * sd + 0.01 * rel * ref), (mean, rel * ref, sd)
+    _, plain = _sigma_sampled(RecordLayout({}), exps, seed=6)
+    pm, psd = plain.mean(axis=0), plain.std(axis=0)
+    assert np.all(pm - rel * rms.min() > 4 * psd) and np.all(rel * rms.max() - pm > 4 * psd)
+    # the stored run rebuilds the same likelihood (reference size kept), here and on
+    # other records
+    idata = to_inference_data(run)
+    again = likelihood_from_idata(idata)
+    th = run.flat_draws[:3]
+    assert np.array_equal(again(th), run.likelihood(th))
+    other = likelihood_from_idata(idata, exps[:2])
+    assert np.allclose(other.record_scales.scales, run.likelihood.record_scales.scales[:2],
+                       rtol=1e-12)
+
+
+def test_bad_uses_name_the_fix(tmp_path):
+    exps = _records(0.05, seed=7)
+    with pytest.raises(ConfigError, match="needs scale_at"):
+        RecordsLikelihood(MODEL, exps, "ar1", layout=SCALED)
+    with pytest.raises(ConfigError, match="scale_at must be 9"):
+        RecordsLikelihood(MODEL, exps, "ar1", layout=SCALED, scale_at=THETA[:3])
+    with pytest.raises(ConfigError, match="process noise has no noise level"):
+        RecordsLikelihood(MODEL, exps, "process", layout=RecordLayout(
+            {"g_v": "hierarchical"}, noise_scale="response"), scale_at=THETA)
+    with pytest.raises(ConfigError, match="noise_scale must be one of"):
+        RecordLayout({}, noise_scale="record")
+    silent = [Experiment(e.t_s, 0 * e.v_volt, e.y_m, name=e.name) for e in exps]
+    with pytest.raises(Exception, match="response to this record's input is zero"):
+        RecordsLikelihood(MODEL, silent, "ar1", layout=SCALED, scale_at=THETA)
+    # the run configuration: the key, its check, and the layout it gives
+    cfg = tmp_path / "r.toml"
+    text = '[data]\nfiles = ["a.mat"]\n[records]\nnoise_scale = "{}"\n'
+    cfg.write_text(text.format("response"))
+    c = load_config(cfg, check_files=False)
+    assert c.layout.noise_scale == "response"
+    assert c.hash() != load_config(cfg, check_files=False).__class__(
+        **{**c.__dict__, "noise_scale": "none"}).hash()
+    cfg.write_text(text.format("size"))
+    with pytest.raises(ConfigError, match="records.noise_scale.*'none' or 'response'"):
+        load_config(cfg, check_files=False)
+    assert RecordLayout.from_dict(SCALED.to_dict()) == SCALED
+    assert "noise_scale" not in RecordLayout({}).to_dict()  # earlier hashes unchanged
