@@ -212,6 +212,11 @@ class RecordLayout:
     def kinds(self) -> tuple[tuple[str, str], ...]:
         return tuple(self.per_record.items())
 
+    def unscaled(self) -> RecordLayout:
+        """The same layout with one noise level for every record (the parameter names and
+        priors are the same; a likelihood of it needs no ``scale_at``)."""
+        return RecordLayout(self.per_record, self.noise_per_record)
+
     def to_dict(self) -> dict:
         d = {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
         if self.noise_scale != "none":  # (absent at the default: earlier hashes stay valid)

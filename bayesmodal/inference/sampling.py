@@ -422,15 +422,17 @@ def _start_ball(priors: PriorSet, centre: np.ndarray, scale: np.ndarray, n_walke
         "check the priors against the least-squares estimate")
 
 
-def _fill_walkers(draw, log_post: LogPosterior, n_walkers: int, failure: str) -> np.ndarray:
+def _fill_walkers(draw, log_post: LogPosterior, n_walkers: int, failure: str | None,
+                  rounds: int = 100) -> np.ndarray | None:
     """``n_walkers`` start points of finite posterior density, z coordinates.
 
     ``draw()`` gives ``(n_walkers, n_params)`` candidates; those with zero density are
-    dropped and drawn again, up to 100 rounds, then ``ConfigError(failure)``.
+    dropped and drawn again, up to ``rounds`` rounds, then ``ConfigError(failure)`` (or
+    None when ``failure`` is None).
     """
     out = np.empty((n_walkers, log_post.priors.n_params))
     filled = 0
-    for _ in range(100):
+    for _ in range(rounds):
         z = draw()
         good = z[np.isfinite(log_post(z)[:, 0])]
         take = min(len(good), n_walkers - filled)
@@ -438,7 +440,15 @@ def _fill_walkers(draw, log_post: LogPosterior, n_walkers: int, failure: str) ->
         filled += take
         if filled == n_walkers:
             return out
+    if failure is None:
+        return None
     raise ConfigError(failure)
+
+
+#: Shrink factors of the Laplace start's covariance tried in turn (standard deviations):
+#: at a point that is not a mode (a restart mid-burn-in) the measured Hessian can be far
+#: too flat in some direction, and every draw at full width lands beyond a prior bound.
+LAPLACE_SHRINK = (1.0, 0.5, 0.25, 0.1, 0.03, 0.01)
 
 
 def _laplace_start(log_post: LogPosterior, mode: np.ndarray, n_walkers: int,
@@ -451,10 +461,20 @@ def _laplace_start(log_post: LogPosterior, mode: np.ndarray, n_walkers: int,
 
     priors = log_post.priors
     la = laplace_approximation(lambda z: log_post(z)[:, 0], priors.to_sampling(mode))
-    return _fill_walkers(
-        lambda: la.sample(n_walkers, rng), log_post, n_walkers,
+    for k in LAPLACE_SHRINK:
+        z = _fill_walkers(lambda k=k: la.sample(n_walkers, rng, scale=k), log_post,
+                          n_walkers, None, rounds=20)
+        if z is not None:
+            if k < 1.0:
+                warnings.warn(
+                    f"Laplace start: draws at full width fell outside the priors; the "
+                    f"walkers start at {k} times its standard deviations (burn-in spreads "
+                    "them out)", ConvergenceWarning, stacklevel=3)
+            return z
+    raise ConfigError(
         "could not place the walkers: draws of the Laplace approximation at the posterior "
-        "mode fall outside the priors; use init='ball'")
+        f"mode fall outside the priors even at {LAPLACE_SHRINK[-1]} times its width; use "
+        "init='ball'")
 
 
 def _open_backend(backend, n_walkers: int, n_params: int, chash: str):
@@ -508,13 +528,6 @@ def _set_backend_attr(backend, key, value) -> None:
         return
     with backend.open("a") as f:
         f[backend.name].attrs[key] = value
-
-
-def _unscaled(layout):
-    """The layout without its noise scale (the likelihood used to find the start)."""
-    from dataclasses import replace
-
-    return layout if layout.noise_scale == "none" else replace(layout, noise_scale="none")
 
 
 def sample_posterior(
@@ -669,7 +682,7 @@ def sample_posterior(
             raise ConfigError("estimated initial states (free decays) are built for the "
                               "single-record likelihood; drop the per-record layout")
         # (with noise_scale "response" the records' sizes need the start: built again there)
-        lik = RecordsLikelihood(model, exps, noise, extension, _unscaled(layout))
+        lik = RecordsLikelihood(model, exps, noise, extension, layout.unscaled())
     ext = lik.extension
     if priors is None:
         if layout is None:
