@@ -119,3 +119,51 @@ def test_validation_messages():
     lik = Likelihood(model, [e], "ar1")
     with pytest.raises(ConfigError, match="length 12"):
         lik(np.zeros((1, 5)))
+
+
+def test_ar1_draws_from_a_known_start_follow_the_conditional_closed_form():
+    """Started at a known residual ``r_0``: mean ``phi^k r_0`` and variance
+    ``sigma^2 (1 - phi^(2k)) / (1 - phi^2)`` (Monte Carlo tolerance: 4.5 standard errors,
+    Bonferroni over the lags).  At ``phi`` = 1 - 1e-13 the draws are a random walk with
+    variance ``k sigma^2``, where the stationary start's spread is ``sigma / sqrt(2e-13)``
+    (negative control: millions of times wider)."""
+    nb, n, sig, phi, r0 = 20000, 40, 1e-4, 0.9, 3e-4
+    x = simulate_noise(np.full((nb, 1), sig), np.full((nb, 1), phi), n, rng=7,
+                       start=np.full((nb, 1), r0))[:, :, 0]
+    k = np.arange(n)
+    mean = phi**k * r0
+    var = sig**2 * (1 - phi ** (2 * k)) / (1 - phi**2)
+    assert np.array_equal(x[:, 0], np.full(nb, r0))
+    se_mean = np.sqrt(var[1:] / nb)
+    se_var = var[1:] * np.sqrt(2 / (nb - 1))
+    assert np.all(np.abs(x[:, 1:].mean(axis=0) - mean[1:]) < 4.5 * se_mean)
+    assert np.all(np.abs(x[:, 1:].var(axis=0) - var[1:]) < 4.5 * se_var)
+    near1 = 1 - 1e-13
+    rw = simulate_noise(np.full((nb, 1), sig), np.full((nb, 1), near1), n, rng=8,
+                        start=np.zeros((nb, 1)))[:, -1, 0]
+    want = (n - 1) * sig**2
+    assert abs(rw.var() - want) < 4.5 * want * np.sqrt(2 / (nb - 1))
+    stat = simulate_noise(np.full((nb, 1), sig), np.full((nb, 1), near1), n, rng=8)[:, -1, 0]
+    assert stat.std() > 1e5 * np.sqrt(want)
+    with pytest.raises(DataError, match="white noise has no memory"):
+        simulate_noise(np.full((2, 1), sig), None, n, start=np.zeros((2, 1)))
+
+
+def test_a_new_records_ar1_draws_start_at_its_first_residual():
+    """``predict_new_record`` conditions AR(1) draws on the record's start: every
+    predictive sample at t = 0 is the measured first sample (the record starts at rest)."""
+    from bayesmodal.inference.predictive import predict_new_record
+
+    model = LinearModel(Rig(), "free")
+    theta = np.array([5.5, 1.5, 1.45, 1.15, 3.0, 2.0, 1.5, 0.5, 0.5])
+    t = np.arange(500) * 0.005
+    v = 3.0 * (t < 0.05)
+    y = simulate_linear(model, theta, v, 0.005)
+    e = Experiment(t, v, y + 1e-5 * np.random.default_rng(1).standard_normal(y.shape))
+    lik = Likelihood(model, (e,), "ar1")
+    draws = np.tile(np.r_[theta, [1e-5] * 3, [1 - 1e-12] * 3], (50, 1))
+    y_hat, y_pred, _ = predict_new_record(lik, draws, e, rng=2)
+    assert np.allclose(y_pred[:, 0], e.y_m[0], rtol=0, atol=4 * EPS * np.abs(y_hat).max())
+    # the band of a random-walk draw is bounded by sqrt(N) sigma, not sigma / sqrt(2e-12)
+    assert np.max(np.abs(y_pred - y_hat)) < 6 * np.sqrt(e.n_samples) * 1e-5 + np.abs(
+        e.y_m - y_hat).max()

@@ -182,9 +182,9 @@ def loglik_from_sums(s00, s01, r0, rl, n: int, sigma: np.ndarray,
 
 
 def simulate_noise(
-    sigma: np.ndarray, phi: np.ndarray | None, n_samples: int, rng=None
+    sigma: np.ndarray, phi: np.ndarray | None, n_samples: int, rng=None, start=None
 ) -> np.ndarray:
-    """Draw residual records from the noise model (stationary start).
+    """Draw residual records from the noise model (stationary start, or a given one).
 
     Parameters
     ----------
@@ -193,6 +193,12 @@ def simulate_noise(
     phi : ndarray, shape (nb, n_out), or None for white noise
     n_samples : int
     rng : numpy.random.Generator or int, optional
+    start : array_like, shape (nb, n_out) or (n_out,), optional
+        AR(1) only: the residual at sample 0, known (a record that starts at rest, where
+        the model and the rig agree, has 0).  The draws are then the AR(1) process
+        conditioned on it: mean ``phi^k r_0``, variance ``sigma^2 (1 - phi^(2k)) / (1 -
+        phi^2)``, finite for ``phi`` at 1 (a random walk, ``k sigma^2``), where the
+        stationary start's spread ``sigma / sqrt(1 - phi^2)`` is unbounded.
 
     Returns
     -------
@@ -202,10 +208,15 @@ def simulate_noise(
     sigma = np.asarray(sigma, dtype=float)
     e = rng.standard_normal((sigma.shape[0], n_samples, sigma.shape[1])) * sigma[:, None, :]
     if phi is None:
+        if start is not None:
+            raise DataError("a known start is for AR(1) noise (white noise has no memory)")
         return e
     phi = np.asarray(phi, dtype=float)
     out = np.empty_like(e)
-    out[:, 0] = e[:, 0] / np.sqrt(1.0 - phi**2)
+    if start is None:
+        out[:, 0] = e[:, 0] / np.sqrt(1.0 - phi**2)
+    else:
+        out[:, 0] = np.broadcast_to(np.asarray(start, dtype=float), out[:, 0].shape)
     for k in range(1, n_samples):
         out[:, k] = phi * out[:, k - 1] + e[:, k]
     return out

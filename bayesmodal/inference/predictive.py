@@ -178,7 +178,9 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     y_hat : ndarray, shape (S, N, n_out)
         Noise-free predictions, m.
     y_pred : ndarray, shape (S, N, n_out)
-        Predictive samples (prediction plus a draw of the noise model), m.
+        Predictive samples (prediction plus a draw of the noise model), m.  AR(1) noise
+        is drawn conditioned on the record's first residual (its known start at rest),
+        other noise models from their stationary start.
     loglik : ndarray, shape (S,)
         ``log p(y | draw s)`` of the record under each draw, nats.
     """
@@ -199,17 +201,22 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
         ll = kalman_loglik(lik.model, mech, q, sig, experiment.v_volt, experiment.y_m,
                            experiment.dt, initial="rest")
         return y_hat, y_pred, np.where(np.isfinite(ll), ll, -np.inf)
+    # AR(1): the draws start from the record's known first residual (records start at
+    # rest, where model and rig agree: 0 on the ECP files), not from the stationary
+    # spread, which is unbounded for phi at 1 (a random-walk discrepancy; the friction
+    # model's posterior puts a third of its draws above phi = 0.99999)
+    start = R[0].T if lik.noise == "ar1" else None
     if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
         # (with noise_scale "response": the level sized by the record's simulated response)
         s = lik.scale_of(experiment)
-        e = lik.noise_simulate(noise, experiment.n_samples, rng, s)
+        e = lik.noise_simulate(noise, experiment.n_samples, rng, s, start)
         with np.errstate(all="ignore"):
             ll = lik.noise_loglik(R, noise, s)
     else:
         n = lik.n_outputs
         sigma = noise[:, :n]
         phi = noise[:, n : 2 * n] if lik.noise == "ar1" else None
-        e = simulate_noise(sigma, phi, experiment.n_samples, rng)
+        e = simulate_noise(sigma, phi, experiment.n_samples, rng, start)
         with np.errstate(all="ignore"):
             ll = residual_loglik(R, sigma, phi)
     return y_hat, y_hat + e, np.where(np.isfinite(ll), ll, -np.inf)

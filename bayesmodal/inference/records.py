@@ -596,14 +596,15 @@ class RecordsLikelihood:
         return self.noise_model.loglik(R / scale, params) - R.shape[0] * R.shape[1] * np.log(
             scale)
 
-    def noise_simulate(self, params: np.ndarray, n_samples: int, rng, scale: float = 1.0
-                       ) -> np.ndarray:
+    def noise_simulate(self, params: np.ndarray, n_samples: int, rng, scale: float = 1.0,
+                       start=None) -> np.ndarray:
         """Residual draws, shape (nb, n_samples, n_out), from noise parameter rows, times
         ``scale`` (not for process noise, whose draws go through the dynamics: see
-        ``predictive.predict_new_record``)."""
+        ``predictive.predict_new_record``).  ``start`` (AR(1) only): the known residual
+        at sample 0, shape (nb, n_out), m (``likelihood.simulate_noise``)."""
         if self.noise in ("white", "ar1"):
             sigma, phi = self._sigma_phi(params)
-            return simulate_noise(sigma * scale, phi, n_samples, rng)
+            return simulate_noise(sigma * scale, phi, n_samples, rng, start)
         return scale * self.noise_model.simulate(params, n_samples, rng)
 
     def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
