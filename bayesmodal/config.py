@@ -486,9 +486,9 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     import re  # noqa: PLC0415
 
     if noise not in NOISE_MODELS and not re.fullmatch(
-            r"ar:auto|ar\d+|ar\(\d+(,\d+)*\)|process", str(noise).replace(" ", "")):
+            r"ar:auto|ar\d+|ar\(\d+(,\d+)*\)|process|iar1", str(noise).replace(" ", "")):
         err("likelihood.noise", f"must be one of {NOISE_MODELS}, 'arP' (e.g. 'ar4'), "
-            f"'ar(p1,...,pn)', 'ar:auto' or 'process', got {noise!r}")
+            f"'ar(p1,...,pn)', 'ar:auto', 'iar1' or 'process', got {noise!r}")
     kw["noise"] = noise
 
     for key, lo in (("walkers", 4), ("steps", 1), ("burn", 0), ("thin", 1), ("seed", 0)):

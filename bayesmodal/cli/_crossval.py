@@ -37,7 +37,7 @@ def register(sub) -> None:
                    help="damping model (default: the rig's [dampers] proportional "
                         "declaration, else free)")
     p.add_argument("--noise", default="ar1", metavar="MODEL",
-                   help="residual model: ar1, white, arP (e.g. ar4), ar(p1,p2,p3) or ar:auto "
+                   help="residual model: ar1, white, iar1, arP (e.g. ar4), ar(p1,p2,p3) or ar:auto "
                    "(orders by BIC on each fold's training records) (default ar1)")
     p.add_argument("--per-record", default="g_v=hierarchical,v0=shared",
                    metavar="NAME=KIND,...",

@@ -50,7 +50,8 @@ def add_sampler_args(p) -> None:
                    "(C = ca M + cb K)"
                    " (default: the rig's [dampers] proportional declaration, else free)")
     p.add_argument("--noise", default="ar1", metavar="MODEL",
-                   help="residual model: ar1 (AR(1) Gaussian per output), white, arP (e.g. "
+                   help="residual model: ar1 (AR(1) Gaussian per output), white, iar1 (AR(1) "
+                   "increments, started at rest), arP (e.g. "
                    "ar4), ar(p1,p2,p3) or ar:auto (orders by BIC)")
     p.add_argument("--per-record", default="none", metavar="NAME=KIND,...",
                    help="several DATA records, one physical system: parameters with one "

@@ -88,15 +88,15 @@ V0_PRIOR = Normal(0.0, 0.1, lo=-1.0, hi=1.0)
 
 
 def resolve_noise(noise, n_outputs: int):
-    """A ``NoiseModel`` for ``"white"``, ``"ar1"``, ``"arP"`` / ``"ar(p1,...,pn)"`` or an
-    instance (``bayesmodal.inference.noise``).
+    """A ``NoiseModel`` for ``"white"``, ``"ar1"``, ``"iar1"``, ``"arP"`` /
+    ``"ar(p1,...,pn)"`` or an instance (``bayesmodal.inference.noise``).
 
     Examples
     --------
     >>> resolve_noise("ar3", 2).name
     'ar(3,3)'
     """
-    from .noise import AR1Noise, ARpNoise, NoiseModel, WhiteNoise
+    from .noise import AR1Noise, ARpNoise, IntegratedAR1Noise, NoiseModel, WhiteNoise
 
     if isinstance(noise, NoiseModel):
         noise.names(n_outputs)  # checks the number of outputs
@@ -106,6 +106,8 @@ def resolve_noise(noise, n_outputs: int):
         return WhiteNoise()
     if text == "ar1":
         return AR1Noise()
+    if text == "iar1":
+        return IntegratedAR1Noise()
     if text == "process":
         from .noise import ProcessNoise
 
@@ -118,7 +120,8 @@ def resolve_noise(noise, n_outputs: int):
         model.names(n_outputs)
         return model
     raise ConfigError(
-        f"noise model {noise!r}: use 'white', 'ar1', 'arP' (e.g. 'ar4', the same order on "
+        f"noise model {noise!r}: use 'white', 'ar1', 'iar1' (AR(1) increments, a wandering "
+        "error started at rest), 'arP' (e.g. 'ar4', the same order on "
         "every output), 'ar(p1,...,pn)', 'ar:auto' (order chosen by BIC on the "
         "least-squares residuals) or 'process' (a random force on each cart, Kalman filter)")
 

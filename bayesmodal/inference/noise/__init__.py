@@ -2,6 +2,8 @@
 
 - :mod:`.base`: the :class:`NoiseModel` protocol, with white and AR(1) noise;
 - :mod:`.arp`: AR(p) per output, exact stationary likelihood, order chosen by BIC;
+- :mod:`.integrated`: integrated AR(1) (ARIMA(1, 1, 0)), a wandering discrepancy that
+  starts at rest;
 - :mod:`.kalman`: process noise (a random force on each cart) through the steady-state
   Kalman filter of the linear model.
 
@@ -10,6 +12,7 @@ See docs/noise_models.md.
 
 from .arp import ARpNoise, OrderChoice, burg, choose_order, levinson_table, pacf_to_ar
 from .base import AR1Noise, NoiseModel, WhiteNoise
+from .integrated import IntegratedAR1Noise
 from .kalman import (
     ProcessNoise,
     kalman_loglik,
@@ -18,6 +21,7 @@ from .kalman import (
     steady_state_filter,
 )
 
-__all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "ARpNoise", "OrderChoice", "burg",
-           "choose_order", "levinson_table", "pacf_to_ar", "ProcessNoise", "kalman_loglik",
+__all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "IntegratedAR1Noise", "ARpNoise",
+           "OrderChoice", "burg", "choose_order", "levinson_table", "pacf_to_ar",
+           "ProcessNoise", "kalman_loglik",
            "kalman_pointwise", "simulate_process_noise", "steady_state_filter"]
