@@ -196,4 +196,8 @@ def test_a_run_with_a_scaled_noise_level_goes_end_to_end(tmp_path):
     idata = load_idata(out / "posterior.nc")
     stored = json.loads(idata.posterior.attrs["record_scale_at_json"])
     assert len(stored["at"]) == THETA.size and stored["reference_m"] > 0
-    assert (out / "report.html").stat().st_size > 0
+    # the report's first line names the scaled level (and a plain run's does not)
+    from bayesmodal.runs.report import _noise_scale_note
+
+    assert "ar1 noise (level per record size)" in (out / "report.html").read_text()
+    assert _noise_scale_note({"run": {"config": {"noise_scale": "none"}}}) == ""

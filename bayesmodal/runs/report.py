@@ -169,6 +169,12 @@ def _coverage_rows(records, role: str, *, relative: bool = False,
     return rows
 
 
+def _noise_scale_note(s: dict) -> str:
+    """``" (level per record size)"`` when the run scaled its noise by the records' size."""
+    cfg = s.get("run", {}).get("config", {})
+    return " (level per record size)" if cfg.get("noise_scale") == "response" else ""
+
+
 def _section_verdict(s: dict) -> str:
     """The first screen: the overall sentence and the three questions."""
     v = run_verdict(s)
@@ -214,7 +220,8 @@ def _section_run(s: dict, status: dict, config_text: str, timing: dict) -> str:
         ("state", _e(status.get("state", "?"))),
         ("configuration", _e(run.get("config_source", ""))),
         ("configuration hash", f"<code>{_e(run.get('config_hash', ''))}</code>"),
-        ("model", _e(f"{s.get('damping')} damping, {s.get('noise')} noise")),
+        ("model", _e(f"{s.get('damping')} damping, {s.get('noise')} noise"
+                     f"{_noise_scale_note(s)}")),
         ("sampler", _e(f"{run.get('walkers')} walkers x {run.get('steps')} steps, burn "
                        f"{run.get('burn')}, thin {run.get('thin')}, moves {run.get('moves')}, "
                        f"seed {run.get('seed')}")),
@@ -525,8 +532,8 @@ def render_report(run_dir: str | os.PathLike, *, state: str | None = None) -> st
     trace = _img(folder, "trace.png")
     body = "\n".join([
         f"<h1>bayesmodal run: {_e(name)}</h1>",
-        f"<p class='muted'>{_e(s.get('damping'))} damping, {_e(s.get('noise'))} noise; "
-        f"state {_e(status.get('state', '?'))}</p>",
+        f"<p class='muted'>{_e(s.get('damping'))} damping, {_e(s.get('noise'))} noise"
+        f"{_e(_noise_scale_note(s))}; state {_e(status.get('state', '?'))}</p>",
         _section_verdict(s),
         f"<nav>{nav}</nav>",
         _section_parameters(s, folder),
