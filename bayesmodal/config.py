@@ -34,7 +34,8 @@ problem in a file is collected and reported at once, each naming the file and th
     per_record = { g_v = "hierarchical", v0 = "hierarchical" }   # or "independent"
     noise_per_record = false
     noise_scale = "none"        # or "response": each record's noise level sized by the
-                                # model's response to its input (docs/uncertainty.md)
+                                # model's response to its input, or "power": by that
+                                # size to a sampled power in [0, 1] (docs/uncertainty.md)
 
     [crossval]                  # optional: leave-one-record-out check of the run
     enabled = true
@@ -468,8 +469,8 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         kw["noise_per_record"] = values[("records", "noise_per_record")]
     if ("records", "noise_scale") in values:
         v = values[("records", "noise_scale")]
-        if v not in ("none", "response"):
-            err("records.noise_scale", f"must be 'none' or 'response', got {v!r}")
+        if v not in ("none", "response", "power"):
+            err("records.noise_scale", f"must be 'none', 'response' or 'power', got {v!r}")
         kw["noise_scale"] = v
     if ("crossval", "enabled") in values:
         kw["crossval"] = values[("crossval", "enabled")]

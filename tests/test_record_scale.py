@@ -144,8 +144,11 @@ def test_the_scaled_posterior_recovers_a_relative_noise_level_and_a_shared_one_d
 
 def test_bad_uses_name_the_fix(tmp_path):
     exps = _records(0.05, seed=7)
-    with pytest.raises(ConfigError, match="needs scale_at"):
-        RecordsLikelihood(MODEL, exps, "ar1", layout=SCALED)
+    # names and priors need no reference; evaluating the likelihood does
+    named = RecordsLikelihood(MODEL, exps, "ar1", layout=SCALED)
+    assert named.names == RecordsLikelihood(MODEL, exps, "ar1", layout=RecordLayout({})).names
+    with pytest.raises(ConfigError, match="'response' needs scale_at"):
+        named(np.r_[THETA, [2e-5] * 3, [0.5] * 3][None])
     with pytest.raises(ConfigError, match="scale_at must be 9"):
         RecordsLikelihood(MODEL, exps, "ar1", layout=SCALED, scale_at=THETA[:3])
     with pytest.raises(ConfigError, match="process noise has no noise level"):
@@ -165,7 +168,7 @@ def test_bad_uses_name_the_fix(tmp_path):
     assert c.hash() != load_config(cfg, check_files=False).__class__(
         **{**c.__dict__, "noise_scale": "none"}).hash()
     cfg.write_text(text.format("size"))
-    with pytest.raises(ConfigError, match="records.noise_scale.*'none' or 'response'"):
+    with pytest.raises(ConfigError, match="records.noise_scale.*'none', 'response' or 'power'"):
         load_config(cfg, check_files=False)
     assert RecordLayout.from_dict(SCALED.to_dict()) == SCALED
     assert "noise_scale" not in RecordLayout({}).to_dict()  # earlier hashes unchanged
@@ -201,3 +204,65 @@ def test_a_run_with_a_scaled_noise_level_goes_end_to_end(tmp_path):
 
     assert "ar1 noise (level per record size)" in (out / "report.html").read_text()
     assert _noise_scale_note({"run": {"config": {"noise_scale": "none"}}}) == ""
+
+
+POWER = RecordLayout({}, noise_scale="power")
+
+
+@pytest.mark.parametrize("noise", ["ar1", "ar2"])
+def test_a_sampled_power_interpolates_between_one_level_and_the_response_scale(noise):
+    """``noise_scale = "power"``: row by row, the level's factor is ``s_r ** a``.  At
+    ``a = 0`` the likelihood is the one-level one, at ``a = 1`` the ``"response"`` one, and
+    in between the plain likelihood of records divided by ``s_r ** a`` plus
+    ``-N n a log s_r`` (rows with different ``a`` in one batch)."""
+    exps = _records(0.05, seed=11)
+    lik = RecordsLikelihood(MODEL, exps, noise, layout=POWER, scale_at=THETA)
+    assert lik.names[-1] == "scale_power"
+    from bayesmodal.inference.records import record_priors
+
+    pri = record_priors(lik)
+    assert pri.priors[-1].support == (0.0, 1.0)
+    one = RecordsLikelihood(MODEL, exps, noise, layout=RecordLayout({}))
+    resp = RecordsLikelihood(MODEL, exps, noise, layout=SCALED, scale_at=THETA)
+    s = _scale_truth(exps)
+    noise_par = {"ar1": [2e-5] * 3 + [0.5, 0.6, 0.7],
+                 "ar2": [2e-5] * 3 + [0.5, -0.1, 0.4, 0.1, 0.2, 0.0]}[noise]
+    a = np.array([0.0, 0.37, 1.0])
+    theta = np.c_[np.tile(np.r_[THETA, noise_par], (3, 1)), a]
+    got = lik(theta)
+    tol = lik.n_data * EPS * np.max(np.abs(got))
+    assert abs(got[0] - one(theta[:1, :-1])[0]) <= tol
+    assert abs(got[2] - resp(theta[2:, :-1])[0]) <= tol
+    divided = [Experiment(e.t_s, e.v_volt / s[r] ** a[1], e.y_m / s[r] ** a[1], name=e.name)
+               for r, e in enumerate(exps)]
+    plain = RecordsLikelihood(MODEL, divided, noise, layout=RecordLayout({}))
+    jac = sum(e.n_samples * e.n_outputs * a[1] * np.log(s[r]) for r, e in enumerate(exps))
+    assert abs(got[1] - (plain(theta[1:2, :-1])[0] - jac)) <= tol
+    pw = sum(np.sum(p, axis=(1, 2)) for p in lik.pointwise(theta))
+    assert np.max(np.abs(pw - got)) <= tol
+    # a new record's factor is its size to each row's power
+    new = exps[2]
+    assert np.allclose(lik.scale_of(new, theta), lik.scale(2) ** a, rtol=1e-12)
+
+
+def test_the_power_is_recovered_and_its_ends_are_excluded():
+    """Known truth: noise sd proportional to the square root of each record's size
+    (``a = 0.5``).  The posterior of ``scale_power`` covers 0.5 within 4 posterior sd and
+    excludes both ends, one level (0) and a level proportional to the size (1)."""
+    rng = np.random.default_rng(12)
+    t, vs = _inputs(800)
+    exps, rms = [], []
+    for v in vs:
+        y = simulate_linear(MODEL, THETA, v, DT)
+        rms.append(np.sqrt(np.mean(y**2)))
+        exps.append((t, v, y))
+    rms = np.array(rms)
+    rel = rms / np.exp(np.mean(np.log(rms)))
+    recs = [Experiment(t, v, y + 1e-4 * np.sqrt(rel[k]) * rng.standard_normal(y.shape),
+                       name=f"r{k}") for k, (t, v, y) in enumerate(exps)]
+    run = sample_posterior(recs, MODEL, noise="white", layout=POWER, n_walkers=32,
+                           n_steps=600, burn=300, rng=13, warn=False)
+    a = run.flat_draws[:, run.names.index("scale_power")]
+    m, sd = a.mean(), a.std()
+    assert abs(m - 0.5) < 4 * sd, (m, sd)
+    assert m - 4 * sd > 0.0 and m + 4 * sd < 1.0

@@ -43,9 +43,10 @@ def register(sub) -> None:
                    metavar="NAME=KIND,...",
                    help="per-record parameters, KIND independent, hierarchical or shared (v0), "
                         "or 'none' (default %(default)s)")
-    p.add_argument("--noise-scale", choices=["none", "response"], default="none",
+    p.add_argument("--noise-scale", choices=["none", "response", "power"], default="none",
                    help="response: each record's noise level times the relative size of "
-                   "the model's response to its input (default none: one level in m)")
+                   "the model's response to its input; power: times that size to a sampled "
+                   "power in [0, 1] (default none: one level in m)")
     p.add_argument("--walkers", type=int, default=48, help="ensemble size (default 48)")
     p.add_argument("--steps", type=int, default=4000, help="steps per walker (default 4000)")
     p.add_argument("--draws", type=int, default=200,

@@ -57,9 +57,10 @@ def add_sampler_args(p) -> None:
                    help="several DATA records, one physical system: parameters with one "
                    "value per record, KIND independent or hierarchical, e.g. "
                    "g_v=hierarchical,v0=hierarchical; none shares every parameter")
-    p.add_argument("--noise-scale", choices=["none", "response"], default="none",
+    p.add_argument("--noise-scale", choices=["none", "response", "power"], default="none",
                    help="response: each record's noise level times the relative size of "
-                   "the model's response to its input (default none: one level in m)")
+                   "the model's response to its input; power: times that size to a sampled "
+                   "power in [0, 1] (default none: one level in m)")
     p.add_argument("--walkers", type=int, default=32, help="ensemble size")
     p.add_argument("--steps", type=int, default=5000, help="steps per walker")
     p.add_argument("--burn", type=int, default=None,

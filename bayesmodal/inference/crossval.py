@@ -220,8 +220,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
         from .records import choose_noise
 
         noise = choose_noise(train, model, fit_lsq(train, model))
-    lik = RecordsLikelihood(model, tuple(train), noise, spec.extension,
-                            spec.layout.unscaled())  # (for the names and priors)
+    lik = RecordsLikelihood(model, tuple(train), noise, spec.extension, spec.layout)
     priors = record_priors(lik)
     burn = spec.n_steps // 2 if spec.burn is None else spec.burn
     # at least two walkers per parameter (emcee's requirement), even

@@ -208,7 +208,7 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     start = R[0].T if lik.noise == "ar1" else None
     if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
         # (with noise_scale "response": the level sized by the record's simulated response)
-        s = lik.scale_of(experiment)
+        s = lik.scale_of(experiment, theta)
         e = lik.noise_simulate(noise, experiment.n_samples, rng, s, start)
         with np.errstate(all="ignore"):
             ll = lik.noise_loglik(R, noise, s)

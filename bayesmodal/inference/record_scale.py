@@ -17,6 +17,11 @@ record's measured positions; a new record (a held-out one) gets its ``s`` the sa
 Fixing it matters: a scale that moved with the sampled parameters would add
 ``-N log s(theta)`` to the log-likelihood and pull the gains towards small responses.
 
+With ``noise_scale = "power"`` the level is ``sigma s_r^a`` with the exponent ``a``
+(``scale_power``) sampled in [0, 1]: one level in metres (``a = 0``) and a level
+proportional to the record's size (``a = 1``) are its two ends, and the fitted records
+choose between them.
+
 For Gaussian noise models (white, AR(1), AR(p)) scaling the residual's standard deviation
 by ``s`` is the same as dividing the residual by ``s`` and adding ``-N n_out log s``:
 ``RecordsLikelihood`` uses the first for white and AR(1) noise, the second for the others.
@@ -33,11 +38,18 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 
-__all__ = ["NOISE_SCALES", "RecordScales", "record_scales"]
+__all__ = ["NOISE_SCALES", "POWER_NAME", "RecordScales", "record_scales"]
 
-#: ``RecordLayout.noise_scale`` values: ``"none"`` (one level in metres for all records)
-#: and ``"response"`` (the level times the record's relative response size).
-NOISE_SCALES = ("none", "response")
+#: ``RecordLayout.noise_scale`` values: ``"none"`` (one level in metres for all records),
+#: ``"response"`` (the level times the record's relative response size ``s_r``) and
+#: ``"power"`` (times ``s_r ** scale_power``, the exponent sampled in [0, 1]: 0 is one
+#: level, 1 is ``"response"``; the data choose between the two).
+NOISE_SCALES = ("none", "response", "power")
+
+#: Name, prior bounds and start of the sampled exponent of ``noise_scale = "power"``.
+POWER_NAME = "scale_power"
+POWER_BOUNDS = (0.0, 1.0)
+POWER_START = 0.5
 
 
 @dataclass(frozen=True)
@@ -69,6 +81,11 @@ class RecordScales:
     def scale_of(self, rms_m: float) -> float:
         """The scale of a record whose simulated response has this RMS, m."""
         return float(rms_m) / self.reference_m
+
+
+def powered(scale: float, power: np.ndarray | None) -> np.ndarray | float:
+    """``scale ** power`` per parameter row (shape (nb,)), or ``scale`` without a power."""
+    return scale if power is None else np.power(scale, power)
 
 
 def response_rms(predict: Callable[[np.ndarray, Experiment], np.ndarray], at: np.ndarray,

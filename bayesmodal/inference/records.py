@@ -61,8 +61,17 @@ from .likelihood import (
     simulate_noise,
     white_terms,
 )
-from .priors import Normal, PriorSet, default_priors
-from .record_scale import NOISE_SCALES, RecordScales, record_scales, response_rms
+from .priors import Normal, PriorSet, Uniform, default_priors
+from .record_scale import (
+    NOISE_SCALES,
+    POWER_BOUNDS,
+    POWER_NAME,
+    POWER_START,
+    RecordScales,
+    powered,
+    record_scales,
+    response_rms,
+)
 
 __all__ = [
     "RecordLayout",
@@ -183,10 +192,12 @@ class RecordLayout:
         "hierarchical"}``.  Empty: every parameter is shared, as in a single-record run.
     noise_per_record : bool
         Each record has its own noise parameters (default: shared).
-    noise_scale : {"none", "response"}
+    noise_scale : {"none", "response", "power"}
         ``"response"``: each record's noise level is the shared one times the relative
-        size of the model's response to its input (``bayesmodal.inference.record_scale``);
-        ``"none"`` (default): one level in metres for every record.
+        size ``s_r`` of the model's response to its input
+        (``bayesmodal.inference.record_scale``); ``"power"``: times ``s_r ** scale_power``
+        with the exponent sampled in [0, 1]; ``"none"`` (default): one level in metres for
+        every record.
 
     Examples
     --------
@@ -215,10 +226,6 @@ class RecordLayout:
     def kinds(self) -> tuple[tuple[str, str], ...]:
         return tuple(self.per_record.items())
 
-    def unscaled(self) -> RecordLayout:
-        """The same layout with one noise level for every record (the parameter names and
-        priors are the same; a likelihood of it needs no ``scale_at``)."""
-        return RecordLayout(self.per_record, self.noise_per_record)
 
     def to_dict(self) -> dict:
         d = {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
@@ -255,9 +262,10 @@ class RecordsLikelihood:
     layout : RecordLayout
         Per-record parameters (default :data:`DEFAULT_LAYOUT`).
     scale_at : array_like, shape (n_mech,), or RecordScales, optional
-        With ``layout.noise_scale == "response"``: the model parameters (single-record
-        order, ``mech_names``) at which each record's response size is simulated, e.g. the
-        least-squares estimate (``sample_posterior`` passes its start).  Required then.
+        With ``layout.noise_scale`` other than ``"none"``: the model parameters
+        (single-record order, ``mech_names``) at which each record's response size is
+        simulated, e.g. the least-squares estimate (``sample_posterior`` passes its start).
+        Required to evaluate the likelihood then (names and priors need none).
         A ``RecordScales`` (a fitted likelihood's ``record_scales``) also keeps its
         reference size, for the same likelihood on other records.
 
@@ -345,12 +353,7 @@ class RecordsLikelihood:
         object.__setattr__(self, "_index", self._build_index(mech))
         object.__setattr__(self, "_sims", SimulatorCache())
         scales = None
-        if layout.noise_scale == "response":
-            if self.scale_at is None:
-                raise ConfigError(
-                    "noise_scale 'response' needs scale_at, the model parameters at which "
-                    "each record's response size is simulated (e.g. a least-squares "
-                    "estimate's theta); sample_posterior passes its start")
+        if layout.noise_scale != "none" and self.scale_at is not None:
             given = self.scale_at
             ref = given.reference_m if isinstance(given, RecordScales) else None
             at = given.at if isinstance(given, RecordScales) else given
@@ -361,16 +364,41 @@ class RecordsLikelihood:
     def _response(self, mech: np.ndarray, e: Experiment) -> np.ndarray:
         return self.predict_mech(mech, np.zeros(mech.shape[0]), e)
 
-    def scale(self, r: int) -> float:
-        """Record ``r``'s noise scale (1 without ``noise_scale = "response"``)."""
-        return 1.0 if self.record_scales is None else float(self.record_scales.scales[r])
-
-    def scale_of(self, experiment: Experiment) -> float:
-        """The noise scale of another record (a held-out one) from its input."""
+    def _scales(self) -> RecordScales | None:
+        """The records' sizes, None without a noise scale; a one-line error when the
+        layout asks for them and ``scale_at`` was not given (names and priors need none)."""
+        if self.layout.noise_scale == "none":
+            return None
         if self.record_scales is None:
+            raise ConfigError(
+                f"noise_scale {self.layout.noise_scale!r} needs scale_at, the model "
+                "parameters at which each record's response size is simulated (e.g. a "
+                "least-squares estimate's theta); sample_posterior passes its start")
+        return self.record_scales
+
+    def scale(self, r: int) -> float:
+        """Record ``r``'s relative response size ``s_r`` (1 without a noise scale; with
+        ``noise_scale = "power"`` the level's factor is ``s_r ** scale_power``)."""
+        rs = self._scales()
+        return 1.0 if rs is None else float(rs.scales[r])
+
+    def _power(self, theta: np.ndarray | None) -> np.ndarray | None:
+        """The sampled exponent per row, shape (nb,), or None (no ``"power"`` scale)."""
+        j = self._index.get("power")
+        return None if j is None or theta is None else np.atleast_2d(theta)[:, j]
+
+    def _scale_rows(self, theta: np.ndarray, r: int):
+        """Record ``r``'s noise-level factor: a number, or one per row (nb,) with a power."""
+        return powered(self.scale(r), self._power(theta))
+
+    def scale_of(self, experiment: Experiment, theta: np.ndarray | None = None):
+        """The noise-level factor of another record (a held-out one) from its input: a
+        number, or per row of ``theta`` (shape (nb,)) with ``noise_scale = "power"``."""
+        rs = self._scales()
+        if rs is None:
             return 1.0
-        rs: RecordScales = self.record_scales
-        return rs.scale_of(response_rms(self._response, rs.at, experiment))
+        return powered(rs.scale_of(response_rms(self._response, rs.at, experiment)),
+                       self._power(theta))
 
     # ---------------------------------------------------------------- layout
     def _build_index(self, mech: tuple[str, ...]) -> dict:
@@ -403,7 +431,11 @@ class RecordsLikelihood:
             noise = [list(range(len(names), len(names) + len(base_noise)))] * len(
                 self.record_keys)
             names += list(base_noise)
-        return {"names": tuple(names), "mech": mech,
+        power = None
+        if self.layout.noise_scale == "power":
+            power = len(names)
+            names.append(POWER_NAME)
+        return {"names": tuple(names), "mech": mech, "power": power,
                 "shared": [mech.index(nm) for nm in shared],
                 "shared_pos": list(range(len(shared))), "groups": groups, "noise": noise}
 
@@ -593,8 +625,8 @@ class RecordsLikelihood:
         with parameter rows ``params`` (nb, n_noise), its level times ``scale``."""
         if self.noise in ("white", "ar1"):  # the sufficient-statistics path
             sigma, phi = self._sigma_phi(params)
-            return residual_loglik(R, sigma * scale, phi)
-        if scale == 1.0:
+            return residual_loglik(R, sigma * _col(scale), phi)
+        if np.all(np.asarray(scale) == 1.0):
             return self.noise_model.loglik(R, params)
         return self.noise_model.loglik(R / scale, params) - R.shape[0] * R.shape[1] * np.log(
             scale)
@@ -607,8 +639,9 @@ class RecordsLikelihood:
         at sample 0, shape (nb, n_out), m (``likelihood.simulate_noise``)."""
         if self.noise in ("white", "ar1"):
             sigma, phi = self._sigma_phi(params)
-            return simulate_noise(sigma * scale, phi, n_samples, rng, start)
-        return scale * self.noise_model.simulate(params, n_samples, rng)
+            return simulate_noise(sigma * _col(scale), phi, n_samples, rng, start)
+        return np.reshape(scale, (-1, 1, 1)) * self.noise_model.simulate(params, n_samples,
+                                                                          rng)
 
     def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
         """Pointwise log-likelihood terms per record, each shape (nb, N_r, n_out)."""
@@ -623,10 +656,10 @@ class RecordsLikelihood:
             yh = self.predict_record(theta[ok], r)
             with np.errstate(all="ignore"):
                 r_ = e.y_m[None] - yh
-                s = self.scale(r)
+                s = np.reshape(self._scale_rows(theta[ok], r), (-1, 1, 1))
                 if self.noise in ("white", "ar1"):
                     sigma, phi = self._noise(full)
-                    sigma = sigma * s
+                    sigma = sigma * s[:, :, 0]
                     t = white_terms(r_, sigma) if phi is None else ar1_terms(r_, sigma, phi)
                 elif self.noise == "process":
                     from .noise import kalman_pointwise
@@ -658,13 +691,13 @@ class RecordsLikelihood:
                 full, v0 = self.record_theta(th, r)
                 params = full[:, len(self.mech_names):]
                 if self.noise in ("white", "ar1"):
-                    ll = self._basic_loglik(e, full, v0, params, self.scale(r))
+                    ll = self._basic_loglik(e, full, v0, params, self._scale_rows(th, r))
                 elif self.noise == "process":
                     ll = self._process_loglik(e, full)
                 else:
                     yh = self.predict_record(th, r)
                     ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params,
-                                           self.scale(r))
+                                           self._scale_rows(th, r))
                 out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
         return out
 
@@ -696,7 +729,8 @@ class RecordsLikelihood:
             sums = (sim.residual_sums(prep, e.y_m, mech[:, 0], v0) if affine
                     else sim.residual_sums(prep, e.y_m))
             sigma, phi = self._sigma_phi(full[:, n_mech:])
-            out[:, r] = loglik_from_sums(*sums, e.n_samples, sigma * self.scale(r), phi)
+            out[:, r] = loglik_from_sums(*sums, e.n_samples,
+                                         sigma * _col(self._scale_rows(th, r)), phi)
         return out
 
     def _process_split(self, full):
@@ -724,7 +758,7 @@ class RecordsLikelihood:
             a, b = self._unit_responses(mech, e)
             sums = ar1_sums_affine(e.y_m, a, b, mech[:, 0], v0)
         sigma, phi = self._sigma_phi(params)
-        return loglik_from_sums(*sums, e.n_samples, sigma * scale, phi)
+        return loglik_from_sums(*sums, e.n_samples, sigma * _col(scale), phi)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Total log-likelihood over the records, shape (nb,)."""
@@ -770,7 +804,7 @@ class RecordsLikelihood:
                 out.append(y - simulate_linear(self.model, mech, e.v_volt, e.dt))
                 continue
             out.append(self.noise_simulate(full[:, len(self.mech_names):], e.n_samples, rng,
-                                           self.scale(r)))
+                                           self._scale_rows(theta, r)))
         return out
 
     def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
@@ -780,7 +814,8 @@ class RecordsLikelihood:
             full, v0 = self.record_theta(theta[None], r)
             mech = full[0, : len(self.mech_names)]
             e = self.experiments[r]
-            res = (e.y_m - self.predict_mech(mech[None], v0, e)[0]) / self.scale(r)
+            power = POWER_START if self._index["power"] is not None else 1.0
+            res = (e.y_m - self.predict_mech(mech[None], v0, e)[0]) / self.scale(r) ** power
             if self.noise in ("white", "ar1"):
                 starts.append(noise_moments(res, self.noise))
             elif self.noise == "process":
@@ -797,6 +832,11 @@ class RecordsLikelihood:
         n = self.n_outputs
         sig = np.sqrt(np.mean(s[:, :n] ** 2, axis=0))
         return np.r_[sig, np.mean(s[:, n:], axis=0)]
+
+
+def _col(scale):
+    """A noise-level factor as a column: shape (1, 1) for a number, (nb, 1) per row."""
+    return np.reshape(np.asarray(scale, dtype=float), (-1, 1))
 
 
 #: Signed per-record parameters (normal populations): the input offsets, V.
@@ -836,6 +876,7 @@ def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None
     table.update(zip(noise.names, zip(noise.priors, noise.transforms, strict=True),
                      strict=True))
     table["v0"] = (V0_PRIOR, "identity")
+    table[POWER_NAME] = (Uniform(*POWER_BOUNDS), "identity")
     priors, trs = [], []
     for nm in lik.names:
         m = re.fullmatch(r"(mu|tau)_(.+)", nm)
@@ -936,8 +977,11 @@ def _assemble_start(lik: RecordsLikelihood, values: dict, theta_mech: np.ndarray
             else:
                 out[g["mu"]] = np.exp(np.mean(np.log(x)))
                 out[g["tau"]] = max(np.std(np.log(x)), 0.01)
-    n_noise = len(lik.names) - ix["noise"][0][0]
-    out[len(out) - n_noise:] = lik.residual_noise_start(out)
+    first = ix["noise"][0][0]
+    end = len(out) if ix["power"] is None else ix["power"]
+    if ix["power"] is not None:
+        out[ix["power"]] = POWER_START
+    out[first:end] = lik.residual_noise_start(out)
     return out
 
 

@@ -188,8 +188,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         from ..inference.records import RecordsLikelihood, record_priors
 
         try:
-            base = record_priors(RecordsLikelihood(model, exps, noise, extension,
-                                                   layout.unscaled()))
+            base = record_priors(RecordsLikelihood(model, exps, noise, extension, layout))
         except ValueError as exc:
             raise ConfigError(f"{src}: [records] {exc}") from exc
     overrides = {}
