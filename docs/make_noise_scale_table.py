@@ -29,14 +29,13 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from _measured import measured_records  # docs/_measured.py (run as docs/<script>.py)
 
 from bayesmodal.config import load_config
-from bayesmodal.data import find_data, load_experiment
 from bayesmodal.inference.crossval import crossval
 from bayesmodal.inference.records import RecordLayout
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORDS = ("data_impulses", "data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow")
 #: The final model of docs/discrepancy.md, nothing per record.
 FINAL = "coulomb_friction+input_offset+drive_deadband"
 
@@ -97,12 +96,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures" / "noise_scale"),
                     help="output path without suffix (.json and .md are written)")
     args = ap.parse_args(argv)
-    paths = [find_data(f"ecp210-3dof/{n}.mat") for n in RECORDS]
-    if any(p is None for p in paths):
-        print("the measured records (ecp210-3dof) are not found: set BAYESMODAL_DATA",
-              file=sys.stderr)
-        return 2
-    exps = [load_experiment(p) for p in paths]
+    exps = measured_records()
     out = {}
     for label, spec in studies(args.final).items():
         t0 = time.perf_counter()

@@ -30,14 +30,14 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from _measured import RECORDS, measured_records  # docs/_measured.py
 
 from bayesmodal.config import load_config
-from bayesmodal.data import Experiment, find_data, load_experiment
+from bayesmodal.data import Experiment
 from bayesmodal.inference.crossval import crossval
 from bayesmodal.inference.records import parse_layout
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORDS = ("data_impulses", "data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow")
 
 
 def scales(exps) -> np.ndarray:
@@ -67,12 +67,7 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures" / "scaled_noise_check.json"))
     args = ap.parse_args(argv)
-    paths = [find_data(f"ecp210-3dof/{n}.mat") for n in RECORDS]
-    if any(p is None for p in paths):
-        print("the measured records (ecp210-3dof) are not found: set BAYESMODAL_DATA",
-              file=sys.stderr)
-        return 2
-    exps = [load_experiment(p) for p in paths]
+    exps = measured_records()
     cfg = load_config(ROOT / "runs" / "records_free.toml")
     spec = replace(cfg.crossval_spec(),
                    layout=parse_layout("g_v=hierarchical,v0=hierarchical"))
