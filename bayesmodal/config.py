@@ -98,6 +98,11 @@ MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
 #: emcee's with the fix of its pull request #531 since 24 Nov 2026; the released one
 #: made the posteriors about 18 % too narrow, docs/uncertainty.md).
 MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
+
+#: ``[records] noise_scale`` values (``bayesmodal.inference.record_scale``): one level in
+#: metres, the level times each record's relative response size, or that size to a
+#: sampled power.
+NOISE_SCALES = ("none", "response", "power")
 NOISE_MODELS = ("ar1", "white")
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
@@ -469,7 +474,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         kw["noise_per_record"] = values[("records", "noise_per_record")]
     if ("records", "noise_scale") in values:
         v = values[("records", "noise_scale")]
-        if v not in ("none", "response", "power"):
+        if v not in NOISE_SCALES:
             err("records.noise_scale", f"must be 'none', 'response' or 'power', got {v!r}")
         kw["noise_scale"] = v
     if ("crossval", "enabled") in values:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..config import NOISE_SCALES
 from ..system import Rig
 from ._common import (
     add_data_args,
@@ -43,7 +44,7 @@ def register(sub) -> None:
                    metavar="NAME=KIND,...",
                    help="per-record parameters, KIND independent, hierarchical or shared (v0), "
                         "or 'none' (default %(default)s)")
-    p.add_argument("--noise-scale", choices=["none", "response", "power"], default="none",
+    p.add_argument("--noise-scale", choices=NOISE_SCALES, default="none",
                    help="response: each record's noise level times the relative size of "
                    "the model's response to its input; power: times that size to a sampled "
                    "power in [0, 1] (default none: one level in m)")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._format import param_unit, sig
+from ..config import NOISE_SCALES
 from ._common import (
     add_data_args,
     add_initial_state_argument,
@@ -57,7 +58,7 @@ def add_sampler_args(p) -> None:
                    help="several DATA records, one physical system: parameters with one "
                    "value per record, KIND independent or hierarchical, e.g. "
                    "g_v=hierarchical,v0=hierarchical; none shares every parameter")
-    p.add_argument("--noise-scale", choices=["none", "response", "power"], default="none",
+    p.add_argument("--noise-scale", choices=NOISE_SCALES, default="none",
                    help="response: each record's noise level times the relative size of "
                    "the model's response to its input; power: times that size to a sampled "
                    "power in [0, 1] (default none: one level in m)")

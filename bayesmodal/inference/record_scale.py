@@ -36,15 +36,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError, DataError
+from ..config import NOISE_SCALES
 from ..data import Experiment
 
 __all__ = ["NOISE_SCALES", "POWER_NAME", "RecordScales", "record_scales"]
-
-#: ``RecordLayout.noise_scale`` values: ``"none"`` (one level in metres for all records),
-#: ``"response"`` (the level times the record's relative response size ``s_r``) and
-#: ``"power"`` (times ``s_r ** scale_power``, the exponent sampled in [0, 1]: 0 is one
-#: level, 1 is ``"response"``; the data choose between the two).
-NOISE_SCALES = ("none", "response", "power")
 
 #: Name, prior bounds and start of the sampled exponent of ``noise_scale = "power"``.
 POWER_NAME = "scale_power"
@@ -63,20 +58,23 @@ class RecordScales:
     rms_m : ndarray, shape (n_records,)
         Root mean square of each fitted record's simulated response, m.
     reference_m : float
-        Their geometric mean, m.
-    scales : ndarray, shape (n_records,)
-        ``rms_m / reference_m``.
+        Their geometric mean, m (or the reference of the records a likelihood was fitted
+        to, when it is rebuilt on others).
     """
 
     at: np.ndarray
     rms_m: np.ndarray
     reference_m: float
-    scales: np.ndarray
+
+    @property
+    def scales(self) -> np.ndarray:
+        """``rms_m / reference_m``, shape (n_records,)."""
+        return self.rms_m / self.reference_m
 
     @classmethod
     def reference(cls, at, reference_m: float) -> RecordScales:
         """The reference of a stored run (its row and size) without its records' sizes."""
-        return cls(np.asarray(at, dtype=float), np.empty(0), float(reference_m), np.empty(0))
+        return cls(np.asarray(at, dtype=float), np.empty(0), float(reference_m))
 
     def scale_of(self, rms_m: float) -> float:
         """The scale of a record whose simulated response has this RMS, m."""
@@ -130,4 +128,4 @@ def record_scales(predict: Callable[[np.ndarray, Experiment], np.ndarray], at,
     ref = float(np.exp(np.mean(np.log(rms)))) if reference_m is None else float(reference_m)
     if not (np.isfinite(ref) and ref > 0):
         raise ConfigError(f"reference_m must be a positive size in m, got {reference_m!r}")
-    return RecordScales(at, rms, ref, rms / ref)
+    return RecordScales(at, rms, ref)

@@ -226,7 +226,6 @@ class RecordLayout:
     def kinds(self) -> tuple[tuple[str, str], ...]:
         return tuple(self.per_record.items())
 
-
     def to_dict(self) -> dict:
         d = {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
         if self.noise_scale != "none":  # (absent at the default: earlier hashes stay valid)
@@ -810,11 +809,12 @@ class RecordsLikelihood:
     def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
         """Moment estimates of the noise parameters (in ``names`` order of the noise)."""
         starts = []
+        # (with a sampled power the residuals are scaled at its start value)
+        power = POWER_START if self._index["power"] is not None else 1.0
         for r in range(self.n_records):
             full, v0 = self.record_theta(theta[None], r)
             mech = full[0, : len(self.mech_names)]
             e = self.experiments[r]
-            power = POWER_START if self._index["power"] is not None else 1.0
             res = (e.y_m - self.predict_mech(mech[None], v0, e)[0]) / self.scale(r) ** power
             if self.noise in ("white", "ar1"):
                 starts.append(noise_moments(res, self.noise))

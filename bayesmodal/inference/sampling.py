@@ -681,7 +681,7 @@ def sample_posterior(
         if initial_state != "rest":
             raise ConfigError("estimated initial states (free decays) are built for the "
                               "single-record likelihood; drop the per-record layout")
-        # (with noise_scale "response" the records' sizes need the start: built again there)
+        # (with a noise scale the records' sizes need the start: built again there)
         lik = RecordsLikelihood(model, exps, noise, extension, layout)
     ext = lik.extension
     if priors is None:
