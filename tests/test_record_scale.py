@@ -204,6 +204,7 @@ def test_a_run_with_a_scaled_noise_level_goes_end_to_end(tmp_path):
 
     assert "ar1 noise (level per record size)" in (out / "report.html").read_text()
     assert _noise_scale_note({"run": {"config": {"noise_scale": "none"}}}) == ""
+    assert "sampled power" in _noise_scale_note({"run": {"config": {"noise_scale": "power"}}})
 
 
 POWER = RecordLayout({}, noise_scale="power")

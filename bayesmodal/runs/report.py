@@ -170,9 +170,10 @@ def _coverage_rows(records, role: str, *, relative: bool = False,
 
 
 def _noise_scale_note(s: dict) -> str:
-    """``" (level per record size)"`` when the run scaled its noise by the records' size."""
-    cfg = s.get("run", {}).get("config", {})
-    return " (level per record size)" if cfg.get("noise_scale") == "response" else ""
+    """How the run scaled its noise level with the records' size ("" for one level)."""
+    return {"response": " (level per record size)",
+            "power": " (level per record size to a sampled power)"}.get(
+        s.get("run", {}).get("config", {}).get("noise_scale"), "")
 
 
 def _section_verdict(s: dict) -> str:
