@@ -30,23 +30,28 @@ def _inputs(n=800):
                for k, a in enumerate(AMPS)]
 
 
-def _records(sigma_rel, seed, n=800):
-    """Records whose noise sd is ``sigma_rel`` times the response's RMS."""
+def _rms(inputs):
+    """RMS of the true model's response to each input (direct simulation), m."""
+    return np.array([np.sqrt(np.mean(simulate_linear(MODEL, THETA, v, DT) ** 2))
+                     for v in inputs])
+
+
+def _records(sigma_rel, seed, n=800, noise_sd=None):
+    """Records whose noise sd is ``sigma_rel`` times the response's RMS (or
+    ``noise_sd(rms)``, one sd per record from the records' RMS)."""
     rng = np.random.default_rng(seed)
     t, vs = _inputs(n)
+    sd = sigma_rel * _rms(vs) if noise_sd is None else noise_sd(_rms(vs))
     out = []
     for k, v in enumerate(vs):
         y = simulate_linear(MODEL, THETA, v, DT)
-        rms = np.sqrt(np.mean(y**2))
-        out.append(Experiment(t, v, y + sigma_rel * rms * rng.standard_normal(y.shape),
-                              name=f"r{k}"))
+        out.append(Experiment(t, v, y + sd[k] * rng.standard_normal(y.shape), name=f"r{k}"))
     return out
 
 
 def _scale_truth(exps):
     """rms of each record's simulated response over their geometric mean (direct)."""
-    rms = np.array([np.sqrt(np.mean(simulate_linear(MODEL, THETA, e.v_volt, DT) ** 2))
-                    for e in exps])
+    rms = _rms([e.v_volt for e in exps])
     return rms / np.exp(np.mean(np.log(rms)))
 
 
@@ -121,8 +126,7 @@ def test_the_scaled_posterior_recovers_a_relative_noise_level_and_a_shared_one_d
     """
     rel = 0.02
     exps = _records(rel, seed=5)
-    rms = np.array([np.sqrt(np.mean(simulate_linear(MODEL, THETA, e.v_volt, DT) ** 2))
-                    for e in exps])
+    rms = _rms([e.v_volt for e in exps])
     ref = np.exp(np.mean(np.log(rms)))
     run, sig = _sigma_sampled(SCALED, exps, seed=6)
     mean, sd = sig.mean(axis=0), sig.std(axis=0)
@@ -250,17 +254,8 @@ def test_the_power_is_recovered_and_its_ends_are_excluded():
     """Known truth: noise sd proportional to the square root of each record's size
     (``a = 0.5``).  The posterior of ``scale_power`` covers 0.5 within 4 posterior sd and
     excludes both ends, one level (0) and a level proportional to the size (1)."""
-    rng = np.random.default_rng(12)
-    t, vs = _inputs(800)
-    exps, rms = [], []
-    for v in vs:
-        y = simulate_linear(MODEL, THETA, v, DT)
-        rms.append(np.sqrt(np.mean(y**2)))
-        exps.append((t, v, y))
-    rms = np.array(rms)
-    rel = rms / np.exp(np.mean(np.log(rms)))
-    recs = [Experiment(t, v, y + 1e-4 * np.sqrt(rel[k]) * rng.standard_normal(y.shape),
-                       name=f"r{k}") for k, (t, v, y) in enumerate(exps)]
+    recs = _records(None, seed=12, noise_sd=lambda rms: 1e-4 * np.sqrt(
+        rms / np.exp(np.mean(np.log(rms)))))
     run = sample_posterior(recs, MODEL, noise="white", layout=POWER, n_walkers=32,
                            n_steps=600, burn=300, rng=13, warn=False)
     a = run.flat_draws[:, run.names.index("scale_power")]
