@@ -11,7 +11,7 @@ from test_inference_records import _records
 
 from bayesmodal._errors import ConfigError, DataError
 from bayesmodal.inference.crossval import CrossvalSpec, crossval
-from bayesmodal.inference.predictive import crps_ensemble, score_samples
+from bayesmodal.inference.predictive import band_factor, crps_ensemble, score_samples
 from bayesmodal.runs.compare import crossval_difference
 
 
@@ -43,6 +43,42 @@ def test_band_coverage_of_a_calibrated_ensemble_is_nominal():
     narrow = score_samples("x", y, 0.3 * rng.standard_normal((s, n, 2)), np.zeros(s))
     assert np.all(narrow.coverage_90 < 0.9 - 10 * se)  # the control is overconfident
     assert np.all(narrow.width_90 < good.width_90)
+
+
+def test_band_factor_recovers_the_true_spread_of_a_fixed_band():
+    """Observations N(0, sigma^2) against the band +-1.645 (unit sd): the factor that
+    covers 90 % is sigma (closed form), within the standard error of a sample quantile;
+    the band it scales to covers 90 %, and a factor 1 % smaller does not."""
+    rng = np.random.default_rng(3)
+    n, z90 = 20000, stats.norm.ppf(0.95)
+    for sigma in (0.5, 1.0, 1.7):
+        y = sigma * rng.standard_normal((n, 1))
+        one = np.full((n, 1), z90)
+        c = band_factor(y, -one, np.zeros((n, 1)), one)[0]
+        # SE of the 0.9 quantile of |y| / z90: sqrt(p (1 - p) / n) / density of |y| there
+        se = np.sqrt(0.9 * 0.1 / n) / (2 * stats.norm.pdf(z90) / sigma) / z90
+        assert abs(c - sigma) < 4 * se, (sigma, c, se)
+        inside = np.mean(np.abs(y) <= c * z90)
+        assert inside >= 0.9 > np.mean(np.abs(y) <= 0.99 * c * z90)
+
+
+def test_band_factor_scales_each_side_by_its_own_half_width():
+    """An asymmetric band (lower half-width 1, upper 3) on observations uniform in
+    [-1, 3]: every sample is inside at factor 1 and the uniform's quantile gives the 90 %
+    factor 0.9 (both sides scale alike); the scores report it next to the coverage."""
+    n = 10001
+    y = np.linspace(-1.0, 3.0, n)[:, None]
+    lo, mid, hi = np.full((n, 1), -1.0), np.zeros((n, 1)), np.full((n, 1), 3.0)
+    c = band_factor(y, lo, mid, hi)[0]
+    assert c == pytest.approx(0.9, abs=2.0 / n)
+    # in the scores: a factor above 1 exactly where the band covers less than 90 %
+    rng = np.random.default_rng(1)
+    yy = rng.standard_normal((4000, 2))
+    for spread in (0.3, 1.0, 2.0):
+        sc = score_samples("x", yy, spread * rng.standard_normal((400, 4000, 2)),
+                           np.zeros(400))
+        np.testing.assert_array_equal(sc.band_factor_90 > 1, sc.coverage_90 < 0.9)
+        assert "band_factor_90" in sc.to_dict()
 
 
 def test_paired_difference_of_summed_lpd():
@@ -84,7 +120,8 @@ def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
     d = json.loads((write_crossval(res, tmp_path)).read_text())
     assert [r["name"] for r in d["records"]] == [e.name for e in recs]
     for r in d["records"]:
-        for key in ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps"):
+        for key in ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps",
+                    "band_factor_90"):
             assert len(r[key]) == 3
         assert np.isfinite(r["lpd"])
     assert d["total"]["lpd"] == pytest.approx(sum(r["lpd"] for r in d["records"]))

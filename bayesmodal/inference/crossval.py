@@ -158,16 +158,19 @@ class CrossvalResult:
 
     def table(self) -> str:
         """Plain-text table: one row per held-out record and output."""
-        rows = ["record                   cart  fit %   cov50  cov90  width90  crps    lpd"]
+        rows = ["record                   cart  fit %   cov50  cov90  width90  x90    crps    lpd"]
         for f in self.folds:
             s = f.scores
             for j in range(s.fit_percent.size):
                 lpd = f"{s.lpd:.0f} +- {s.lpd_se:.1f}" if j == 0 else ""
                 rows.append(f"{s.name[:24]:<24} {j + 1:>4}  {s.fit_percent[j]:5.1f}  "
                             f"{s.coverage_50[j]:5.2f}  {s.coverage_90[j]:5.2f}  "
-                            f"{s.width_90[j]:6.2f}  {s.crps[j]:5.3f}  {lpd}")
+                            f"{s.width_90[j]:6.2f}  {s.band_factor_90[j]:5.2f}  "
+                            f"{s.crps[j]:5.3f}  {lpd}")
         rows.append(f"total held-out lpd: {self.total_lpd:.0f} +- {self.total_lpd_se:.0f} nats "
                     f"over {len(self.folds)} records")
+        rows.append("x90: the factor on the 90 % band's half-widths that would cover 90 % "
+                    "of the record (1 = calibrated, > 1 too narrow)")
         return "\n".join(rows)
 
 

@@ -14,6 +14,11 @@ Scores per output (:class:`PredictiveScores`):
 - ``coverage_50``, ``coverage_90``: fraction of the record's samples inside the central
   50 % and 90 % bands of the predictive samples (pointwise quantiles);
 - ``width_90``: mean width of the 90 % band divided by the record's standard deviation;
+- ``band_factor_90``: the factor by which the 90 % band's two half-widths (median to
+  5 % and to 95 % quantile) must be multiplied for the band to cover exactly 90 % of the
+  record's samples: 1 for a calibrated band, above 1 when it under-covers, below 1 when
+  it over-covers (the width an honest band of this record would have is
+  ``band_factor_90 * width_90``);
 - ``crps``: the continuous ranked probability score of the predictive ensemble, averaged
   over samples, divided by the record's standard deviation (0 is perfect; a point
   forecast with no spread scores its mean absolute error), from the sorted-ensemble form
@@ -37,8 +42,8 @@ from ..metrics import fit_percent
 from .likelihood import Likelihood, residual_loglik, simulate_noise
 from .records import SIGNED
 
-__all__ = ["PredictiveScores", "new_record_parameters", "predict_new_record", "score_samples",
-           "crps_ensemble"]
+__all__ = ["PredictiveScores", "band_factor", "new_record_parameters", "predict_new_record",
+           "score_samples", "crps_ensemble"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,8 @@ class PredictiveScores:
     fit_percent, coverage_50, coverage_90, width_90, crps : ndarray, shape (n_out,)
         See the module docstring (coverages as fractions, width and CRPS relative to the
         record's standard deviation per output).
+    band_factor_90 : ndarray, shape (n_out,)
+        Scale of the 90 % band about its median that covers 90 % of the record.
     lpd : float
         Log predictive density of the record, nats.
     lpd_se : float
@@ -67,11 +74,14 @@ class PredictiveScores:
     lpd: float
     lpd_se: float
     n_draws: int
+    band_factor_90: np.ndarray | None = None
 
     def to_dict(self) -> dict:
+        keys = ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps",
+                "band_factor_90")
         return {"name": self.name,
-                **{k: np.asarray(getattr(self, k)).tolist() for k in
-                   ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps")},
+                **{k: np.asarray(getattr(self, k)).tolist() for k in keys
+                   if getattr(self, k) is not None},
                 "lpd": self.lpd, "lpd_se": self.lpd_se, "n_draws": self.n_draws}
 
 
@@ -237,4 +247,42 @@ def score_samples(name: str, y: np.ndarray, y_pred: np.ndarray, loglik: np.ndarr
     # delta method: se(log mean w) = sd(w) / (sqrt(S) mean(w))
     lpd_se = float(np.std(w, ddof=1) / (np.sqrt(s) * np.mean(w))) if s > 1 else float("nan")
     return PredictiveScores(name, fit_percent(y, q[2]), cov50, cov90, width, crps, lpd,
-                            lpd_se, int(s))
+                            lpd_se, int(s), band_factor(y, q[0], q[2], q[4]))
+
+
+def band_factor(y: np.ndarray, lower: np.ndarray, median: np.ndarray, upper: np.ndarray,
+                prob: float = 0.9) -> np.ndarray:
+    """Scale of a band about its median that covers ``prob`` of the observations.
+
+    Parameters
+    ----------
+    y, lower, median, upper : ndarray, shape (N, n_out)
+        Observations and the band's lower edge, centre and upper edge per sample.
+    prob : float
+        Coverage the scaled band is to reach.
+
+    Returns
+    -------
+    ndarray, shape (n_out,)
+        The smallest ``c`` with ``median - c (median - lower) <= y <= median + c (upper -
+        median)`` for a fraction ``prob`` of the samples (the ``prob`` quantile of each
+        sample's own factor ``(y - median) / (upper - median)`` above the centre,
+        ``(median - y) / (median - lower)`` below it).  A band of zero half-width needs an
+        infinite factor wherever ``y`` is off its centre.
+
+    Examples
+    --------
+    Observations 0.5, 1 and 2 half-widths off the centre: the band must be kept at its
+    width (``c = 1``) to hold at least half of them:
+
+    >>> y = np.array([[0.5], [-1.0], [2.0]])
+    >>> z, one = np.zeros((3, 1)), np.ones((3, 1))
+    >>> float(band_factor(y, -one, z, one, prob=0.5)[0])
+    1.0
+    """
+    y, lower, median, upper = (np.asarray(a, dtype=float) for a in (y, lower, median, upper))
+    up, down = upper - median, median - lower
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.where(y >= median, (y - median) / up, (median - y) / down)
+    need = np.where(y == median, 0.0, need)   # on the centre: inside any band
+    return np.quantile(need, prob, axis=0, method="inverted_cdf")
