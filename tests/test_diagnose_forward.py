@@ -56,12 +56,13 @@ def test_loro_gain_is_significant_for_a_hidden_offset_and_not_without():
     assert out[None]["z"] < 3, out
 
 
-#: Measured failures (24 Nov, seed 1), kept strict so that a fix shows: directional levels
-#: on cart 1 are explained as equal friction on every cart plus an offset and a dead band
-#: (the refinement is not accepted; elsewhere it scored a BIC gain of -2588 against the
-#: equal-level model it starts from: unresolved); friction on cart 3
-#: behind a 0.1 V dead band ends as directional friction (T = 10.9 left).
-KNOWN_MISSES = {"coulomb_directional", "coulomb_friction+drive_deadband"}
+#: Cases whose test seed forward selection is known to miss (strict: a fix shows).  Empty
+#: since 24 Nov, fifth session: directional levels on cart 1 (found as equal friction plus
+#: an offset and a dead band) and friction on cart 3 behind a 0.1 V dead band (found as
+#: directional friction with the dead band) were local least-squares fits stopped on the
+#: terraces of the stick-slip cost; the global search of forward selection finds both
+#: (docs/diagnose.md).
+KNOWN_MISSES: set[str] = set()
 
 
 @pytest.mark.slow
@@ -138,3 +139,32 @@ def test_train_takes_indices_in_one_argument_so_data_may_follow(capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "record indices such as 0 or 0,1" in err[0]
+
+
+@pytest.mark.slow
+def test_every_candidate_is_fitted_so_a_tied_start_cannot_hide_the_dead_band():
+    """Friction on cart 3 behind a 0.11 V dead band (pairs case, seed 1): after friction,
+    every candidate whose grid holds its null value starts at the current cost, and with
+    three fits per step (the old cap) the tie put the dead band behind motor lag, delay
+    and saturation, which all lost.  Fitting every candidate finds it significant at the
+    step's own level; the capped run is the negative control."""
+    h = make_case("coulomb_friction+drive_deadband", 1, N_SAMPLES)
+    out = {}
+    for cap in (3, None):
+        d = diagnose(h.experiment, posterior=False, n_null=N_NULL, rng=1, max_effects=2,
+                     max_fits=cap)
+        step = d.detail["forward"].steps[0]
+        out[cap] = {r["cause"]: r for r in step["candidates"]}
+    assert "drive_deadband" not in out[3]
+    db = out[None]["drive_deadband"]
+    assert db["significant"] and db["delta_lpd"] > 0, db
+    assert "drive_deadband" in [c.cause for c in d.causes]
+    # the before/after plot draws the final model (it once simulated the first cause's
+    # name with the first step's parameters, which fails once that cause is refined)
+    import matplotlib
+    matplotlib.use("Agg")
+    from bayesmodal.discrepancy.diagnosis.plots import plot_before_after
+    ax = plot_before_after(d, h.experiment)
+    final = d.detail["forward"].fit.extension
+    assert set(final.name.split("+")) == set(d.effects)
+    assert f"({final.name})" in ax[0].get_title()

@@ -52,6 +52,10 @@ def register(sub) -> None:
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
                    help="largest number of effects forward selection puts in the model; 1 "
                    "stops after the first cause (default %(default)s)")
+    p.add_argument("--local-search", action="store_true",
+                   help="forward selection fits stick-slip models from local starts only "
+                   "(faster; by default also by differential evolution, whose fit the "
+                   "local starts miss on friction behind an input effect)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
@@ -107,7 +111,7 @@ def run(args) -> int:
 
     exps = load_args(args)
     d = diagnose(exps, rig=load_rig(args), train=args.train, n_null=args.null,
-                 max_effects=args.max_effects,
+                 max_effects=args.max_effects, global_search=not args.local_search,
                  posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
                  n_starts=args.starts, progress=not args.quiet)

@@ -14,7 +14,6 @@ def plot_before_after(diagnosis, experiment, *, ax=None):
     import matplotlib.pyplot as plt
 
     from ...simulate import simulate_linear
-    from ..effects import EXTENSIONS
 
     lin = diagnosis.detail["linear"]
     n = experiment.n_outputs
@@ -23,20 +22,24 @@ def plot_before_after(diagnosis, experiment, *, ax=None):
     ax = np.atleast_1d(ax)
     t = experiment.t_s
     y_lin = simulate_linear(lin.model, lin.theta, experiment.v_volt, experiment.dt)
-    y_ext = None
+    y_ext, label = None, diagnosis.cause
     if diagnosis.cause != "none" and "extension_fit" in diagnosis.detail:
-        ef = diagnosis.detail["extension_fit"]
-        y_ext = EXTENSIONS[diagnosis.cause].simulate(ef.rig, ef.theta, experiment.v_volt,
-                                                     experiment.dt)
+        # the final model: forward selection's fit, else the first step's (the first
+        # cause may have been refined, e.g. to directional levels, so its name does not
+        # name the fitted model)
+        fwd = diagnosis.detail.get("forward")
+        ef = fwd.fit if fwd is not None else diagnosis.detail["extension_fit"]
+        label = ef.extension.name
+        y_ext = ef.extension.simulate(ef.rig, ef.theta, experiment.v_volt, experiment.dt)
     for j in range(n):
         ax[j].plot(t, experiment.y_m[:, j] * 1e3, "k", lw=1, label="measured")
         ax[j].plot(t, y_lin[:, j] * 1e3, "C0", lw=0.8, label="linear")
         if y_ext is not None:
-            ax[j].plot(t, y_ext[:, j] * 1e3, "C3", lw=0.8, label=diagnosis.cause)
+            ax[j].plot(t, y_ext[:, j] * 1e3, "C3", lw=0.8, label=label)
         ax[j].set_ylabel(f"x{j + 1} (mm)")
     ax[-1].set_xlabel("time (s)")
     ax[0].legend(loc="upper right", fontsize=8)
-    ax[0].set_title(f"{experiment.name}: before and after ({diagnosis.cause})")
+    ax[0].set_title(f"{experiment.name}: before and after ({label})")
     return ax
 
 

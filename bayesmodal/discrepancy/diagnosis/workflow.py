@@ -168,6 +168,7 @@ def diagnose(
     max_nfev: int = 40,
     n_starts: int = 3,
     max_effects: int = 3,
+    global_search: bool = True,
     progress: bool = False,
 ) -> Diagnosis:
     """Diagnose the linear model's misfit, name the cause and measure the gain.
@@ -197,7 +198,8 @@ def diagnose(
         Encoder resolution used by the null simulations, m; default: inferred
         (``infer_quantum``: one ECP count when the positions are whole counts, else 0).
     max_fits : int, optional
-        Fit only the ``max_fits`` candidates with the strongest signatures (default all).
+        Fit only the ``max_fits`` candidates with the strongest signatures (default all),
+        in the first step and in every forward step (there: the cheapest batched starts).
     posterior_options : dict, optional
         Passed to the sampler (``n_steps``, ``n_walkers``...).
     max_nfev : int
@@ -215,6 +217,10 @@ def diagnose(
     max_effects : int
         Largest number of effects forward selection puts in the model
         (``bayesmodal.discrepancy.diagnosis.forward``); 1 stops after the first cause.
+    global_search : bool
+        In forward selection, fit every model with stick-slip friction also by
+        differential evolution and a least-squares polish
+        (``bayesmodal.discrepancy.effects.global_fit``), not only from local starts.
     progress : bool
         Progress lines on stderr: each stage as it starts, and progress over the null
         data sets, the candidate fits and the sampler steps (``bayesmodal._progress``).
@@ -439,8 +445,8 @@ def diagnose(
         fwd = forward_select(
             train_exps, rig, c, ef, cands, linear=linear, quantum_m=q, n_null=n_null,
             alpha=alpha, rng=rng, outcomes=_outcomes, location=_location,
-            max_effects=int(max_effects), n_starts=n_starts, max_nfev=max_nfev,
-            progress=progress)
+            max_effects=int(max_effects), max_fits=max_fits, n_starts=n_starts,
+            max_nfev=max_nfev, global_search=bool(global_search), progress=progress)
         causes = _final_causes(causes + fwd.added, fwd, rig, model)
         for eff, simpler in fwd.simplified:
             notes.append(f"{eff} {'simplified to ' + simpler if simpler else 'removed'} "
