@@ -155,6 +155,10 @@ class ForwardResult:
     simplified: tuple = field(default=())
 
 
+#: Failures of a fit that make it no candidate (an inadmissible start, a diverging model).
+_FIT_ERRORS = (ModelError, DataError, ValueError, FloatingPointError, np.linalg.LinAlgError)
+
+
 def _simulate(ext, rig, theta, exps):
     if ext is None:
         model = LinearModel(rig, "free")
@@ -176,7 +180,7 @@ def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int) -> np.ndarra
                                max_nfev=max_nfev).theta
             return fit_extension_lsq(exps, ext, rig, theta0=theta, linear=linear,
                                      max_nfev=max_nfev).theta
-    except (ModelError, DataError, ValueError, FloatingPointError, np.linalg.LinAlgError):
+    except _FIT_ERRORS:
         return np.asarray(theta, float)
 
 
@@ -248,22 +252,18 @@ def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None
               ) -> ExtensionFit | None:
     """The best local fit from ``starts`` and, for a stick-slip model when ``search``
     (a seed) is given, of the global search (``fit_extension_global``)."""
-    best = None
+    fits = []
     if search is not None and is_stick_slip(new):
+        fits.append(lambda: fit_extension_global(exps, new, rig, linear=linear, rng=search,
+                                                 max_nfev=max_nfev))
+    fits += [lambda th0=th0: fit_extension_lsq(exps, new, rig, theta0=th0, linear=linear,
+                                               max_nfev=max_nfev) for th0 in starts]
+    best = None
+    for fit in fits:
         try:
             with np.errstate(all="ignore"):
-                best = fit_extension_global(exps, new, rig, linear=linear, rng=search,
-                                            max_nfev=max_nfev)
-        except (ModelError, DataError, ValueError, FloatingPointError,
-                np.linalg.LinAlgError):
-            best = None
-    for th0 in starts:
-        try:
-            with np.errstate(all="ignore"):
-                f = fit_extension_lsq(exps, new, rig, theta0=th0, linear=linear,
-                                      max_nfev=max_nfev)
-        except (ModelError, DataError, ValueError, FloatingPointError,
-                np.linalg.LinAlgError):
+                f = fit()
+        except _FIT_ERRORS:
             continue
         if best is None or f.cost < best.cost:
             best = f
