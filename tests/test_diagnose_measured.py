@@ -13,7 +13,7 @@ import pytest
 from conftest import measured
 from hidden_effects import make
 
-from bayesmodal.discrepancy.diagnosis import diagnose
+from bayesmodal.discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
 from bayesmodal.discrepancy.diagnosis.forward import REFINES
 
 
@@ -22,17 +22,19 @@ def four():
     names = ("data_impulses.mat", "data_steps.mat", "data_sine_sweep_fast.mat",
              "data_sine_sweep_slow.mat")
     exps = [measured(n) for n in names]
-    return diagnose(exps, train=0, posterior=False, n_null=19, rng=0)
+    # the first step only: these are the targets of the first cause (forward selection on
+    # the measured records, with its global searches, takes 20 min more; the docs' slow
+    # snippet runs it through the CLI).  Refinements enter only by forward selection, so
+    # they are left out here as they are from the first step of a full run.
+    first = tuple(c for c in DEFAULT_CANDIDATES if c not in REFINES)
+    return diagnose(exps, train=0, posterior=False, n_null=19, rng=0, max_effects=1,
+                    candidates=first)
 
 
 @pytest.mark.slow
 def test_impulses_name_coulomb_friction(four):
     d = four
-    # the first step names Coulomb friction; forward selection may refine it to
-    # direction-dependent Coulomb levels (REFINES), which then heads the causes
-    assert d.discrepancy and d.ranking[0].name == "coulomb_friction", d.ranking
-    assert d.cause in ("coulomb_friction",) + tuple(
-        k for k, v in REFINES.items() if v == "coulomb_friction"), d.notes
+    assert d.discrepancy and d.cause == "coulomb_friction", d.notes
     assert d.location is not None and all(1 <= i <= 3 for i in d.location)
     # friction takes over part of the apparent viscous damping of the driven cart
     assert d.linear_parameters["c1"]["after"] < d.linear_parameters["c1"]["before"]
