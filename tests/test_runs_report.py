@@ -108,7 +108,7 @@ def test_report_opens_with_the_verdict_and_shows_crossval(tmp_path):
     s = _summary(n_fail=7)
     s["crossval"] = {"method": "each of 3 records left out in turn", "records": [
         {"name": "rec_a", "coverage_90": [0.61, 0.64, 0.66], "width_90": [0.73] * 3,
-         "fit_percent": [71.0, 70.0, 69.0]},
+         "fit_percent": [71.0, 70.0, 69.0], "band_factor_90": [2.41, 2.2, 2.05]},
         {"name": "rec_b", "coverage_90": [0.9, 0.92, 0.88], "width_90": [3e-3] * 3,
          "fit_percent": [80.0, 81.0, 82.0]}]}
     page = _render(tmp_path, s)
@@ -122,6 +122,8 @@ def test_report_opens_with_the_verdict_and_shows_crossval(tmp_path):
     for name, cov in (("rec_a", "61"), ("rec_b", "92")):
         assert page.index(name) < first and f">{cov}</span>" in page
     assert "left out" in page and "0.73" in page  # band width / record sd
+    # the factor that would calibrate the band, where crossval reported it (rec_b: none)
+    assert "width factor that would cover 90 %" in page and "2.41, 2.20, 2.05" in page
     # leaving records out changes the third answer
     assert "leaving one record out, the 90 % band covers 61-92 %" in v.intervals.text
     assert "class='verdict big bad'" in page

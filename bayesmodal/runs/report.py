@@ -192,7 +192,12 @@ def _section_verdict(s: dict) -> str:
     rows = _coverage_rows(held.get("records") or [], "held out")
     rows += _coverage_rows(held.get("fitted_records") or [], "fitted (in-sample)")
     cv = s.get("crossval") or {}
-    cv_rows = _coverage_rows(cv.get("records") or [], "left out", relative=True)
+    cv_records = cv.get("records") or []
+    cv_rows = _coverage_rows(cv_records, "left out", relative=True)
+    for row, r in zip(cv_rows, cv_records, strict=True):
+        # how far the band is off: the factor on its width that would cover 90 %
+        row.insert(4, _e(", ".join(f"{x:.2f}" for x in _flat(r.get("band_factor_90", []))))
+                   or "&ndash;")
     legend = ("<p class='muted'>Coverage: the share of the measured samples inside the "
               "90 % posterior-predictive band (model output plus fitted noise); a band "
               "that holds covers about 90 % of a record it was not fitted to. "
@@ -209,7 +214,9 @@ def _section_verdict(s: dict) -> str:
         out += (f"<h3 id='crossval'>Leave-one-record-out ({_e(method)})</h3>"
                 + ("" if rows else legend)
                 + _table(["record", "role", "coverage of 90 % band (%, per output)",
-                          "band width / record sd (per output)", "fit % (per output)"],
+                          "band width / record sd (per output)",
+                          "width factor that would cover 90 % (per output)",
+                          "fit % (per output)"],
                          cv_rows, left=(0, 1)))
     return out
 
