@@ -168,3 +168,41 @@ def test_every_candidate_is_fitted_so_a_tied_start_cannot_hide_the_dead_band():
     final = d.detail["forward"].fit.extension
     assert set(final.name.split("+")) == set(d.effects)
     assert f"({final.name})" in ax[0].get_title()
+
+
+def test_final_causes_take_location_and_parameters_from_the_final_fit():
+    """A cause found first with friction spread over carts 1 and 2 (the first step's fit,
+    before the dead band was in the model) is reported where the final model puts it,
+    cart 3, with the final fit's levels; a refinement simplified back keeps its gain and
+    takes the simpler name; the gains stay those measured when each was found."""
+    from types import SimpleNamespace
+
+    from bayesmodal.discrepancy.diagnosis.forward import Cause
+    from bayesmodal.discrepancy.diagnosis.workflow import _final_causes
+    from bayesmodal.discrepancy.effects import get_extension
+
+    rig = Rig()
+    model = LinearModel(rig, "free")
+    lin = np.array([6.2, 1.56, 1.46, 1.15, 2.9, 1.8, 2.0, 0.0, 0.0])
+    names = ("coulomb_friction", "drive_deadband")
+    ext = get_extension(list(names))
+    theta = np.r_[lin, 0.0, 0.0, 0.9, 0.0, 0.0, 1.1, 0.12]
+    fwd = SimpleNamespace(names=names, fit=SimpleNamespace(theta=ext.check(rig, theta)),
+                          simplified=())
+    first = Cause(cause="coulomb_friction", location=[1, 2], location_label="carts 1, 2",
+                  parameters={"Fc1": 0.4, "Fc2": 0.3}, gain={"in_sample": {"delta_lpd": 5}})
+    dead = Cause(cause="drive_deadband", location=None, location_label="input",
+                 parameters={"v_dead": 0.1}, gain={"in_sample": {"delta_lpd": 7}})
+    out = _final_causes((first, dead), fwd, rig, model)
+    assert [c.cause for c in out] == list(names)
+    assert out[0].location == [3] and out[0].parameters["Fc3"] == 0.9
+    assert out[0].gain == first.gain and out[1].parameters == {"v_dead": 0.12}
+    # directional levels simplified back to equal ones: the simpler name, no 'replaces'
+    fwd2 = SimpleNamespace(names=names, fit=fwd.fit,
+                           simplified=(("coulomb_directional", "coulomb_friction"),))
+    refined = Cause(cause="coulomb_directional", location=[3], location_label="cart 3",
+                    parameters={}, gain={"in_sample": {"delta_lpd": 9}},
+                    replaces="coulomb_friction")
+    out2 = _final_causes((refined, dead), fwd2, rig, model)
+    assert out2[0].cause == "coulomb_friction" and out2[0].replaces is None
+    assert out2[0].location == [3] and out2[0].gain == refined.gain
