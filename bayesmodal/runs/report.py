@@ -149,10 +149,11 @@ def _answer_word(question: str, status: str) -> str:
 _COVERAGE_CLASS = {"ok": "ok", "narrow": "bad", "wide": "wide"}
 
 
-def _coverage_rows(records, role: str, *, relative: bool = False,
+def _coverage_rows(records, role: str, *, relative: bool = False, factor: bool = False,
                    prob: float = 0.9) -> list[list[str]]:
     """Table rows; band widths in mm, or (``relative``) divided by the record's sd; each
-    coverage coloured by :func:`~.verdict.coverage_status`."""
+    coverage coloured by :func:`~.verdict.coverage_status`; with ``factor`` also the
+    factor on the band's width that would cover 90 % (``band_factor_90``)."""
     rows = []
     for r in records:
         cov = _flat(r.get("coverage_90", []))
@@ -162,10 +163,13 @@ def _coverage_rows(records, role: str, *, relative: bool = False,
         for c in cov:
             cls = _COVERAGE_CLASS[coverage_status(c, prob)]
             cells.append(f"<span class='{cls}'>{100 * c:.0f}</span>")
-        rows.append([_e(r.get("name", "?")), _e(role), ", ".join(cells) or "&ndash;",
-                     _e(", ".join(f"{w:.2f}" if relative else f"{1e3 * w:.3f}"
-                                  for w in width)) or "&ndash;",
-                     _e(", ".join(f"{f:.1f}" for f in fit)) or "&ndash;"])
+        row = [_e(r.get("name", "?")), _e(role), ", ".join(cells) or "&ndash;",
+               _e(", ".join(f"{w:.2f}" if relative else f"{1e3 * w:.3f}"
+                            for w in width)) or "&ndash;"]
+        if factor:
+            row.append(_e(", ".join(f"{x:.2f}" for x in
+                                    _flat(r.get("band_factor_90", [])))) or "&ndash;")
+        rows.append(row + [_e(", ".join(f"{f:.1f}" for f in fit)) or "&ndash;"])
     return rows
 
 
@@ -192,12 +196,8 @@ def _section_verdict(s: dict) -> str:
     rows = _coverage_rows(held.get("records") or [], "held out")
     rows += _coverage_rows(held.get("fitted_records") or [], "fitted (in-sample)")
     cv = s.get("crossval") or {}
-    cv_records = cv.get("records") or []
-    cv_rows = _coverage_rows(cv_records, "left out", relative=True)
-    for row, r in zip(cv_rows, cv_records, strict=True):
-        # how far the band is off: the factor on its width that would cover 90 %
-        row.insert(4, _e(", ".join(f"{x:.2f}" for x in _flat(r.get("band_factor_90", []))))
-                   or "&ndash;")
+    cv_rows = _coverage_rows(cv.get("records") or [], "left out", relative=True,
+                             factor=True)
     legend = ("<p class='muted'>Coverage: the share of the measured samples inside the "
               "90 % posterior-predictive band (model output plus fitted noise); a band "
               "that holds covers about 90 % of a record it was not fitted to. "

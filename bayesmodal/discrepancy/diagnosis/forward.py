@@ -270,6 +270,13 @@ def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None
     return best
 
 
+def _global_if_better(new, rig, f, exps, linear, max_nfev, search) -> ExtensionFit | None:
+    """The global search's fit of ``new`` when it costs less than ``f`` (or ``f`` is
+    None), else None."""
+    fg = _fit_from(new, rig, [], exps, linear, max_nfev, search)
+    return fg if fg is not None and (f is None or fg.cost < f.cost) else None
+
+
 def _in_sample(new, f, rig, exps, cur_pw, k, n_total, level):
     """``(gain, LR, p-value, BIC gain, significant)`` of the fit ``f`` of ``new`` over the
     current model (pointwise AR(1) log density ``cur_pw``), ``k`` added parameters."""
@@ -293,10 +300,9 @@ def _lr_keeps(cur, fit, simple, f, rig, exps, level) -> bool:
     """Does ``cur`` (at ``fit``) gain significantly over the nested ``simple`` (at ``f``)?
     The forward steps' rule: LR against chi2(k) at ``level`` and a positive BIC gain."""
     n_total = sum(e.n_samples * e.n_outputs for e in exps)
-    lr = 2.0 * float(np.sum(_lpd(exps, _simulate(cur, rig, fit.theta, exps)))
-                     - np.sum(_lpd(exps, _simulate(simple, rig, f.theta, exps))))
     k = len(cur.specs(rig)) - len(simple.specs(rig))
-    return bool(stats.chi2.sf(max(lr, 0.0), k) < level and lr - k * np.log(n_total) > 0)
+    simple_pw = _lpd(exps, _simulate(simple, rig, f.theta, exps))
+    return _in_sample(cur, fit, rig, exps, simple_pw, k, n_total, level)[-1]
 
 
 def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None):
@@ -335,8 +341,8 @@ def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None):
             if keeps and simpler is not None and search is not None and is_stick_slip(simple):
                 # before keeping a refinement, make sure the model it refines was fitted
                 # to its optimum, not to a terrace near the refinement's
-                fg = _fit_from(simple, rig, [], exps, linear, max_nfev, search)
-                if fg is not None and (f is None or fg.cost < f.cost):
+                fg = _global_if_better(simple, rig, f, exps, linear, max_nfev, search)
+                if fg is not None:
                     f = fg
                     keeps = _lr_keeps(cur, fit, simple, f, rig, exps, level)
             if keeps:
@@ -482,8 +488,8 @@ def forward_select(
                 # the global search (the local fit may stop on a terrace, either side)
                 announce(f"diagnose: forward step {len(names) + 1}: global search of "
                          f"{new.name}", enabled=progress)
-                fg = _fit_from(new, rig, [], exps, linear, max_nfev, search)
-                if fg is not None and fg.cost < f.cost:
+                fg = _global_if_better(new, rig, f, exps, linear, max_nfev, search)
+                if fg is not None:
                     f = fg
                     g, lr, pv, bic, sig = _in_sample(new, f, rig, exps, cur_pw, k, n_total,
                                                      level)

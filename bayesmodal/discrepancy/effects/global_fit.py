@@ -87,9 +87,10 @@ def search_box(ext: Extension, rig: Rig, theta_lin: np.ndarray) -> np.ndarray:
         half = UNBOUNDED_SCALES * sp.scale
         lo = lo if np.isfinite(lo) else sp.null - half
         hi = hi if np.isfinite(hi) else max(sp.null, lo) + half
-        if lo == sp.null == 0.0:
-            # a null at the lower bound: extend the box below it and clip (``to_theta``),
-            # so that "no effect here" is a region the evolution can land in, not a point
+        if _zero_bounded(sp):
+            # a null at the lower bound: extend the box below it and clip
+            # (``_clip_to_null``), so that "no effect here" is a region the evolution can
+            # land in, not a point
             lo = -ZERO_SHARE * hi
         rows.append((lo, hi))
     return np.concatenate([box, np.array(rows, dtype=float).reshape(-1, 2)])
@@ -102,10 +103,15 @@ def _head(exps: list[Experiment], max_samples: int) -> list[Experiment]:
             Experiment(e.t_s[:n], e.v_volt[:n], e.y_m[:n], name=e.name) for e in exps]
 
 
+def _zero_bounded(sp) -> bool:
+    """Is the parameter's null value its lower bound, zero?"""
+    return sp.null == 0.0 and sp.bounds[0] == 0.0
+
+
 def _clip_to_null(ext: Extension, rig: Rig, theta: np.ndarray) -> np.ndarray:
     """Parameters of the extended box below a zero lower bound set to zero."""
     p = ext.linear_model(rig).n_params
-    zero = np.array([sp.null == 0.0 and sp.bounds[0] == 0.0 for sp in ext.specs(rig)])
+    zero = np.array([_zero_bounded(sp) for sp in ext.specs(rig)])
     out = np.array(theta, dtype=float)
     ext_part = out[..., p:]
     ext_part[..., zero] = np.maximum(ext_part[..., zero], 0.0)
@@ -149,7 +155,7 @@ def fit_extension_global(
     Returns
     -------
     ExtensionFit
-        The polished fit (its ``theta_start`` is the evolution's best member).
+        The polished fit (its ``theta_start`` is where its last polish started).
 
     Raises
     ------
