@@ -46,7 +46,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, help="write the rows here")
     args = ap.parse_args(argv)
 
-    from hidden_pairs import BASE, make_case
+    from hidden_pairs import make_case
 
     from bayesmodal.discrepancy.diagnosis.forward import _lpd
     from bayesmodal.discrepancy.diagnosis.starts import best_starts, extra_starts
@@ -65,9 +65,7 @@ def main(argv=None) -> int:
     ext = get_extension(["coulomb_friction", other])
     lin = fit_lsq([e], LinearModel(rig, "free"))
     p = lin.theta.size
-    # the case's true parameters: make_case draws the linear ones first from the seed
-    theta_lin = BASE * np.random.default_rng(args.seed).uniform(0.95, 1.05, BASE.size)
-    truth = np.r_[theta_lin, h.sizes["coulomb_friction"], h.sizes[other]]
+    truth = np.r_[h.theta_lin, h.sizes["coulomb_friction"], h.sizes[other]]
 
     def lpd(theta) -> float:
         return float(_lpd([e], [ext.simulate(rig, theta, e.v_volt, e.dt)]).sum())

@@ -53,12 +53,15 @@ class HiddenCase:
         ``{effect name: 1-based location list or None}``.
     sizes : dict
         ``{effect name: drawn parameters}``.
+    theta_lin : ndarray, shape (9,)
+        The true linear parameters (``BASE`` perturbed by the seed), model order.
     """
 
     experiment: Experiment
     case: str
     effects: dict
     sizes: dict
+    theta_lin: np.ndarray | None = None
 
 
 def _friction(rng):
@@ -111,7 +114,7 @@ def make_case(case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
     sigma = rng.uniform(0.3, 1.0) * Q
     y = np.round((y + sigma * rng.standard_normal(y.shape)) / Q) * Q
     e = Experiment(np.arange(n_samples) * DT, u, y, name=f"{case}-{seed}")
-    return HiddenCase(e, case, effects, sizes)
+    return HiddenCase(e, case, effects, sizes, theta_lin)
 
 
 def judge(h: HiddenCase, d) -> tuple[bool, list]:

@@ -37,9 +37,7 @@ def problem():
     rig = Rig()
     ext = get_extension(CASE.split("+"))
     lin = fit_lsq([h.experiment], LinearModel(rig, "free"))
-    # make_case draws the linear parameters first from the seed
-    theta_lin = BASE * np.random.default_rng(SEED).uniform(0.95, 1.05, BASE.size)
-    truth = np.r_[theta_lin, h.sizes["coulomb_friction"], h.sizes["drive_deadband"]]
+    truth = np.r_[h.theta_lin, h.sizes["coulomb_friction"], h.sizes["drive_deadband"]]
     return h.experiment, rig, ext, lin, truth
 
 
