@@ -55,7 +55,9 @@ def main(argv=None) -> int:
         y = lik.predict_mech(lsq.theta[None], np.zeros(1), e)[0]
         dyn = y - np.outer(e.v_volt, static)
         res = e.y_m - preds[r][0]
-        row = {"name": e.name, "response_m": _rms(y), "dynamic_m": _rms(dyn),
+        # the response's RMS is the likelihood's own record size (record_scale)
+        row = {"name": e.name, "response_m": float(lik.record_scales.rms_m[r]),
+               "dynamic_m": _rms(dyn),
                "residual_m": _rms(res)}
         rows.append(row)
         print(f"{e.name:22s} {1e3 * row['response_m']:11.2f} {1e3 * row['dynamic_m']:11.2f} "
