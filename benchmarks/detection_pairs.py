@@ -9,10 +9,13 @@ name every effect of the case with its location (``hidden_pairs.judge``); on the
 data it must answer ``none``.  Prints the rate per case with the exact one-sided 95 %
 Clopper-Pearson bound, the effects found when wrong, the seconds per data set, and
 writes JSON (rewritten after every data set, so a partial run keeps its rows).
+``--resume`` reads that file and runs only the data sets it lacks, so a run stopped by a
+session's end goes on where it stopped (the file's settings must match the command's).
 
 Usage::
 
     python benchmarks/detection_pairs.py --seeds 20 --nulls 50 --workers 2 --out pairs.json
+    python benchmarks/detection_pairs.py --seeds 20 --nulls 50 --out pairs.json --resume
 """
 
 from __future__ import annotations
@@ -86,6 +89,22 @@ def table(rows, cases):
     return out
 
 
+#: settings a resumed run must share with the stored rows (the rest may differ)
+SAME_SETTINGS = ("calibration_nulls", "samples", "max_effects")
+
+
+def _stored_rows(path: Path, args) -> list:
+    """Rows of an earlier run in ``path`` made with the same settings, for ``--resume``."""
+    if not path.exists():
+        return []
+    old = json.loads(path.read_text())
+    for key in SAME_SETTINGS:
+        if old["args"][key] != getattr(args, key):
+            raise SystemExit(f"--resume: {path} was made with {key} = {old['args'][key]}, "
+                             f"this command has {getattr(args, key)}; use another --out")
+    return old["rows"]
+
+
 def main(argv=None) -> int:
     from hidden_pairs import CASES
 
@@ -99,28 +118,30 @@ def main(argv=None) -> int:
     ap.add_argument("--max-effects", type=int, default=3)
     ap.add_argument("--cases", nargs="*", default=list(CASES))
     ap.add_argument("--out", default="detection_pairs.json", help="JSON output file")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the rows already in --out and run only the missing data sets")
     args = ap.parse_args(argv)
-    jobs = []
-    for s in range(max(args.seeds, args.nulls)):
-        if s < args.nulls:
-            jobs.append(("none", SEED_OFFSET + s, args.calibration_nulls, args.samples,
-                         args.max_effects))
-        if s < args.seeds:
-            jobs += [(c, SEED_OFFSET + s, args.calibration_nulls, args.samples,
-                      args.max_effects) for c in args.cases]
+    rows = _stored_rows(Path(args.out), args) if args.resume else []
+    done = {(r["case"], r["seed"]) for r in rows}
+    # the null sets first (seconds each), then the cases seed by seed, so a partial run
+    # has every case at about the same number of seeds
+    wanted = [("none", SEED_OFFSET + s) for s in range(args.nulls)]
+    wanted += [(c, SEED_OFFSET + s) for s in range(args.seeds) for c in args.cases]
+    jobs = [(c, s, args.calibration_nulls, args.samples, args.max_effects)
+            for c, s in wanted if (c, s) not in done]
+    cases = list(dict.fromkeys(list(args.cases) + [r["case"] for r in rows if r["case"] != "none"]))
     t0 = time.perf_counter()
-    rows = []
     with Pool(max(1, args.workers)) as pool:
         for i, r in enumerate(pool.imap_unordered(_job, jobs), 1):
             rows.append(r)
             print(f"[{i}/{len(jobs)}] {r['case']:32s} seed {r['seed']}: {r['found']} "
                   f"{'ok' if r['correct'] else 'WRONG'} {r['seconds']:.0f} s", flush=True)
             Path(args.out).write_text(json.dumps(
-                {"table": table(rows, args.cases), "rows": rows, "args": vars(args),
+                {"table": table(rows, cases), "rows": rows, "args": vars(args),
                  "complete": i == len(jobs), "wall_seconds": time.perf_counter() - t0},
                 indent=2))
     print()
-    for case, t in table(rows, args.cases).items():
+    for case, t in table(rows, cases).items():
         if case == "none":
             print(f"{'null data':32s} {t['n']:4d}  false positives {100 * t['rate']:5.1f} % "
                   f"(95 % upper {100 * t['upper_95']:.1f} %)")

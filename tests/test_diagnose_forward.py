@@ -206,3 +206,34 @@ def test_final_causes_take_location_and_parameters_from_the_final_fit():
     out2 = _final_causes((refined, dead), fwd2, rig, model)
     assert out2[0].cause == "coulomb_friction" and out2[0].replaces is None
     assert out2[0].location == [3] and out2[0].gain == refined.gain
+
+
+def _pairs_benchmark():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "detection_pairs.py"
+    spec = importlib.util.spec_from_file_location("detection_pairs", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_pairs_benchmark_resumes_only_from_rows_made_with_the_same_settings(tmp_path, capsys):
+    """``--resume`` keeps stored rows and runs nothing they hold; other settings: an error."""
+    bench = _pairs_benchmark()
+    out = tmp_path / "pairs.json"
+    row = {"case": "input_offset", "seed": bench.SEED_OFFSET, "truth": {}, "found": [],
+           "correct": True, "error": None, "seconds": 1.0}
+    null = dict(row, case="none", found=[("none", None)])
+    args = {"calibration_nulls": 19, "samples": 2400, "max_effects": 3}
+    out.write_text(json.dumps({"rows": [row, null], "args": args}))
+    assert bench.main(["--seeds", "1", "--nulls", "1", "--cases", "input_offset",
+                       "--workers", "1", "--out", str(out), "--resume"]) == 0
+    text = capsys.readouterr().out
+    assert "[1/" not in text  # nothing was run again
+    assert "input_offset" in text and "correct 100.0 %" in text
+    # negative control: a record length the stored rows were not made with
+    with pytest.raises(SystemExit, match="samples = 2400"):
+        bench.main(["--seeds", "1", "--nulls", "1", "--samples", "1200", "--out", str(out),
+                    "--resume"])
