@@ -92,3 +92,39 @@ def test_experiment_weights_scale_each_records_share_of_the_cost(record):
     for bad in ((1.0,), (1.0, -0.5), (1.0, np.nan), (0.0, 0.0)):
         with pytest.raises(ConfigError, match="weights"):
             fit_extension_lsq([record, other], ext, RIG, weights=bad, **opts)
+
+
+
+def test_inadmissible_parameter_sets_get_a_barrier_not_an_error(record):
+    """Backlash needs ``m_p < m1``, a rule the optimiser's box cannot state: a trial
+    point beyond it gets residuals far above any admissible row's, and admissible rows
+    are exactly ``extension_residuals``."""
+    from bayesmodal.discrepancy.effects.fit import admissible_residuals
+
+    ext = EXTENSIONS["backlash"]
+    lin = fit_lsq(record, LinearModel(RIG, "free"))
+    good = np.r_[lin.theta, 1e-4, 0.2]
+    bad = np.r_[lin.theta, 1e-4, 5.0 * lin.theta[1]]   # m_p beyond m1
+    assert ext.valid(RIG, good) and not ext.valid(RIG, bad)
+    with pytest.raises(Exception, match="impossible parameters"):
+        extension_residuals(ext, RIG, bad[None], [record])
+    r = admissible_residuals(ext, RIG, np.array([good, bad]), [record])
+    np.testing.assert_array_equal(r[0], extension_residuals(ext, RIG, good[None], [record])[0])
+    assert np.sum(r[1] ** 2) > 1e6 * np.sum(r[0] ** 2)
+    assert np.all(r[1] > np.max(np.abs(record.y_m)))
+
+
+def test_a_backlash_fit_that_stepped_beyond_m1_completes_admissible():
+    """The measured case (pair benchmark data backlash + motor lag, seed 20002): the
+    least-squares fit of backlash from its three cheapest grid starts took a trial step
+    to m_p = 8 kg > m1 and stopped with a ModelError; it now completes with an
+    admissible fit no worse than its best start."""
+    from hidden_pairs import make_case
+
+    e = make_case("backlash+motor_lag", 20002, 2400).experiment
+    ext = EXTENSIONS["backlash"]
+    lin = fit_lsq(e, LinearModel(RIG, "free"))
+    f = fit_extension_lsq(e, ext, RIG, linear=lin, n_starts=3)
+    assert ext.valid(RIG, f.theta)
+    start_cost = 0.5 * np.sum(extension_residuals(ext, RIG, f.theta_start[None], [e]) ** 2)
+    assert f.cost <= start_cost * (1 + 1e-12)
