@@ -237,3 +237,75 @@ def test_pairs_benchmark_resumes_only_from_rows_made_with_the_same_settings(tmp_
     with pytest.raises(SystemExit, match="samples = 2400"):
         bench.main(["--seeds", "1", "--nulls", "1", "--samples", "1200", "--out", str(out),
                     "--resume"])
+
+
+def test_forward_steps_offer_exchanges_of_the_plant_side_effect():
+    """Besides every effect that combines with the model, a step offers the model's
+    plant-side effect exchanged for another one together with one input-side effect."""
+    from bayesmodal.discrepancy.diagnosis.forward import _options
+    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES
+
+    def side(n):
+        return EXTENSIONS[n].side
+
+    opts = _options(("backlash",), DEFAULT_CANDIDATES, set())
+    keyed = {(a, d): names for a, d, names, _ in opts}
+    assert keyed[(("input_offset",), None)] == ("backlash", "input_offset")
+    assert keyed[(("coulomb_friction", "input_offset"), "backlash")] == (
+        "coulomb_friction", "input_offset")
+    for added, dropped, names, ext in opts:
+        assert sum(side(n) != "input" for n in names) <= 1  # never two plant-side effects
+        assert ext.name == "+".join(names) or set(ext.name.split("+")) == set(names)
+        if len(added) == 2:  # an exchange: a plant-side effect for the dropped one
+            assert dropped == "backlash" and side(added[0]) != "input"
+            assert side(added[1]) == "input" and added[0] not in REFINES
+    n_input = sum(side(c) == "input" for c in DEFAULT_CANDIDATES)
+    n_plant = sum(side(c) != "input" and c not in REFINES for c in DEFAULT_CANDIDATES)
+    assert sum(len(a) == 2 for a, *_ in opts) == (n_plant - 1) * n_input
+    # a refinement replaces what it refines and is no exchange
+    ref = [o for o in _options(("coulomb_friction",), DEFAULT_CANDIDATES, set())
+           if o[0] == ("coulomb_directional",)]
+    assert ref[0][1] == "coulomb_friction" and ref[0][2] == ("coulomb_directional",)
+    # without a plant-side effect, and for rejected effects, nothing is exchanged
+    assert all(len(a) == 1 for a, *_ in _options(("input_offset",), DEFAULT_CANDIDATES, set()))
+    rej = _options(("backlash",), DEFAULT_CANDIDATES, {"input_offset"})
+    assert not any("input_offset" in names for _, _, names, _ in rej)
+
+
+def _forced_first(case, seed, first):
+    """Forward selection started from ``first`` (its local least-squares fit), whatever
+    the first step would have chosen."""
+    from bayesmodal.discrepancy.diagnosis.forward import forward_select
+    from bayesmodal.discrepancy.diagnosis.workflow import (
+        DEFAULT_CANDIDATES,
+        _location,
+        _outcomes,
+    )
+
+    h = make_case(case, seed, N_SAMPLES)
+    rig = Rig()
+    exps = [h.experiment]
+    lin = fit_lsq(exps, LinearModel(rig, "free"))
+    f = fit_extension_lsq(exps, EXTENSIONS[first], rig, linear=lin, n_starts=3)
+    fw = forward_select(exps, rig, first, f, DEFAULT_CANDIDATES, linear=lin,
+                        quantum_m=ECP_M_PER_COUNT, n_null=N_NULL, alpha=0.05,
+                        rng=np.random.default_rng(seed), outcomes=_outcomes,
+                        location=_location, max_effects=3)
+    return h, fw
+
+
+@pytest.mark.slow
+def test_an_exchange_mends_a_wrong_plant_side_effect_accepted_first():
+    """The pair benchmark's friction + offset seed 20002: the first step accepted backlash
+    (friction alone fits worse than the linear model there), and backlash could never
+    be left.  Started from backlash, forward selection now exchanges it for friction on
+    the true cart with the offset; on backlash + motor lag data (negative control) the
+    backlash stays."""
+    h, fw = _forced_first("coulomb_friction+input_offset", 20002, "backlash")
+    assert set(fw.names) == set(h.effects), (fw.names, fw.stop, fw.steps)
+    fric = next(c for c in fw.added if c.cause == "coulomb_friction")
+    assert fric.replaces == "backlash" and fric.location == h.effects["coulomb_friction"]
+    h2, fw2 = _forced_first("backlash+motor_lag", 20002, "backlash")
+    detail = ([(c.cause, c.replaces) for c in fw2.added], fw2.stop)
+    assert set(fw2.names) == set(h2.effects), (fw2.names, detail)
+    assert not any(c.replaces == "backlash" for c in fw2.added), detail
