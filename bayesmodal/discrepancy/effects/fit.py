@@ -124,15 +124,8 @@ def admissible_residuals(
     parameters that the optimiser's box cannot state, e.g. backlash's ``m_p < m1``) gets
     residuals of ``1000 max|y| + 1`` m on every sample, a cost far above any fit's: the
     trust region shrinks instead of the fit stopping with an error (measured inside
-    forward selection, pair benchmark seed 20002).
-
-    Parameters
-    ----------
-    theta : ndarray, shape (nb, n_params)
-
-    Returns
-    -------
-    ndarray, shape (nb, sum_e N_e * n_outputs), m
+    forward selection, pair benchmark seed 20002).  Arguments, shapes and units as
+    :func:`extension_residuals`.
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     barrier = 1e3 * max(float(np.max(np.abs(e.y_m))) for e in experiments) + 1.0
