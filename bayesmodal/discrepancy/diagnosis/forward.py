@@ -511,8 +511,8 @@ def forward_select(
         options = _options(names, candidates, rejected)
         level = alpha / max(len(options), 1)
         cur_pw = _lpd(exps, ys)
-        # screening: the cheapest batched start of every candidate; only the
-        # ``max_fits`` most promising are fitted (bounded cost per step)
+        # screening: the cheapest batched start of every candidate; with ``max_fits``
+        # only that many, cheapest first, are fitted (default: every one)
         screened = []
         for added_, dropped, new_names, new in options:
             try:
@@ -565,7 +565,6 @@ def forward_select(
             break
         best = max(good, key=lambda r: r["held_out"]["delta_lpd"] if r["held_out"]
                    else r["bic_gain"])
-        prev_names = names
         names, fit = best["names"], best["fit"]
         names, fit, changes = _simplify(names, fit, rig, exps, linear, alpha, max_nfev,
                                         search)
@@ -586,8 +585,9 @@ def forward_select(
             c_ext = EXTENSIONS[a]
             c_par = {n: float(own[n]) for n in c_ext.extension_names(rig)}
             loc, label = location(c_ext, rig, np.r_[fit.theta[:p], list(c_par.values())])
-            replaces = best["dropped"] if (best["dropped"] in prev_names
-                                           and c_ext.side != "input") else None
+            # the refined or exchanged effect (always one of the model's) is replaced by
+            # the plant-side effect that takes its place, never by an input-side one
+            replaces = best["dropped"] if c_ext.side != "input" else None
             added.append(Cause(
                 cause=a, location=loc, location_label=label, parameters=c_par,
                 gain={"in_sample": {"delta_lpd": best["delta_lpd"], "lr_statistic": best["lr"],
