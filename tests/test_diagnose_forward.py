@@ -309,3 +309,53 @@ def test_an_exchange_mends_a_wrong_plant_side_effect_accepted_first():
     detail = ([(c.cause, c.replaces) for c in fw2.added], fw2.stop)
     assert set(fw2.names) == set(h2.effects), (fw2.names, detail)
     assert not any(c.replaces == "backlash" for c in fw2.added), detail
+
+
+def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
+    """Once forward selection changes the model (an effect added, refined or exchanged),
+    the top-level intervals, fit percents and ELPD change are the final model's, not the
+    first step's (which once showed a backlash's gap after it had been exchanged for
+    friction).  Forward selection is replaced by a stub that returns a second effect, the
+    motor lag, fitted jointly with the offset the first step accepts; the negative control
+    is the same data with ``max_effects=1``."""
+    from types import SimpleNamespace
+
+    from bayesmodal.discrepancy.diagnosis import workflow
+    from bayesmodal.discrepancy.diagnosis.forward import Cause
+    from bayesmodal.discrepancy.effects import get_extension
+    from bayesmodal.metrics import fit_percent
+
+    h = make_case("input_offset", 20000, N_SAMPLES)
+    e = h.experiment
+    rig = Rig()
+    final = get_extension(["input_offset", "motor_lag"])
+    seen = {}
+
+    def stub(exps, rig_, first, first_fit, *args, **kwargs):
+        seen["first"] = first_fit
+        theta0 = np.r_[first_fit.theta, [s.scale for s in EXTENSIONS["motor_lag"].specs(rig_)]]
+        fit = fit_extension_lsq(exps, final, rig_, theta0=theta0, max_nfev=20)
+        lag = Cause(cause="motor_lag", location=None, location_label="motor input",
+                    parameters={}, gain={"in_sample": {"delta_lpd": 0.0, "lr_statistic": 0.0,
+                                                         "n_params": 1}})
+        return SimpleNamespace(added=(lag,), names=("input_offset", "motor_lag"), fit=fit,
+                               calibration=None, tests=(), stop="stub", steps=(),
+                               simplified=())
+
+    monkeypatch.setattr(workflow, "forward_select", stub)
+    d = diagnose(e, posterior=False, n_null=N_NULL, rng=1, max_effects=2)
+    alone = diagnose(e, posterior=False, n_null=N_NULL, rng=1, max_effects=1)
+    assert d.cause == alone.cause == "input_offset"
+    fit = d.detail["forward"].fit
+    names = list(final.extension_names(rig))
+    p = len(fit.theta) - len(names)
+    assert list(d.parameters) == names != list(alone.parameters)
+    for i, n in enumerate(names):
+        assert d.parameters[n].median == fit.theta[p + i]
+    y = final.simulate(rig, fit.theta, e.v_volt, e.dt)
+    assert d.gain["fit_percent_after"] == [np.asarray(fit_percent(e.y_m, y)).tolist()]
+    assert d.gain["model"] == "input_offset+motor_lag" and alone.gain["model"] == "input_offset"
+    # the stub started from the first step's fit, which is what max_effects=1 reports
+    assert np.array_equal(seen["first"].theta, alone.detail["extension_fit"].theta)
+    from bayesmodal.cli._diagnose import _report
+    assert "final model: linear + input_offset+motor_lag" in _report(d)

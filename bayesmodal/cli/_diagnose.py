@@ -78,6 +78,9 @@ def _report(d) -> str:
     label = {"posterior": "90 % credible interval",
              "posterior_unconverged": "90 % interval of UNCONVERGED chains",
              "laplace": "90 % Laplace interval"}.get(d.interval_method, d.interval_method)
+    if d.gain.get("model"):
+        lines.append(f"final model: linear + {d.gain['model']} (the intervals, fit percents "
+                     "and ELPD below are this model's)")
     for name, iv in d.parameters.items():
         lines.append(f"  {name} = {sig(iv.median)}  [{sig(iv.lo)}, {sig(iv.hi)}] ({label})")
     g = d.gain

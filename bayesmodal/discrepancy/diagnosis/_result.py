@@ -156,13 +156,15 @@ class Diagnosis:
     ranking : tuple of CandidateScore
         Candidates, best first.
     parameters : Mapping
-        Extension parameters ``{name: Interval}`` (credible intervals with the posterior,
-        else the least-squares estimate with a Laplace interval; see ``interval_method``).
+        Extension parameters of the final model (``effects``) ``{name: Interval}``
+        (credible intervals with the posterior, else the least-squares estimate with a
+        Laplace interval; see ``interval_method``).
     linear_parameters : Mapping
         ``{name: {"before", "after", "change_percent"}}``: the linear parameters fitted
-        alone and within the extended model.
+        alone and within the final model.
     gain : Mapping
-        ``fit_percent_before/after`` (per training experiment, per output),
+        Linear model against the final model: ``model`` (its name, the effects joined
+        by ``+``), ``fit_percent_before/after`` (per training experiment, per output),
         ``heldout_fit_percent_before/after`` (per held-out experiment), ``delta_elpd``,
         ``delta_elpd_se``, ``criterion``; with the posterior, ``posterior``: the same fit
         percents as medians over posterior draws with 90 % intervals (``*_lo``,

@@ -458,6 +458,14 @@ def diagnose(
         if fwd.added:
             notes.append("forward selection: " + " -> ".join(x.cause for x in causes)
                          + f"; stopped: {fwd.stop}")
+        if tuple(effects) != (c,):
+            # intervals, fit percents and the ELPD change describe the final model, not
+            # the first step's (which a refinement or an exchange may have replaced)
+            ext, ef = get_extension(list(effects)), fwd.fit
+            y_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in train_exps]
+            pw = ar1_pointwise([e.y_m - y for e, y in zip(train_exps, y_ext, strict=True)])
+    n_extra = len(ext.specs(rig))
+    gain["model"] = "+".join(effects)
     # explained only when the final model's residuals pass every residual diagnostic
     explained = not any(t.exceeded for t in t_after)
     if not explained:
@@ -470,7 +478,7 @@ def diagnose(
         gain["heldout_fit_percent_after"] = _fit_percent(held_exps, held_ext)
     # plug-in ELPD (lpd minus parameter count) with the SE of pointwise differences
     d = pw - lin_pointwise
-    gain.update(delta_elpd=float(d.sum() - accepted.n_params),
+    gain.update(delta_elpd=float(d.sum() - n_extra),
                 delta_elpd_se=float(np.sqrt(d.size * np.var(d))),
                 criterion="plug-in ELPD (AR(1) lpd at the least-squares fits minus the "
                           "number of extra parameters); SE from the pointwise differences")
