@@ -359,3 +359,21 @@ def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
     assert np.array_equal(seen["first"].theta, alone.detail["extension_fit"].theta)
     from bayesmodal.cli._diagnose import _report
     assert "final model: linear + input_offset+motor_lag" in _report(d)
+    assert "forward selection: input_offset -> motor_lag; stopped: stub" in d.notes
+
+    # the same effects, refitted by forward selection's backward check from a later
+    # model's optimum (on the measured records an effect added and then removed left the
+    # friction model at a better fit than the first step's): that fit is reported
+    def refit(exps, rig_, first, first_fit, *args, **kwargs):
+        theta0 = first_fit.theta.copy()
+        theta0[-1] *= 0.5
+        fit = fit_extension_lsq(exps, EXTENSIONS["input_offset"], rig_, theta0=theta0,
+                                max_nfev=2)
+        return SimpleNamespace(added=(), names=("input_offset",), fit=fit, calibration=None,
+                               tests=(), stop="stub", steps=(), simplified=())
+
+    monkeypatch.setattr(workflow, "forward_select", refit)
+    r = diagnose(e, posterior=False, n_null=N_NULL, rng=1, max_effects=2)
+    theta = r.detail["forward"].fit.theta
+    assert r.parameters["v_offset"].median == theta[-1] != alone.parameters["v_offset"].median
+    assert "forward selection: input_offset; stopped: stub" in r.notes

@@ -455,12 +455,12 @@ def diagnose(
         effects = fwd.names
         # the residuals of the final model, judged against the null recalibrated on it
         t_after = list(fwd.tests)
-        if fwd.added:
-            notes.append("forward selection: " + " -> ".join(x.cause for x in causes)
-                         + f"; stopped: {fwd.stop}")
-        if tuple(effects) != (c,):
+        notes.append("forward selection: " + " -> ".join(x.cause for x in causes)
+                     + f"; stopped: {fwd.stop}")
+        if fwd.fit is not ef:
             # intervals, fit percents and the ELPD change describe the final model, not
-            # the first step's (which a refinement or an exchange may have replaced)
+            # the first step's: a refinement or an exchange may have replaced it, or a
+            # backward check refitted it from a later model's better optimum
             ext, ef = get_extension(list(effects)), fwd.fit
             y_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in train_exps]
             pw = ar1_pointwise([e.y_m - y for e, y in zip(train_exps, y_ext, strict=True)])
