@@ -290,7 +290,8 @@ def fit_lsq(
 
     def to_theta(z):
         th = np.array(z, dtype=float)
-        th[..., mask] = np.exp(th[..., mask])
+        with np.errstate(over="ignore", under="ignore"):  # such trial points: _res's barrier
+            th[..., mask] = np.exp(th[..., mask])
         return th
 
     # Scale the linear-scale parameters so that a unit step is a sensible size.
@@ -374,5 +375,34 @@ def fit_lsq(
     )
 
 
+def barrier_residuals(experiments: Sequence[Experiment], nb: int) -> np.ndarray:
+    """Residuals of an inadmissible trial point: ``1000 max|y| + 1`` m on every sample.
+
+    Returns
+    -------
+    ndarray, shape (nb, sum_e N_e * n_outputs), m
+        A cost far above any fit's, for the rows of a batch that are not a model.
+    """
+    barrier = 1e3 * max(float(np.max(np.abs(e.y_m))) for e in experiments) + 1.0
+    return np.full((nb, sum(e.n_samples * e.n_outputs for e in experiments)), barrier)
+
+
 def _res(model, theta_x0, experiments):
-    return residuals(model, theta_x0[0], experiments, theta_x0[1])
+    """Residuals of each trial point, a barrier where the point is not a model.
+
+    The optimiser works on logarithms of the positive parameters; a long trial step can
+    overflow one to ``inf`` (or a mass to 0), which the simulator rejects.  Such points
+    get residuals of ``1000 max|y| + 1`` m on every sample, a cost far above any fit's,
+    so the trust region shrinks instead of the fit stopping with an error (measured: a
+    damper overflowed on the pair benchmark's friction + offset data, seed 20007).
+    """
+    theta, x0 = theta_x0
+    ok = model.valid(theta)
+    if x0 is not None:
+        ok &= np.all(np.isfinite(x0.reshape(x0.shape[0], -1)), axis=1)
+    if np.all(ok):
+        return residuals(model, theta, experiments, x0)
+    r = barrier_residuals(experiments, theta.shape[0])
+    if np.any(ok):
+        r[ok] = residuals(model, theta[ok], experiments, None if x0 is None else x0[ok])
+    return r

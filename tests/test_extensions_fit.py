@@ -128,3 +128,27 @@ def test_a_backlash_fit_that_stepped_beyond_m1_completes_admissible():
     assert ext.valid(RIG, f.theta)
     start_cost = 0.5 * np.sum(extension_residuals(ext, RIG, f.theta_start[None], [e]) ** 2)
     assert f.cost <= start_cost * (1 + 1e-12)
+
+
+def test_a_linear_fit_whose_trial_step_overflowed_a_damper_completes():
+    """The pair benchmark's friction + offset data, seed 20007: the linear least-squares
+    fit (log-parameterised dampers) took a trial step that overflowed c3 to inf and
+    ``diagnose`` stopped with a ModelError before its first test.  Such trial points now
+    get the barrier cost of ``fit.barrier_residuals``; the fit completes admissible and no
+    worse than its start.  The barrier itself: rows that are not a model get it, the
+    others are exactly ``residuals``."""
+    from hidden_pairs import make_case
+
+    from bayesmodal.fit import _res, residuals
+
+    e = make_case("coulomb_friction+input_offset", 20007, 2400).experiment
+    model = LinearModel(RIG, "free")
+    lin = fit_lsq(e, model)
+    assert model.valid(lin.theta) and lin.success
+    start = fit_lsq(e, model, max_nfev=1)
+    assert lin.cost <= start.cost * (1 + 1e-12)
+    bad = np.array(lin.theta)
+    bad[model.names.index("c3")] = np.inf
+    r = _res(model, (np.array([lin.theta, bad]), None), [e])
+    np.testing.assert_array_equal(r[0], residuals(model, lin.theta[None], [e])[0])
+    assert np.all(r[1] > 1e3 * np.max(np.abs(e.y_m)))

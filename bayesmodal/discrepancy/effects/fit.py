@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 
 from ..._errors import ConfigError, DataError, ModelError
 from ...data import Experiment
-from ...fit import LSQResult, fit_lsq
+from ...fit import LSQResult, barrier_residuals, fit_lsq
 from ...metrics import fit_percent
 from ...system import Rig
 from ._base import Extension
@@ -128,10 +128,8 @@ def admissible_residuals(
     :func:`extension_residuals`.
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
-    barrier = 1e3 * max(float(np.max(np.abs(e.y_m))) for e in experiments) + 1.0
     ok = extension.valid(rig, theta)
-    r = np.full((theta.shape[0], sum(e.n_samples * e.n_outputs for e in experiments)),
-                barrier)
+    r = barrier_residuals(experiments, theta.shape[0])
     if np.any(ok):
         r[ok] = extension_residuals(extension, rig, theta[ok], experiments)
     return r
