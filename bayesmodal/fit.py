@@ -392,9 +392,9 @@ def _res(model, theta_x0, experiments):
 
     The optimiser works on logarithms of the positive parameters; a long trial step can
     overflow one to ``inf`` (or a mass to 0), which the simulator rejects.  Such points
-    get residuals of ``1000 max|y| + 1`` m on every sample, a cost far above any fit's,
-    so the trust region shrinks instead of the fit stopping with an error (measured: a
-    damper overflowed on the pair benchmark's friction + offset data, seed 20007).
+    get ``barrier_residuals``, so the trust region shrinks instead of the fit stopping
+    with an error (measured: a damper overflowed on the pair benchmark's friction +
+    offset data, seed 20007).
     """
     theta, x0 = theta_x0
     ok = model.valid(theta)

@@ -122,8 +122,8 @@ def admissible_residuals(
 
     A trial point of the least-squares fit outside the admissible region (a rule across
     parameters that the optimiser's box cannot state, e.g. backlash's ``m_p < m1``) gets
-    residuals of ``1000 max|y| + 1`` m on every sample, a cost far above any fit's: the
-    trust region shrinks instead of the fit stopping with an error (measured inside
+    ``bayesmodal.fit.barrier_residuals``, a cost far above any fit's: the trust region
+    shrinks instead of the fit stopping with an error (measured inside
     forward selection, pair benchmark seed 20002).  Arguments, shapes and units as
     :func:`extension_residuals`.
     """
