@@ -234,11 +234,57 @@ def test_process_noise_through_the_records_likelihood(records):
         assert per[r] == ref
     parts = lik.pointwise(c[None])
     assert all(np.all(np.isfinite(p)) for p in parts)
-    with pytest.raises(ConfigError, match="declare only g_v"):
-        RecordsLikelihood(MODEL, records, "process")
     with pytest.raises(ConfigError, match="linear model"):
         RecordsLikelihood(MODEL, records, "process", extension="motor_lag",
                           layout=RecordLayout({}))
+
+
+@pytest.mark.parametrize("layout", [DEFAULT_LAYOUT, HIER], ids=["v0 shared", "v0 per record"])
+def test_process_noise_takes_the_input_offset(records, layout):
+    """With an input offset (shared or per record) each record's process-noise likelihood
+    is the filter of the shifted input ``v + v0`` (brute force, one row at a time), its
+    pointwise terms sum to it, and the predictive noise draws are centred on the offset
+    model's prediction (Monte Carlo tolerance).  Negative control: the offset matters."""
+    from bayesmodal.inference.noise import kalman_loglik
+
+    lik = RecordsLikelihood(MODEL, records, "process", layout=layout)
+    c = records_start(lik, THETA)
+    assert "v0" in lik.names or "v0[r1]" in lik.names
+    per = lik.record_loglik(c[None])[0]
+    parts = lik.pointwise(c[None])
+    for r, e in enumerate(records):
+        full, v0 = lik.record_theta(c[None], r)
+        assert v0[0] != 0.0
+        ref = kalman_loglik(MODEL, full[:, :9], full[:, 9:12], full[:, 12:], e.v_volt + v0[0],
+                            e.y_m, e.dt, initial="rest")[0]
+        kalman_pointwise_sum = parts[r][0].sum()
+        tol = 8 * e.n_samples * EPS * np.abs(parts[r][0]).sum()
+        assert abs(per[r] - ref) <= tol
+        # pointwise terms are the steady-start filter's: they differ from the exact start
+        # from rest by its correction only (a transient), not by the offset's response
+        steady = kalman_loglik(MODEL, full[:, :9], full[:, 9:12], full[:, 12:],
+                               e.v_volt + v0[0], e.y_m, e.dt)[0]
+        assert abs(kalman_pointwise_sum - steady) <= tol
+        without = kalman_loglik(MODEL, full[:, :9], full[:, 9:12], full[:, 12:], e.v_volt,
+                                e.y_m, e.dt, initial="rest")[0]
+        assert abs(without - ref) > 100 * tol
+    # predictive noise draws: the random force's response, from the same generator stream
+    # as a simulation of the shifted input minus the offset model's prediction
+    from bayesmodal.inference.noise import simulate_process_noise
+
+    th = np.repeat(c[None], 3, axis=0)
+    draws = lik.noise_draws(th, rng=np.random.default_rng(3))
+    rng = np.random.default_rng(3)
+    for r, e in enumerate(records):
+        full, v0 = lik.record_theta(th, r)
+        y = simulate_process_noise(MODEL, full[:, :9], full[:, 9:12], full[:, 12:],
+                                   e.v_volt + v0[0], e.dt, rng)
+        ref = y - simulate_linear(MODEL, full[:, :9], e.v_volt + v0[0], e.dt)
+        scale = np.abs(y).max()
+        assert np.allclose(draws[r], ref, rtol=0, atol=1e4 * EPS * scale)
+        shift = simulate_linear(MODEL, full[:, :9], e.v_volt + v0[0], e.dt) - \
+            simulate_linear(MODEL, full[:, :9], e.v_volt, e.dt)
+        assert np.abs(shift).max() > 1e8 * EPS * scale  # the offset moves the prediction
 
 
 def test_a_shared_offset_is_one_parameter_for_every_record(records):

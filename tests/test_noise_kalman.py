@@ -247,6 +247,41 @@ def test_pointwise_sums_to_total_and_lanes_are_independent():
     assert np.array_equal(many, pw[rep])
 
 
+@pytest.mark.parametrize("initial", ["steady", "rest"])
+def test_input_offset_per_row_is_the_filter_of_the_shifted_input(initial):
+    """``v0`` per row equals filtering ``v + v0`` row by row (and the test's own
+    time-varying filter of the shifted input from rest); simulation shifts the same way.
+    Negative control: without the offset the numbers differ by many tolerances."""
+    th, q, sig = _batch(4, seed=21)
+    n = 300
+    v = _input(n)
+    v0 = np.array([0.0, 0.02, -0.05, 0.3])
+    y = simulate_process_noise(MODEL, th[:1], q[:1], sig[:1], v + 0.02, DT, rng=22)[0]
+    got = kalman_loglik(MODEL, th, q, sig, v, y, DT, initial=initial, v0=v0)
+    pw = kalman_pointwise(MODEL, th, q, sig, v, y, DT, v0=v0)
+    bound = 8 * n * EPS * np.abs(pw).sum(axis=(1, 2))
+    sysd = discretize_process_noise(MODEL, th, q, DT)
+    for b in range(4):
+        one = kalman_loglik(MODEL, th[b : b + 1], q[b : b + 1], sig[b : b + 1], v + v0[b], y,
+                            DT, initial=initial)[0]
+        assert abs(got[b] - one) <= bound[b]
+        pw1 = kalman_pointwise(MODEL, th[b : b + 1], q[b : b + 1], sig[b : b + 1], v + v0[b],
+                               y, DT)[0]
+        assert np.allclose(pw[b], pw1, rtol=0, atol=bound[b] / n)
+        if initial == "rest":
+            tv = _tv_filter(sysd, b, sig[b], v + v0[b], y, np.zeros((6, 6)))
+            assert abs(got[b] - tv) <= bound[b]
+    plain = kalman_loglik(MODEL, th, q, sig, v, y, DT, initial=initial)
+    assert plain[0] == got[0]                          # v0 = 0 is no offset
+    assert np.all(np.abs(plain[1:] - got[1:]) > 100 * bound[1:])
+    # simulation: the same noise draws, the deterministic part shifted by the offset
+    a = simulate_process_noise(MODEL, th[1:2], q[1:2], sig[1:2], v, DT, rng=5, v0=0.02)
+    b = simulate_process_noise(MODEL, th[1:2], q[1:2], sig[1:2], v + 0.02, DT, rng=5)
+    assert np.allclose(a, b, rtol=0, atol=1e3 * EPS * np.abs(b).max())
+    with pytest.raises(DataError, match="one per row"):
+        kalman_loglik(MODEL, th, q, sig, v, y, DT, v0=np.zeros(3))
+
+
 def test_invalid_rows_get_minus_inf():
     th, q, sig = _batch(4, seed=10)
     th[1, 1] = -1.0

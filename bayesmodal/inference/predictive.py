@@ -207,9 +207,9 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
         n = lik.n_outputs
         q, sig = noise[:, :n], noise[:, n:]
         y_pred = simulate_process_noise(lik.model, mech, q, sig, experiment.v_volt,
-                                        experiment.dt, rng)
+                                        experiment.dt, rng, v0=v0)
         ll = kalman_loglik(lik.model, mech, q, sig, experiment.v_volt, experiment.y_m,
-                           experiment.dt, initial="rest")
+                           experiment.dt, initial="rest", v0=v0)
         return y_hat, y_pred, np.where(np.isfinite(ll), ll, -np.inf)
     # AR(1): the draws start from the record's known first residual (records start at
     # rest, where model and rig agree: 0 on the ECP files), not from the stationary

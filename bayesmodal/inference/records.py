@@ -333,10 +333,6 @@ class RecordsLikelihood:
                     "prediction step is linear (friction, backlash and the other effects "
                     "would need an extended filter); use noise 'ar1' or 'arP' with "
                     "extensions")
-            if "v0" in layout.per_record:
-                raise ConfigError(
-                    "process noise with a per-record input offset v0 is not built; declare "
-                    "only g_v per record (per_record = { g_v = ... })")
             if layout.noise_scale != "none":
                 raise ConfigError(
                     "process noise has no noise level to scale per record (its random "
@@ -651,7 +647,7 @@ class RecordsLikelihood:
         if not np.any(ok):
             return out
         for r, e in enumerate(self.experiments):
-            full, _ = self.record_theta(theta[ok], r)
+            full, v0 = self.record_theta(theta[ok], r)
             yh = self.predict_record(theta[ok], r)
             with np.errstate(all="ignore"):
                 r_ = e.y_m[None] - yh
@@ -664,7 +660,8 @@ class RecordsLikelihood:
                     from .noise import kalman_pointwise
 
                     mech, q, sig = self._process_split(full)
-                    t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt)
+                    t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt,
+                                         v0=v0)
                 else:
                     t = self.noise_model.pointwise(r_ / s, full[:, len(self.mech_names):]
                                                    ) - np.log(s)
@@ -692,7 +689,7 @@ class RecordsLikelihood:
                 if self.noise in ("white", "ar1"):
                     ll = self._basic_loglik(e, full, v0, params, self._scale_rows(th, r))
                 elif self.noise == "process":
-                    ll = self._process_loglik(e, full)
+                    ll = self._process_loglik(e, full, v0)
                 else:
                     yh = self.predict_record(th, r)
                     ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params,
@@ -737,13 +734,13 @@ class RecordsLikelihood:
         n = self.n_outputs
         return full[:, :n_mech], full[:, n_mech : n_mech + n], full[:, n_mech + n :]
 
-    def _process_loglik(self, e: Experiment, full) -> np.ndarray:
-        """Kalman-filter innovations likelihood (exact start from rest)."""
+    def _process_loglik(self, e: Experiment, full, v0) -> np.ndarray:
+        """Kalman-filter innovations likelihood (exact start from rest), input ``v + v0``."""
         from .noise import kalman_loglik
 
         mech, q, sigma = self._process_split(full)
         return kalman_loglik(self.model, mech, q, sigma, e.v_volt, e.y_m, e.dt,
-                             initial="rest")
+                             initial="rest", v0=v0)
 
     def _basic_loglik(self, e: Experiment, full, v0, params, scale: float = 1.0
                       ) -> np.ndarray:
@@ -794,13 +791,14 @@ class RecordsLikelihood:
         rng = np.random.default_rng(rng)
         out = []
         for r, e in enumerate(self.experiments):
-            full = self.record_theta(theta, r)[0]
+            full, v0 = self.record_theta(theta, r)
             if self.noise == "process":  # what the random force adds to the prediction
                 from .noise import simulate_process_noise
 
                 mech, q, sig = self._process_split(full)
-                y = simulate_process_noise(self.model, mech, q, sig, e.v_volt, e.dt, rng)
-                out.append(y - simulate_linear(self.model, mech, e.v_volt, e.dt))
+                y = simulate_process_noise(self.model, mech, q, sig, e.v_volt, e.dt, rng,
+                                           v0=v0)
+                out.append(y - self.predict_mech(mech, v0, e))
                 continue
             out.append(self.noise_simulate(full[:, len(self.mech_names):], e.n_samples, rng,
                                            self._scale_rows(theta, r)))

@@ -319,7 +319,8 @@ def _kalman_kernel(n_states: int, n_out: int, width: int, store: bool):
     unrolled and the lane width and row strides are constants, so that the compiler
     vectorises across lanes.  Flat float64 arrays, lane index innermost: ``P`` rows
     ``Ad[i, m]`` (``i*s + m``), ``Bd[i]`` (``s*s + i``), ``(Ad K)[i, j]``
-    (``s*s + s + i*n_out + j``), ``L^-1[j, m]`` (``s*s + s + s*n_out + j*n_out + m``);
+    (``s*s + s + i*n_out + j``), ``L^-1[j, m]`` (``s*s + s + s*n_out + j*n_out + m``),
+    ``Bd[i] v0`` (``s*s + s + s*n_out + n_out^2 + i``: the lane's input offset);
     ``v`` (N,); ``y`` (N * n_out,); ``X`` (s, width) predicted state, updated in place;
     ``SS`` (width,) accumulates ``sum |u_k|^2``; ``U`` (N, n_out, width) gets ``u_k`` if
     ``store``.
@@ -327,6 +328,7 @@ def _kalman_kernel(n_states: int, n_out: int, width: int, store: bool):
     s, n, w = n_states, n_out, width
     o_b, o_k = s * s, s * s + s
     o_l = o_k + s * n
+    o_c = o_l + n * n
     lines = [
         "def kernel(P, v, y, X, SS, U):",
         "    for k in range(v.shape[0]):",
@@ -346,12 +348,14 @@ def _kalman_kernel(n_states: int, n_out: int, width: int, store: bool):
     for i in range(s):
         terms = " + ".join([f"P[{(i * s + m) * w} + b] * x{m}" for m in range(s)]
                            + [f"P[{(o_k + i * n + j) * w} + b] * e{j}" for j in range(n)])
-        lines.append(f"            X[{i * w} + b] = P[{(o_b + i) * w} + b] * vk + {terms}")
+        lines.append(f"            X[{i * w} + b] = P[{(o_b + i) * w} + b] * vk + "
+                     f"P[{(o_c + i) * w} + b] + {terms}")
     return _compile(lines, f"kalman s={s} o={n} w={w} store={store}")
 
 
-def _filter(Ad, Bd, AK, Linv, v, y, n_store):
-    """Run the generated kernels over chunks of lanes.
+def _filter(Ad, Bd, AK, Linv, v, y, n_store, v0=None):
+    """Run the generated kernels over chunks of lanes (``v0`` (nb,): each lane's input
+    offset, V, added to ``v``; None: none).
 
     Returns ``SS`` (nb,) and the standardised innovations ``U`` (n_store, n, nb) of the
     first ``n_store`` samples (the kernel that stores them runs only that far; the state
@@ -363,8 +367,9 @@ def _filter(Ad, Bd, AK, Linv, v, y, n_store):
     n_store = int(min(max(n_store, 0), N))
     width = padded_width(nb)
     n_chunks = -(-nb // width)
+    c = np.zeros_like(Bd) if v0 is None else Bd * np.asarray(v0, float)[:, None]
     rows = np.concatenate([Ad.reshape(nb, s * s), Bd, AK.reshape(nb, s * n),
-                           Linv.reshape(nb, n * n)], axis=1)
+                           Linv.reshape(nb, n * n), c], axis=1)
     yf = np.ascontiguousarray(y).ravel()
     ss = np.empty(n_chunks * width)
     U = np.empty((n_chunks, n_store, n, width))
@@ -465,7 +470,7 @@ def _rest_correction(Ad, AK, Linv, P, N):
     return total, Phi, K
 
 
-def _check(model, theta_mech, q, sigma, v, y, dt):
+def _check(model, theta_mech, q, sigma, v, y, dt, v0=None):
     theta_mech = np.atleast_2d(np.asarray(theta_mech, dtype=float))
     q = np.atleast_2d(np.asarray(q, dtype=float))
     sigma = np.atleast_2d(np.asarray(sigma, dtype=float))
@@ -488,13 +493,20 @@ def _check(model, theta_mech, q, sigma, v, y, dt):
     if not (np.isfinite(dt) and dt > 0):
         raise DataError(f"sample interval dt must be finite and > 0 s, got {dt!r}")
     ok = model.valid(theta_mech) & ProcessNoise().valid(np.c_[q, sigma])
-    return theta_mech, q, sigma, v, y, ok
+    if v0 is not None:
+        v0 = np.asarray(v0, dtype=float)
+        if v0.shape not in ((), (nb,)):
+            raise DataError(f"input offset v0 must be a number or have shape ({nb},) (one "
+                            f"per row), got {v0.shape}")
+        v0 = np.broadcast_to(v0, (nb,))
+        ok = ok & np.isfinite(v0)
+    return theta_mech, q, sigma, v, y, ok, v0
 
 
-def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady"):
+def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady", v0=None):
     if initial not in INITIAL_STATES:
         raise ConfigError(f"initial must be one of {INITIAL_STATES}, got {initial!r}")
-    theta_mech, q, sigma, v, y, ok = _check(model, theta_mech, q, sigma, v, y, dt)
+    theta_mech, q, sigma, v, y, ok, v0 = _check(model, theta_mech, q, sigma, v, y, dt, v0)
     nb, n = q.shape
     ss = np.full(nb, np.nan)
     logdet = np.full(nb, np.nan)
@@ -514,7 +526,8 @@ def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady"):
         n_store = v.size
         if initial == "rest":
             M, Phi, n_store = _rest_correction(sysd.Ad, AK, Linv, filt.P, v.size)
-        ss_ok, U = _filter(sysd.Ad, sysd.Bd, AK, Linv, v, y, v.size if store else n_store)
+        ss_ok, U = _filter(sysd.Ad, sysd.Bd, AK, Linv, v, y, v.size if store else n_store,
+                           None if v0 is None else v0[ok])
         d = np.log(np.diagonal(L, axis1=1, axis2=2))
         if initial == "rest":
             # Woodbury and Sylvester: Sigma_rest = Sigma_ss - O P O', b = O' Sigma_ss^-1 r
@@ -533,7 +546,7 @@ def _run(model, theta_mech, q, sigma, v, y, dt, store, initial="steady"):
 
 def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarray,
                   v: np.ndarray, y: np.ndarray, dt: float, *,
-                  initial: str = "steady") -> np.ndarray:
+                  initial: str = "steady", v0: np.ndarray | None = None) -> np.ndarray:
     """Log-likelihood of one record under the process-noise model, for a batch.
 
     Parameters
@@ -556,6 +569,9 @@ def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarra
         then exact) or exactly at rest (``x_0 = 0``, the exact time-varying filter from
         ``P_0 = 0``), computed as the steady-state value plus a rank-``2n`` correction
         (module docstring); "rest" costs about one more pass over the filter's transient.
+    v0 : ndarray, shape (nb,) or float, optional
+        Input offset of each row, V: the drive sees ``v + v0`` (an amplifier offset,
+        ``RecordLayout``'s ``v0``).  None: no offset.
 
     Returns
     -------
@@ -573,7 +589,7 @@ def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarra
     (1,)
     """
     ok, ss, logdet, _, _, corr = _run(model, theta_mech, q, sigma, v, y, dt, store=False,
-                                      initial=initial)
+                                      initial=initial, v0=v0)
     N, n = np.shape(y)
     with np.errstate(invalid="ignore"):
         total = -N * (n * HALF_LOG_2PI + logdet) - 0.5 * ss + corr
@@ -581,7 +597,8 @@ def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarra
 
 
 def kalman_pointwise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarray,
-                     v: np.ndarray, y: np.ndarray, dt: float) -> np.ndarray:
+                     v: np.ndarray, y: np.ndarray, dt: float, *,
+                     v0: np.ndarray | None = None) -> np.ndarray:
     """Pointwise terms, shape (nb, N, n_carts), summing to :func:`kalman_loglik`.
 
     Term ``(k, j)`` is ``log p(y_kj | y_k,<j, y_<k)``: the standardised innovation
@@ -589,7 +606,7 @@ def kalman_pointwise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.nda
     terms are those of the steady-state start (``initial="steady"``; the exact start from
     rest changes only a transient, as a correction that is not split per sample).
     """
-    ok, _, _, logL, U, _ = _run(model, theta_mech, q, sigma, v, y, dt, store=True)
+    ok, _, _, logL, U, _ = _run(model, theta_mech, q, sigma, v, y, dt, store=True, v0=v0)
     nb = ok.size
     N, n = np.shape(y)
     out = np.full((nb, N, n), -np.inf)
@@ -600,7 +617,8 @@ def kalman_pointwise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.nda
 
 
 def simulate_process_noise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarray,
-                           v: np.ndarray, dt: float, rng=None) -> np.ndarray:
+                           v: np.ndarray, dt: float, rng=None, *,
+                           v0: np.ndarray | None = None) -> np.ndarray:
     """Measured positions drawn from the process-noise model (posterior predictive).
 
     The initial state is drawn from ``N(0, P)`` with ``P`` the steady-state predicted
@@ -608,7 +626,7 @@ def simulate_process_noise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: 
 
     Parameters
     ----------
-    model, theta_mech, q, sigma, v, dt
+    model, theta_mech, q, sigma, v, dt, v0
         As in :func:`kalman_loglik` (every row must be admissible).
     rng : numpy.random.Generator or int, optional
 
@@ -617,10 +635,10 @@ def simulate_process_noise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: 
     ndarray, shape (nb, N, n_carts), m
     """
     rng = np.random.default_rng(rng)
-    theta_mech, q, sigma, v, _, ok = _check(model, theta_mech, q, sigma, v, None, dt)
+    theta_mech, q, sigma, v, _, ok, v0 = _check(model, theta_mech, q, sigma, v, None, dt, v0)
     if not np.all(ok):
         raise ModelError("cannot simulate from impossible parameters (need an admissible "
-                         "model, q >= 0, sigma > 0)")
+                         "model, q >= 0, sigma > 0, a finite v0)")
     sysd = discretize_process_noise(model, theta_mech, q, dt)
     P = steady_state_filter(sysd, sigma).P
     nb, n = q.shape
@@ -632,6 +650,8 @@ def simulate_process_noise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: 
     for k in range(v.size):
         y[:, k] = x[:, :n]
         x = np.einsum("bij,bj->bi", sysd.Ad, x) + sysd.Bd * v[k] + w[:, k]
+        if v0 is not None:
+            x += sysd.Bd * v0[:, None]
     return y + sigma[:, None, :] * rng.standard_normal(y.shape)
 
 
