@@ -285,6 +285,22 @@ def test_process_noise_takes_the_input_offset(records, layout):
         shift = simulate_linear(MODEL, full[:, :9], e.v_volt + v0[0], e.dt) - \
             simulate_linear(MODEL, full[:, :9], e.v_volt, e.dt)
         assert np.abs(shift).max() > 1e8 * EPS * scale  # the offset moves the prediction
+    if layout is DEFAULT_LAYOUT:
+        # a held-out record: the shared offset enters its prediction and its log density
+        from bayesmodal.inference.predictive import predict_new_record
+
+        th = c[None].copy()
+        th[0, lik.names.index("tau_g_v")] = 0.0  # the new record's gain is mu_g_v
+        y_hat, _, ll = predict_new_record(lik, th, records[1], rng=0)
+        full, v0 = lik.record_theta(th, 1)
+        mech = full[:, :9].copy()
+        mech[0, 0] = th[0, lik.names.index("mu_g_v")]
+        e = records[1]
+        ref = simulate_linear(MODEL, mech, e.v_volt + v0[0], e.dt)
+        assert np.allclose(y_hat, ref, rtol=0, atol=1e3 * EPS * np.abs(ref).max())
+        ref_ll = kalman_loglik(MODEL, mech, full[:, 9:12], full[:, 12:], e.v_volt + v0[0],
+                               e.y_m, e.dt, initial="rest")
+        assert abs(ll[0] - ref_ll[0]) <= 8 * e.n_samples * EPS * abs(ref_ll[0])
 
 
 def test_a_shared_offset_is_one_parameter_for_every_record(records):
