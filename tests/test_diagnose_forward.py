@@ -7,6 +7,7 @@ benchmarks/detection_pairs.py: one seed per case, which the benchmark's measured
 miss rate; a wrong answer prints what was found.
 """
 
+import itertools
 import json
 
 import numpy as np
@@ -377,3 +378,64 @@ def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
     theta = r.detail["forward"].fit.theta
     assert r.parameters["v_offset"].median == theta[-1] != alone.parameters["v_offset"].median
     assert "forward selection: input_offset; stopped: stub" in r.notes
+
+
+def test_input_side_pairs_are_tried_only_when_no_single_candidate_gains(monkeypatch):
+    """The second look of a forward step: when no single candidate is significant, every
+    pair of input-side effects not in the model is fitted, tested at ``alpha`` over the
+    singles and the pairs together; when a single one is significant, or the pair would
+    exceed ``max_effects``, no pair is tried (negative controls).  ``_evaluate`` (fitting
+    and testing) is replaced by a recorder; the recalibration is the real one."""
+    from bayesmodal.discrepancy.diagnosis import forward
+    from bayesmodal.discrepancy.diagnosis.workflow import (
+        DEFAULT_CANDIDATES,
+        _location,
+        _outcomes,
+    )
+
+    h = make_case("coulomb_friction+input_offset", 3, 800)
+    rig = Rig()
+    exps = [h.experiment]
+    lin = fit_lsq(exps, LinearModel(rig, "free"))
+    first = fit_extension_lsq(exps, EXTENSIONS["coulomb_friction"], rig, linear=lin,
+                              max_nfev=5)
+    inputs = [c for c in DEFAULT_CANDIDATES if EXTENSIONS[c].side == "input"]
+    ALPHA = 0.2  # four null sets calibrate it (a cheap recalibration)
+
+    def run(significant_single, max_effects):
+        calls = []
+
+        def record(options, level, **kw):
+            calls.append(([o[0] for o in options], level))
+            if significant_single and len(calls) == 1:  # accept the model as it is
+                return [{"cause": "stub", "added": (), "dropped": None,
+                         "names": ("coulomb_friction",), "fit": first, "delta_lpd": 1.0,
+                         "lr": 2.0, "n_params": 1, "p_value": 0.0, "bic_gain": 1.0,
+                         "held_out": None, "significant": True}]
+            return []
+
+        monkeypatch.setattr(forward, "_evaluate", record)
+        fw = forward.forward_select(
+            exps, rig, "coulomb_friction", first, DEFAULT_CANDIDATES, linear=lin,
+            quantum_m=ECP_M_PER_COUNT, n_null=4, alpha=ALPHA, rng=np.random.default_rng(0),
+            outcomes=_outcomes, location=_location, max_effects=max_effects,
+            global_search=False)
+        return calls, fw
+
+    calls, fw = run(False, 3)
+    if "pass" in fw.stop:  # the residuals of the short record passed: nothing to test
+        pytest.skip(f"the friction fit's residuals pass on this record: {fw.stop}")
+    assert len(calls) == 2, calls
+    singles, pairs = calls
+    assert all(len(a) == 2 and all(x in inputs for x in a) for a in pairs[0])
+    assert sorted(tuple(sorted(a)) for a in pairs[0]) == sorted(
+        tuple(sorted(a)) for a in itertools.combinations(inputs, 2))
+    assert singles[1] == pytest.approx(ALPHA / len(singles[0]))
+    assert pairs[1] == pytest.approx(ALPHA / (len(singles[0]) + len(pairs[0])))
+    # negative controls: a pair would exceed max_effects; a single candidate gains
+    calls2, _ = run(False, 2)
+    assert len(calls2) == 1 and calls2[0][0] == singles[0]
+    calls3, _ = run(True, 3)
+    # the step with a significant single accepts it: the next call is the next step's
+    # singles, not this step's pairs
+    assert len(calls3) >= 2 and calls3[0][0] == calls3[1][0] == singles[0]
