@@ -9,6 +9,7 @@ miss rate; a wrong answer prints what was found.
 
 import itertools
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -85,6 +86,9 @@ def test_forward_selection_names_every_effect(case):
         assert {"cause", "location", "parameters", "gain"} <= set(c)
         assert {"in_sample", "held_out"} <= set(c["gain"])
         assert c["gain"]["in_sample"]["delta_lpd"] > 0
+    assert [[c["cause"] for c in st["candidates"]] for st in out["forward_steps"]] == [
+        [c["cause"] for c in st["candidates"]] for st in fw.steps]
+    assert all(c["cost_ratio"] > 0 for st in out["forward_steps"] for c in st["candidates"])
     # every effect added after the first passed its likelihood-ratio test
     for step in fw.steps:
         acc = [r for r in step["candidates"] if r["significant"]]
@@ -127,6 +131,15 @@ def test_text_and_json_list_the_causes_in_order():
     assert out["causes"][1]["gain"]["held_out"]["records"] == [250.0, 250.0]
     assert out["causes"][0]["gain"]["held_out"] is None
     assert out["effects"] == ["coulomb_friction", "input_offset"]
+    assert out["forward_steps"] == []  # no forward selection in the detail
+    step = {"model": "coulomb_friction", "T": 9.0, "threshold": 3.0,
+            "candidates": [{"cause": "input_offset", "delta_lpd": 2000.0, "cost_ratio": 0.4,
+                            "held_out": ho, "significant": True}]}
+    d2 = Diagnosis(True, "coulomb_friction", [2], "cart 2", True, 5.0, 3.0, 0.05, (), (),
+                   (), {}, {}, {}, "laplace", ("a", "b"), (0, 1), 19, 0.05, "rule",
+                   causes=(c1, c2), effects=("coulomb_friction", "input_offset"),
+                   detail={"forward": SimpleNamespace(steps=(step,))})
+    assert json.loads(d2.to_json())["forward_steps"] == [step]
 
 
 def test_train_takes_indices_in_one_argument_so_data_may_follow(capsys):
@@ -411,7 +424,7 @@ def test_input_side_pairs_are_tried_only_when_no_single_candidate_gains(monkeypa
                 return [{"cause": "stub", "added": (), "dropped": None,
                          "names": ("coulomb_friction",), "fit": first, "delta_lpd": 1.0,
                          "lr": 2.0, "n_params": 1, "p_value": 0.0, "bic_gain": 1.0,
-                         "held_out": None, "significant": True}]
+                         "cost_ratio": 1.0, "held_out": None, "significant": True}]
             return []
 
         monkeypatch.setattr(forward, "_evaluate", record)

@@ -241,7 +241,14 @@ class Diagnosis:
             "alpha": self.alpha,
             "rule": self.rule,
             "notes": list(self.notes),
+            "forward_steps": self._forward_steps(),
         })
+
+    def _forward_steps(self) -> list:
+        """Forward selection's steps (``ForwardResult.steps``): per step the model, ``T``
+        against its threshold, and every candidate with its gains; empty without one."""
+        fw = self.detail.get("forward")
+        return [dict(s) for s in fw.steps] if fw is not None else []
 
     def to_json(self, **kwargs) -> str:
         """``json.dumps(self.as_dict())``."""

@@ -152,7 +152,9 @@ class ForwardResult:
     stop : str
         Why the selection stopped.
     steps : tuple of dict
-        Per step: the candidates with their in-sample and held-out gains.
+        Per step: the candidates with their in-sample and held-out gains, and
+        ``cost_ratio``, the least-squares cost of the candidate's fit over the current
+        model's (the fit's own criterion, next to the AR(1) score that tests it).
     simplified : tuple of (str, str or None)
         Effects replaced by what they refine (``(refined, simpler)``) or removed
         (``(effect, None)``) once a later effect made their parameters unnecessary.
@@ -485,7 +487,8 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw, n_t
             sig = sig and bool(ho["delta_lpd"] > stats.norm.ppf(1 - level) * ho["se"])
         rows.append({"cause": c, "added": added_, "dropped": dropped, "names": new_names,
                      "fit": f, "delta_lpd": g, "lr": lr, "n_params": k, "p_value": pv,
-                     "bic_gain": bic, "held_out": ho, "significant": sig})
+                     "bic_gain": bic, "cost_ratio": f.cost / fit.cost, "held_out": ho,
+                     "significant": sig})
     return rows
 
 
@@ -604,7 +607,8 @@ def forward_select(
         steps.append({"model": ext.name, "T": t_max, "threshold": cal.threshold,
                       "candidates": [{key: r[key] for key in
                                       ("cause", "delta_lpd", "lr", "n_params", "p_value",
-                                       "bic_gain", "held_out", "significant")}
+                                       "bic_gain", "cost_ratio", "held_out",
+                                       "significant")}
                                      for r in rows]})
         good = [r for r in rows if r["significant"]]
         if not good:
