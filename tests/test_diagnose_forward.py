@@ -140,6 +140,10 @@ def test_text_and_json_list_the_causes_in_order():
                    causes=(c1, c2), effects=("coulomb_friction", "input_offset"),
                    detail={"forward": SimpleNamespace(steps=(step,))})
     assert json.loads(d2.to_json())["forward_steps"] == [step]
+    text2 = _report(d2)
+    assert "forward step 2 after coulomb_friction (T = 9.0, threshold 3.0)" in text2
+    assert "* input_offset" in text2 and "cost x0.40  held out 500.0 +- 20.0" in text2
+    assert "forward step" not in text
 
 
 def test_train_takes_indices_in_one_argument_so_data_may_follow(capsys):
