@@ -16,11 +16,12 @@ import pytest
 from hidden_effects import make
 from hidden_pairs import CASES, judge, make_case
 
-from bayesmodal import ConfigError
+from bayesmodal import ConfigError, ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
 from bayesmodal.discrepancy.diagnosis import diagnose
 from bayesmodal.discrepancy.diagnosis.forward import REFINES, loro_gain
-from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq, get_extension
+from bayesmodal.discrepancy.effects.fit import extension_fit_at
 from bayesmodal.fit import fit_lsq
 from bayesmodal.system import LinearModel, Rig
 
@@ -456,3 +457,80 @@ def test_input_side_pairs_are_tried_only_when_no_single_candidate_gains(monkeypa
     # the step with a significant single accepts it: the next call is the next step's
     # singles, not this step's pairs
     assert len(calls3) >= 2 and calls3[0][0] == calls3[1][0] == singles[0]
+
+
+def _lag_setup(effect, seed=5, n=1200):
+    """A record with a hidden ``effect`` (or none), the linear fit, the input offset
+    fitted, and the offset + motor lag model fitted from it."""
+    h = make_case(effect, seed, n) if effect in CASES else make(effect, seed, n)
+    rig = Rig()
+    exps = [h.experiment]
+    lin = fit_lsq(exps, LinearModel(rig, "free"))
+    off = EXTENSIONS["input_offset"]
+    both = get_extension(["input_offset", "motor_lag"])
+    f_off = fit_extension_lsq(exps, off, rig, linear=lin, n_starts=2)
+    starts = [np.r_[f_off.theta, tau] for tau in (0.005, 0.02)]
+    f_both = min((fit_extension_lsq(exps, both, rig, theta0=s, linear=lin, max_nfev=40)
+                  for s in starts), key=lambda f: f.cost)
+    return rig, exps, lin, off, both, f_off, f_both
+
+
+def test_an_addition_is_tested_against_the_current_model_at_its_own_optimum():
+    """A candidate's in-sample gain is measured from the current model's best known
+    point: its fit or its value at the candidate's optimum without the added effect.  A
+    motor lag at ``tau`` = 1e-14 s (no lag) on top of a better offset than the current
+    (unconverged) fit gains nothing then, where the plain difference credits it with the
+    refit's gain; on data with a hidden lag the lag keeps its gain (negative control)."""
+    from bayesmodal.discrepancy.diagnosis.forward import (
+        _in_sample,
+        _lpd,
+        _reference,
+        _simulate,
+    )
+
+    rig, exps, lin, off, both, f_off, _ = _lag_setup("input_offset")
+    n_total = sum(e.n_samples * e.n_outputs for e in exps)
+    poor = extension_fit_at(exps, off, rig, np.r_[f_off.theta[:-1], 0.5 * f_off.theta[-1]],
+                            linear=lin)
+    cur_pw = _lpd(exps, _simulate(off, rig, poor.theta, exps))
+    null_lag = extension_fit_at(exps, both, rig, np.r_[f_off.theta, 1e-14], linear=lin)
+    plain = _in_sample(both, null_lag, rig, exps, cur_pw, 1, n_total, 0.01)
+    assert plain[-1] and plain[0] > 10, plain  # the refit's gain, credited to the lag
+    th, ref_pw = _reference(both, null_lag, off, poor, rig, exps, cur_pw)
+    assert np.array_equal(th, f_off.theta)
+    g = _in_sample(both, null_lag, rig, exps, ref_pw, 1, n_total, 0.01)
+    scale = np.abs(ref_pw).sum()
+    assert abs(g[0]) <= 1e-9 * scale and not g[-1], g
+    # a hidden lag: the lag's own gain survives the reference
+    rig, exps, lin, off, both, f_off, f_both = _lag_setup("motor_lag")
+    cur_pw = _lpd(exps, _simulate(off, rig, f_off.theta, exps))
+    th, ref_pw = _reference(both, f_both, off, f_off, rig, exps, cur_pw)
+    g = _in_sample(both, f_both, rig, exps, ref_pw, 1, n_total, 0.01)
+    assert g[-1], (g, f_both.theta[-2:])
+
+
+def test_the_backward_check_removes_an_effect_at_its_no_effect_value():
+    """An effect whose fitted parameters sit at its no-effect value (a lag of 1e-14 s) is
+    removed by the backward check, at the point where the two models coincide; a fitted
+    hidden lag is kept (negative control)."""
+    from bayesmodal.discrepancy.diagnosis.forward import _simplify
+
+    rig, exps, lin, off, both, f_off, _ = _lag_setup("input_offset")
+    null_lag = extension_fit_at(exps, both, rig, np.r_[f_off.theta, 1e-14], linear=lin)
+    names, fit, changes = _simplify(("input_offset", "motor_lag"), null_lag, rig, exps, lin,
+                                    0.01, 20)
+    assert names == ("input_offset",) and changes == [("motor_lag", None)]
+    assert np.array_equal(fit.theta, f_off.theta)
+    rig, exps, lin, off, both, f_off, f_both = _lag_setup("motor_lag")
+    names, _, changes = _simplify(("input_offset", "motor_lag"), f_both, rig, exps, lin,
+                                  0.01, 20)
+    assert "motor_lag" in names, (changes, f_both.theta[-2:])
+
+
+def test_extension_fit_at_summarises_a_point_like_a_fit():
+    rig, exps, lin, off, both, f_off, _ = _lag_setup("input_offset")
+    at = extension_fit_at(exps, off, rig, f_off.theta, linear=lin)
+    assert at.cost == f_off.cost and np.array_equal(at.fit_percent, f_off.fit_percent)
+    assert np.array_equal(at.sigma_m, f_off.sigma_m) and at.n_evaluations == 0
+    with pytest.raises(ModelError):
+        extension_fit_at(exps, off, rig, f_off.theta[:-1], linear=lin)

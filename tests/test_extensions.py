@@ -219,6 +219,32 @@ def test_integer_delay_is_a_shift_and_saturation_a_clip():
     np.testing.assert_allclose(y, y_clip, rtol=0, atol=rtol * np.abs(y_clip).max())
 
 
+@pytest.mark.parametrize("name", ["motor_lag", "input_offset+motor_lag"])
+def test_a_vanishing_motor_lag_converges_to_the_linear_model(name):
+    """As ``tau -> 0`` the lag's response approaches the linear model's linearly in
+    ``tau`` (difference ``C tau``, ``C`` measured at 1e-4 s): within a hundredth of an
+    encoder count down to ``INSTANT_LAG dt``, and exactly the linear model below it.
+    Before the threshold, the hold of the stiff lag state was 1.5 mm off at 1e-14 s (a
+    least-squares fit on the measured records went there)."""
+    from bayesmodal.discrepancy.effects import get_extension
+    from bayesmodal.discrepancy.effects._input import INSTANT_LAG
+
+    ext = get_extension(name)
+    t = np.arange(2000) * DT
+    u = np.where((t % 2) < 0.05, 3.0, 0.0) + 0.3 * np.sin(3 * t)
+    extra = [0.02] if name.startswith("input_offset") else []
+    y0 = ext.simulate(RIG, np.r_[TABLE3, extra, 0.0], u, DT)
+    ref = simulate_linear(LinearModel(RIG, "free"), TABLE3, u + sum(extra), DT)
+    assert np.max(np.abs(y0 - ref)) <= 10 * zoh_rtol(
+        LinearModel(RIG, "free").state_space(TABLE3)[0], DT) * np.max(np.abs(ref))
+    c = np.max(np.abs(ext.simulate(RIG, np.r_[TABLE3, extra, 1e-4], u, DT) - y0)) / 1e-4
+    for tau in np.geomspace(INSTANT_LAG * DT, 1e-4, 9):
+        d = np.max(np.abs(ext.simulate(RIG, np.r_[TABLE3, extra, tau], u, DT) - y0))
+        assert abs(d - c * tau) <= 0.01 * ECP_M_PER_COUNT, (tau, d, c * tau)
+    for tau in (1e-14, 1e-10, 0.5 * INSTANT_LAG * DT):
+        assert np.array_equal(ext.simulate(RIG, np.r_[TABLE3, extra, tau], u, DT), y0)
+
+
 def test_motor_lag_preserves_static_gain():
     # a lag changes the transient, not the steady state K^-1 b v
     u = np.full(8000, 0.5)

@@ -38,7 +38,8 @@ from ...metrics import fit_percent
 from ...system import Rig
 from ._base import Extension
 
-__all__ = ["ExtensionFit", "fit_extension_lsq", "extension_residuals", "extension_cost"]
+__all__ = ["ExtensionFit", "fit_extension_lsq", "extension_fit_at", "extension_residuals",
+           "extension_cost"]
 
 
 @dataclass(frozen=True)
@@ -348,7 +349,12 @@ def fit_extension_lsq(
         if best is None or cost_end < best[0]:
             best = (cost_end, theta, start, sol)
     _, theta, theta_start, sol = best
+    return _summary(experiments, ext, rig, theta, w_exp, linear, theta_start,
+                    bool(sol.success), str(sol.message), n_eval)
 
+
+def _summary(experiments, ext, rig, theta, w_exp, linear, theta_start, success, message,
+             n_eval) -> ExtensionFit:
     fits, sq = [], []
     for e in experiments:
         yh = ext.simulate(rig, theta, e.v_volt, e.dt)
@@ -364,7 +370,26 @@ def fit_extension_lsq(
         sigma_m=np.sqrt(np.sum(sq, axis=0) / n_total),
         linear=linear,
         theta_start=theta_start,
-        success=bool(sol.success),
-        message=str(sol.message),
+        success=success,
+        message=message,
         n_evaluations=n_eval,
     )
+
+
+def extension_fit_at(experiments: Experiment | Sequence[Experiment], ext: Extension,
+                     rig: Rig, theta: np.ndarray, *, linear: LSQResult) -> ExtensionFit:
+    """The :class:`ExtensionFit` summary of ``ext`` at ``theta``, without fitting.
+
+    For a point found otherwise (a nested model's value at a larger model's optimum),
+    summarised like a fit: fit percentages, cost and RMS residual at ``theta``;
+    ``n_evaluations`` 0 and ``theta_start`` the point itself.
+
+    Raises
+    ------
+    ModelError
+        If ``theta`` is not an admissible parameter vector of ``ext``.
+    """
+    experiments = _as_list(experiments)
+    theta = ext.check(rig, np.asarray(theta, float))
+    return _summary(experiments, ext, rig, theta, np.ones(len(experiments)), linear,
+                    theta.copy(), True, "evaluated at a given point, not fitted", 0)

@@ -7,7 +7,8 @@ The amplifier and motor windings make the force follow the voltage with a time c
 The model stays linear: the state ``(x, x', f)`` is simulated exactly by zero-order hold
 (batched compiled recursion, ``bayesmodal.discrepancy.kernels.linear_input_run``).  With
 ``tau_s = 0`` the force follows instantly and the model is the linear one (the lag state
-is then unused).
+is then unused); so does a lag below ``INSTANT_LAG`` of the sample interval, whose hold
+would not be accurate (``_input.INSTANT_LAG``).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 from ...system import Rig
 from ..kernels import linear_input_run, zoh
 from ._base import Extension, ParamSpec
+from ._input import effective_lag
 from ._linear import linear_parts
 
 
@@ -47,7 +49,7 @@ class MotorLag(Extension):
         n = rig.n_carts
         s = 2 * n
         nb = theta_lin.shape[0]
-        tau = theta_ext[:, 0]
+        tau = effective_lag(theta_ext[:, 0], dt)  # a lag far below dt is instantaneous
         p = linear_parts(rig, theta_lin)
         Ad = np.zeros((nb, s + 1, s + 1))
         Bd = np.zeros((nb, s + 1))
