@@ -30,7 +30,11 @@ found, a ``Combined`` model):
 3. **Test.**  In sample: the likelihood ratio ``LR = 2 (lpd_new - lpd_cur)`` of the
    AR(1)-whitened Gaussian likelihood (noise profiled per output) against ``chi2(k)``
    (``k`` added parameters) at ``alpha / n_candidates``, and a positive BIC gain
-   ``LR - k ln N``.  With two or more training records the criterion is the
+   ``LR - k ln N``.  For a pure addition ``lpd_cur`` is the current model at its best
+   known point: its fit, or its value at the candidate's optimum without the added
+   effects, whichever scores higher (``_reference``), so that a better optimum of the
+   shared parameters found by the candidate's fit is not credited to the effect.  With
+   two or more training records the criterion is the
    leave-one-record-out gain: both models are refitted on the other records (started
    from their full fits) and predict the held-out one; the sum over records of the
    held-out AR(1) log density gain ``G`` must exceed ``z_(1 - alpha / n_candidates)``
@@ -42,7 +46,8 @@ found, a ``Combined`` model):
    a terrace of the cost far from its optimum (``global_search``).
 4. **Simplify** (backward check).  After each acceptance, every refinement in the model
    is tested against the effect it refines, and every effect against the model without
-   it (refitted from the current fit; the same LR and BIC rule at ``alpha``); one whose
+   it (refitted from the current fit, or left at it where that scores higher; the same
+   LR and BIC rule at ``alpha``); one whose
    parameters no longer gain significantly is replaced or removed, and the check
    repeats: an input offset added later can explain what first looked like unequal
    friction levels on the driven cart.  Before directional levels are kept, the
