@@ -534,3 +534,16 @@ def test_extension_fit_at_summarises_a_point_like_a_fit():
     assert np.array_equal(at.sigma_m, f_off.sigma_m) and at.n_evaluations == 0
     with pytest.raises(ModelError):
         extension_fit_at(exps, off, rig, f_off.theta[:-1], linear=lin)
+
+
+@pytest.mark.slow
+def test_a_refinement_simplified_to_what_it_refines_is_a_cause():
+    """The pair benchmark's friction + offset seed 20016: forward selection added
+    directional friction levels, the backward check simplified them to equal levels, and
+    the final model held friction and the offset (residuals pass) while the causes had
+    lost friction.  The simplified effect is now found under its simpler name."""
+    h = make_case("coulomb_friction+input_offset", 20016, N_SAMPLES)
+    d = diagnose(h.experiment, posterior=False, n_null=N_NULL, rng=20016)
+    ok, found = judge(h, d)
+    assert ok, (found, d.notes)
+    assert {c.cause for c in d.causes} == set(d.effects)
