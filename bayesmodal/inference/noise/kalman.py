@@ -647,11 +647,11 @@ def simulate_process_noise(model, theta_mech: np.ndarray, q: np.ndarray, sigma: 
     x = np.einsum("bij,bj->bi", Lp, rng.standard_normal((nb, s)))
     w = np.einsum("bij,bkj->bki", Lq, rng.standard_normal((nb, v.size, s)))
     y = np.empty((nb, v.size, n))
+    if v0 is not None:  # the offset's constant drive, once
+        w = w + (sysd.Bd * v0[:, None])[:, None, :]
     for k in range(v.size):
         y[:, k] = x[:, :n]
         x = np.einsum("bij,bj->bi", sysd.Ad, x) + sysd.Bd * v[k] + w[:, k]
-        if v0 is not None:
-            x += sysd.Bd * v0[:, None]
     return y + sigma[:, None, :] * rng.standard_normal(y.shape)
 
 
