@@ -489,23 +489,22 @@ def test_an_addition_is_tested_against_the_current_model_at_its_own_optimum():
     )
 
     rig, exps, lin, off, both, f_off, _ = _lag_setup("input_offset")
-    n_total = sum(e.n_samples * e.n_outputs for e in exps)
     poor = extension_fit_at(exps, off, rig, np.r_[f_off.theta[:-1], 0.5 * f_off.theta[-1]],
                             linear=lin)
     cur_pw = _lpd(exps, _simulate(off, rig, poor.theta, exps))
     null_lag = extension_fit_at(exps, both, rig, np.r_[f_off.theta, 1e-14], linear=lin)
-    plain = _in_sample(both, null_lag, rig, exps, cur_pw, 1, n_total, 0.01)
+    plain = _in_sample(both, null_lag, rig, exps, cur_pw, 1, 0.01)
     assert plain[-1] and plain[0] > 10, plain  # the refit's gain, credited to the lag
     th, ref_pw = _reference(both, null_lag, off, poor, rig, exps, cur_pw)
     assert np.array_equal(th, f_off.theta)
-    g = _in_sample(both, null_lag, rig, exps, ref_pw, 1, n_total, 0.01)
+    g = _in_sample(both, null_lag, rig, exps, ref_pw, 1, 0.01)
     scale = np.abs(ref_pw).sum()
     assert abs(g[0]) <= 1e-9 * scale and not g[-1], g
     # a hidden lag: the lag's own gain survives the reference
     rig, exps, lin, off, both, f_off, f_both = _lag_setup("motor_lag")
     cur_pw = _lpd(exps, _simulate(off, rig, f_off.theta, exps))
     th, ref_pw = _reference(both, f_both, off, f_off, rig, exps, cur_pw)
-    g = _in_sample(both, f_both, rig, exps, ref_pw, 1, n_total, 0.01)
+    g = _in_sample(both, f_both, rig, exps, ref_pw, 1, 0.01)
     assert g[-1], (g, f_both.theta[-2:])
 
 

@@ -105,13 +105,15 @@ def _report(d) -> str:
     lines.append("ranking:")
     for c in d.ranking:
         lines.append(f"   {c.name:18s} score {c.score:10.1f}  {c.message}")
+    score = "AR(1)" if len(d.train) < 2 else "output-error"
     for k, st in enumerate(d.as_dict()["forward_steps"], 2):
         lines.append(f"forward step {k} after {st['model']} (T = {st['T']:.1f}, threshold "
-                     f"{st['threshold']:.1f}): in-sample AR(1) gain, least-squares cost "
+                     f"{st['threshold']:.1f}): in-sample {score} gain, least-squares cost "
                      "ratio, held-out gain")
+        width = max((len(c["cause"]) for c in st["candidates"]), default=0)
         for c in st["candidates"]:
             ho = c.get("held_out")
-            lines.append(f"   {'*' if c['significant'] else ' '} {c['cause']:38s} "
+            lines.append(f"   {'*' if c['significant'] else ' '} {c['cause']:{width}s} "
                          f"{c['delta_lpd']:10.1f} nats  cost x{c['cost_ratio']:.2f}"
                          + (f"  held out {ho['delta_lpd']:.1f} +- {ho['se']:.1f}" if ho
                             else ""))

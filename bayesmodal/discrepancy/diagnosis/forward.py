@@ -27,27 +27,32 @@ found, a ``Combined`` model):
    the singles and the pairs): effects in the drive can mask each other, each alone
    scoring below the model and both together above it (an offset and a dead band on the
    measured records).
-3. **Test.**  In sample: the likelihood ratio ``LR = 2 (lpd_new - lpd_cur)`` of the
-   AR(1)-whitened Gaussian likelihood (noise profiled per output) against ``chi2(k)``
-   (``k`` added parameters) at ``alpha / n_candidates``, and a positive BIC gain
-   ``LR - k ln N``.  For a pure addition ``lpd_cur`` is the current model at its best
+3. **Test.**  In sample, with one training record: the likelihood ratio
+   ``LR = 2 (lpd_new - lpd_cur)`` of the AR(1)-whitened Gaussian likelihood (noise
+   profiled per output) against ``chi2(k)`` (``k`` added parameters) at
+   ``alpha / n_candidates``, and a positive BIC gain ``LR - k ln N``.  With several
+   training records the score is the output error (``scoring.Criterion``: a Gaussian
+   per output with its variance profiled, which sees a level where the AR(1) score with
+   ``phi`` near 1 does not: on the four ECP records an input offset that halves the
+   cost scored 796 nats *below* the model without it), its gain tested by
+   ``z = gain / SE`` with an autocorrelation-aware SE (``scoring.autocorr_se``), and the
+   same BIC gain.  For a pure addition ``lpd_cur`` is the current model at its best
    known point: its fit, or its value at the candidate's optimum without the added
    effects, whichever scores higher (``_reference``), so that a better optimum of the
    shared parameters found by the candidate's fit is not credited to the effect.  With
    two or more training records the criterion is the
    leave-one-record-out gain: both models are refitted on the other records (started
    from their full fits) and predict the held-out one; the sum over records of the
-   held-out AR(1) log density gain ``G`` must exceed ``z_(1 - alpha / n_candidates)``
-   times its standard error ``sqrt(n var(d_i))`` over the pointwise differences (an
-   optimistic SE: the differences are autocorrelated, so the in-sample LR test is kept
-   as well).  The significant candidate of largest gain (held-out when available, else
+   held-out output-error gain ``G`` must exceed ``z_(1 - alpha / n_candidates)`` times
+   its autocorrelation-aware standard error (the in-sample test is kept as well).  The
+   significant candidate of largest gain (held-out when available, else
    BIC) is accepted.  A candidate with stick-slip friction that gains in sample is first
    refitted by a global search (``effects.global_fit``), since its local fit may stop on
    a terrace of the cost far from its optimum (``global_search``).
 4. **Simplify** (backward check).  After each acceptance, every refinement in the model
    is tested against the effect it refines, and every effect against the model without
    it (refitted from the current fit, or left at it where that scores higher; the same
-   LR and BIC rule at ``alpha``); one whose
+   in-sample rule at ``alpha``, by the records' criterion); one whose
    parameters no longer gain significantly is replaced or removed, and the check
    repeats: an input offset added later can explain what first looked like unequal
    friction levels on the driven cart.  Before directional levels are kept, the
@@ -79,7 +84,7 @@ from ..effects import EXTENSIONS, ExtensionFit, fit_extension_lsq, get_extension
 from ..effects.fit import extension_fit_at, extension_residuals
 from ..effects.global_fit import fit_extension_global, is_stick_slip
 from .null import NullCalibration, calibrate_null, fit_noise, run_diagnostics
-from .scoring import ar1_pointwise
+from .scoring import Criterion, criterion_for
 from .starts import extra_starts
 
 __all__ = ["Cause", "ForwardResult", "forward_select", "loro_gain", "REFINES",
@@ -159,7 +164,7 @@ class ForwardResult:
     steps : tuple of dict
         Per step: the candidates with their in-sample and held-out gains, and
         ``cost_ratio``, the least-squares cost of the candidate's fit over the current
-        model's (the fit's own criterion, next to the AR(1) score that tests it).
+        model's (the fit's own criterion, next to the score that tests it).
     simplified : tuple of (str, str or None)
         Effects replaced by what they refine (``(refined, simpler)``) or removed
         (``(effect, None)``) once a later effect made their parameters unnecessary.
@@ -186,8 +191,15 @@ def _simulate(ext, rig, theta, exps):
     return [ext.simulate(rig, theta, e.v_volt, e.dt) for e in exps]
 
 
-def _lpd(exps, ys) -> np.ndarray:
-    return ar1_pointwise([e.y_m - y for e, y in zip(exps, ys, strict=True)])
+def _lpd(exps, ys, crit: Criterion | None = None) -> np.ndarray:
+    """Pointwise scores of the residuals of ``ys`` on ``exps`` by ``crit`` (default: the
+    criterion of these records, ``criterion_for``)."""
+    crit = criterion_for(exps) if crit is None else crit
+    return crit.pointwise([e.y_m - y for e, y in zip(exps, ys, strict=True)])
+
+
+def _shapes(exps) -> list[tuple[int, int]]:
+    return [(e.n_samples, e.n_outputs) for e in exps]
 
 
 def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int) -> np.ndarray:
@@ -205,34 +217,38 @@ def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int) -> np.ndarra
 
 
 def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext, new_theta,
-              linear: LSQResult, max_nfev: int = 20) -> dict:
+              linear: LSQResult, max_nfev: int = 20,
+              criterion: Criterion | None = None) -> dict:
     """Leave-one-record-out gain of ``new_ext`` over ``cur_ext`` (None: the linear model).
 
     For every record, both models are refitted by least squares on the other records
     (started from their fits to all records) and predict the held-out record; the gain
-    is the sum over records of the held-out AR(1) log density (noise profiled on each
-    prediction's residual), new minus current.
+    is the sum over records of the held-out score (``criterion``, default that of the
+    records, ``criterion_for``: the output error for two or more records, each output's
+    variance profiled on each prediction's residual), new minus current.
 
     Returns
     -------
     dict
-        ``delta_lpd`` (nats), ``se`` (``sqrt(n var(d_i))`` of the pointwise differences),
-        ``z`` (``delta_lpd / se``), ``records`` (per held-out record, nats).
+        ``delta_lpd`` (nats), ``se`` (the criterion's standard error of the summed
+        pointwise differences: ``autocorr_se`` for the output error), ``z``
+        (``delta_lpd / se``), ``records`` (per held-out record, nats), ``criterion``.
     """
+    crit = criterion_for(exps) if criterion is None else criterion
     per, pts = [], []
     for r in range(len(exps)):
         others = [e for i, e in enumerate(exps) if i != r]
         th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev)
         th_n = _refit(new_ext, rig, new_theta, others, linear, max_nfev)
-        d = (_lpd([exps[r]], _simulate(new_ext, rig, th_n, [exps[r]]))
-             - _lpd([exps[r]], _simulate(cur_ext, rig, th_c, [exps[r]])))
+        d = (_lpd([exps[r]], _simulate(new_ext, rig, th_n, [exps[r]]), crit)
+             - _lpd([exps[r]], _simulate(cur_ext, rig, th_c, [exps[r]]), crit))
         per.append(float(d.sum()))
         pts.append(d)
     d = np.concatenate(pts)
-    se = float(np.sqrt(d.size * np.var(d)))
+    se = crit.se(d, _shapes(exps))
     total = float(d.sum())
     return {"delta_lpd": total, "se": se, "z": total / se if se > 0 else np.inf,
-            "records": per}
+            "records": per, "criterion": crit.name}
 
 
 def _grid(cand, rig, cur_names, cur_par, theta_lin, exps) -> np.ndarray:
@@ -321,7 +337,7 @@ def _reference(new, f, ext, fit, rig, exps, cur_pw):
     """The current model's best known point for the test of a pure addition ``new``.
 
     The current fit, or the current model at ``new``'s optimum with the added effects
-    left out, whichever scores higher (AR(1) log density): a local fit of ``new`` can
+    left out, whichever scores higher (the records' criterion): a local fit of ``new`` can
     find a better optimum of the parameters the models share (a terrace of the
     stick-slip cost), and that gain is the current model's, not the effect's.  Measured
     on the four ECP records: a motor lag fitted at ``tau`` = 2e-14 s (no lag) gained
@@ -338,14 +354,13 @@ def _reference(new, f, ext, fit, rig, exps, cur_pw):
     return fit.theta, cur_pw
 
 
-def _in_sample(new, f, rig, exps, cur_pw, k, n_total, level):
+def _in_sample(new, f, rig, exps, cur_pw, k, level):
     """``(gain, LR, p-value, BIC gain, significant)`` of the fit ``f`` of ``new`` over the
-    current model (pointwise AR(1) log density ``cur_pw``), ``k`` added parameters."""
-    g = float(np.sum(_lpd(exps, _simulate(new, rig, f.theta, exps))) - np.sum(cur_pw))
-    lr = 2.0 * g
-    pv = float(stats.chi2.sf(max(lr, 0.0), max(k, 1)))
-    bic = lr - k * np.log(n_total)
-    return g, lr, pv, bic, bool(pv < level and bic > 0)
+    current model (pointwise scores ``cur_pw``), ``k`` added parameters: the records'
+    criterion (``criterion_for``) and its test (``Criterion.test``)."""
+    with np.errstate(all="ignore"):
+        pw = _lpd(exps, _simulate(new, rig, f.theta, exps))
+    return criterion_for(exps).test(pw, cur_pw, k, _shapes(exps), level)
 
 
 def _residual_tests(cal, exps, model, fit, q, outcomes):
@@ -359,11 +374,10 @@ def _residual_tests(cal, exps, model, fit, q, outcomes):
 
 def _lr_keeps(cur, fit, simple, f, rig, exps, level) -> bool:
     """Does ``cur`` (at ``fit``) gain significantly over the nested ``simple`` (at ``f``)?
-    The forward steps' rule: LR against chi2(k) at ``level`` and a positive BIC gain."""
-    n_total = sum(e.n_samples * e.n_outputs for e in exps)
+    The forward steps' in-sample rule at ``level`` (``Criterion.test``)."""
     k = len(cur.specs(rig)) - len(simple.specs(rig))
     simple_pw = _lpd(exps, _simulate(simple, rig, f.theta, exps))
-    return _in_sample(cur, fit, rig, exps, simple_pw, k, n_total, level)[-1]
+    return _in_sample(cur, fit, rig, exps, simple_pw, k, level)[-1]
 
 
 def _options(names, candidates, rejected) -> list:
@@ -428,7 +442,7 @@ def _input_pairs(names, candidates, rejected) -> list:
 
 def _better_by_score(simple, rig, start, f, exps, linear) -> ExtensionFit | None:
     """The refit ``f`` of the simpler model or its start (no refit), whichever has the
-    higher AR(1) log density, the score its test uses: a least-squares refit can lower
+    higher score (the records' criterion), the score its test uses: a least-squares refit can lower
     the cost and the score together, and an effect at its no-effect value (a lag of
     ``tau`` = 0) must then be removed at the point where the two models coincide."""
     try:
@@ -493,7 +507,7 @@ def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None):
     return names, fit, changes
 
 
-def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw, n_total,
+def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
               max_fits, n_starts, max_nfev, loro_nfev, search, progress) -> list:
     """Fit and test the ``options`` of one forward step (rows of :func:`_options`) against
     the current model ``ext`` at ``fit`` (module docstring, steps 2-3); one dict per
@@ -523,7 +537,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw, n_t
         ref_theta, ref_pw = fit.theta, cur_pw
         if dropped is None:  # a pure addition: test the effect, not a better refit
             ref_theta, ref_pw = _reference(new, f, ext, fit, rig, exps, cur_pw)
-        g, lr, pv, bic, sig = _in_sample(new, f, rig, exps, ref_pw, k, n_total, level)
+        g, lr, pv, bic, sig = _in_sample(new, f, rig, exps, ref_pw, k, level)
         if sig and search is not None and is_stick_slip(new) and len(added_) == 1:
             # a gain of a stick-slip model is only as good as its fit: redo it from the
             # global search (the local fit may stop on a terrace, either side).  Not for
@@ -537,8 +551,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw, n_t
                 f = fg
                 if dropped is None:
                     ref_theta, ref_pw = _reference(new, f, ext, fit, rig, exps, cur_pw)
-                g, lr, pv, bic, sig = _in_sample(new, f, rig, exps, ref_pw, k, n_total,
-                                                 level)
+                g, lr, pv, bic, sig = _in_sample(new, f, rig, exps, ref_pw, k, level)
         ho = None
         if sig and len(exps) >= 2:
             ho = loro_gain(exps, rig, ext, ref_theta, new, f.theta, linear, loro_nfev)
@@ -629,7 +642,6 @@ def forward_select(
     steps: list[dict] = []
     simplified: list[tuple[str, str]] = []
     rejected: set[str] = set()
-    n_total = sum(e.n_samples * e.n_outputs for e in exps)
     cal, tests = None, ()
     while True:
         ext = get_extension(list(names))
@@ -653,7 +665,7 @@ def forward_select(
         cur_pw = _lpd(exps, ys)
 
         step = dict(names=names, ext=ext, fit=fit, rig=rig, exps=exps, linear=linear,
-                    cur_pw=cur_pw, n_total=n_total, max_fits=max_fits, n_starts=n_starts,
+                    cur_pw=cur_pw, max_fits=max_fits, n_starts=n_starts,
                     max_nfev=max_nfev, loro_nfev=loro_nfev, search=search,
                     progress=progress)
         rows = _evaluate(options, level, **step)

@@ -14,7 +14,9 @@ Steps (``posterior=False`` gives the same decision, only without the MCMC interv
    (``bayesmodal.discrepancy.effects.fit_extension_lsq``) and score each by the drop of the
    AR(1)-whitened negative log-likelihood (noise profiled): likelihood-ratio statistic
    ``LR = 2 gain`` against ``chi2(k)`` at level ``alpha / n_candidates``, ranking key the
-   BIC gain ``LR - k ln N``;
+   BIC gain ``LR - k ln N``; with several training records the output error instead,
+   which sees a level, its gain tested by a z-test with an autocorrelation-aware SE
+   (``scoring.Criterion``), and the leave-one-record-out gain must be significant too;
 5. accept the best-scoring significant candidate whose residuals then pass its signature
    diagnostics and lower ``T``; report where it acts, its parameters, the fit percentages
    before and after (training and held-out experiments), the movement of the linear
@@ -47,7 +49,7 @@ from .null import (
     infer_quantum,
     run_diagnostics,
 )
-from .scoring import ar1_pointwise, laplace_sd
+from .scoring import ar1_pointwise, criterion_for, laplace_sd
 from .starts import best_starts
 
 __all__ = ["diagnose", "DEFAULT_CANDIDATES"]
@@ -304,8 +306,10 @@ def diagnose(
             if c in signature:
                 signature[c] += max(t.z, 0.0)
     order = sorted(cands, key=lambda c: (-signature[c], cands.index(c)))
-    n_total = sum(e.n_samples * e.n_outputs for e in train_exps)
-    lin_pointwise = ar1_pointwise([e.y_m - y for e, y in zip(train_exps, y_lin, strict=True)])
+    # one record: the AR(1) log density; several: the output error, which sees a level
+    crit = criterion_for(train_exps)
+    shapes = [(e.n_samples, e.n_outputs) for e in train_exps]
+    lin_pointwise = crit.pointwise([e.y_m - y for e, y in zip(train_exps, y_lin, strict=True)])
     fp_before = _fit_percent(train_exps, y_lin)
     held_lin = [simulate_linear(model, linear.theta, e.v_volt, e.dt) for e in held_exps]
     gain: dict = {"fit_percent_before": fp_before, "fit_percent_after": fp_before,
@@ -376,12 +380,8 @@ def diagnose(
                                          f"fit failed: {str(exc).splitlines()[0]}"))
             continue
         y_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in train_exps]
-        pw = ar1_pointwise([e.y_m - y for e, y in zip(train_exps, y_ext, strict=True)])
-        g = float(np.sum(pw) - np.sum(lin_pointwise))
-        lr = 2.0 * g
-        p = float(stats.chi2.sf(max(lr, 0.0), k))
-        score = lr - k * np.log(n_total)
-        sig = bool(p < level and score > 0)
+        pw = crit.pointwise([e.y_m - y for e, y in zip(train_exps, y_ext, strict=True)])
+        g, lr, p, score, sig = crit.test(pw, lin_pointwise, k, shapes, level)
         held_out = None
         if sig and len(train_exps) >= 2:
             # several records: the leave-one-record-out gain must be significant too
@@ -463,7 +463,7 @@ def diagnose(
             # backward check refitted it from a later model's better optimum
             ext, ef = get_extension(list(effects)), fwd.fit
             y_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in train_exps]
-            pw = ar1_pointwise([e.y_m - y for e, y in zip(train_exps, y_ext, strict=True)])
+            pw = crit.pointwise([e.y_m - y for e, y in zip(train_exps, y_ext, strict=True)])
     n_extra = len(ext.specs(rig))
     gain["model"] = "+".join(effects)
     # explained only when the final model's residuals pass every residual diagnostic
@@ -478,10 +478,12 @@ def diagnose(
         gain["heldout_fit_percent_after"] = _fit_percent(held_exps, held_ext)
     # plug-in ELPD (lpd minus parameter count) with the SE of pointwise differences
     d = pw - lin_pointwise
+    label = "AR(1) lpd" if crit.name == "ar1" else "output-error lpd"
     gain.update(delta_elpd=float(d.sum() - n_extra),
-                delta_elpd_se=float(np.sqrt(d.size * np.var(d))),
-                criterion="plug-in ELPD (AR(1) lpd at the least-squares fits minus the "
-                          "number of extra parameters); SE from the pointwise differences")
+                delta_elpd_se=crit.se(d, shapes),
+                criterion=f"plug-in ELPD ({label} at the least-squares fits minus the "
+                          "number of extra parameters); SE from the pointwise differences"
+                          + ("" if crit.name == "ar1" else ", autocorrelation-aware"))
     if held_exps:
         hd = ar1_pointwise([e.y_m - y for e, y in zip(held_exps, held_ext, strict=True)]) - \
             ar1_pointwise([e.y_m - y for e, y in zip(held_exps, held_lin, strict=True)])
