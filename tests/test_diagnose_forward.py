@@ -30,8 +30,8 @@ N_SAMPLES = 2400
 
 
 def _two_records(case, seed):
-    """Two records of one rig: the same draw of parameters, different noise and input
-    scale (the second record's input is 0.8 times the first's)."""
+    """Two records of one rig: the first from the reference simulator, the second the
+    same response with more sensor noise, quantised again (same input)."""
     h = make_case(case, seed, 1600) if case else make(None, seed, 1600)
     e = h.experiment
     rng = np.random.default_rng(seed + 1)
@@ -52,6 +52,11 @@ def test_loro_gain_is_significant_for_a_hidden_offset_and_not_without():
         out[case] = loro_gain(exps, rig, None, lin.theta, off, f.theta, lin)
         assert len(out[case]["records"]) == 2
         assert out[case]["delta_lpd"] == pytest.approx(sum(out[case]["records"]))
+        assert np.shape(out[case]["fit_percent"]) == (2, 3)
+        assert np.shape(out[case]["fit_percent_current"]) == (2, 3)
+    # the offset's held-out predictions fit better, record by record and cart by cart
+    assert np.all(np.greater(out["input_offset"]["fit_percent"],
+                             out["input_offset"]["fit_percent_current"])), out
     # the offset predicts each held-out record far better than the linear model ...
     assert out["input_offset"]["z"] > 5, out
     # ... and without an offset it gains nothing beyond its standard error (negative

@@ -74,6 +74,10 @@ def _report(d) -> str:
         if ho:
             line += f", held out {ho['delta_lpd']:.1f} +- {ho['se']:.1f} nats"
         lines.append(line)
+        if ho and ho.get("fit_percent"):
+            rows = "; ".join(", ".join(f"{x:.1f}" for x in r) for r in ho["fit_percent"])
+            lines.append(f"    held-out fit percent (each record predicted from the others, "
+                         f"refits started from the full fit): {rows}")
     lines.append(f"explained: {'yes' if d.explained else 'no'}")
     label = {"posterior": "90 % credible interval",
              "posterior_unconverged": "90 % interval of UNCONVERGED chains",

@@ -232,23 +232,32 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
     dict
         ``delta_lpd`` (nats), ``se`` (the criterion's standard error of the summed
         pointwise differences: ``autocorr_se`` for the output error), ``z``
-        (``delta_lpd / se``), ``records`` (per held-out record, nats), ``criterion``.
+        (``delta_lpd / se``), ``records`` (per held-out record, nats), ``criterion``,
+        and ``fit_percent`` / ``fit_percent_current``: per held-out record, the fit
+        percentage of each output of the new and the current model's prediction.  The
+        refits start from fits that have seen the held-out record, so these are
+        optimistic by the distance such a start leaves (up to 7 points on the measured
+        records, docs/discrepancy.md section 6, which fits each fold from scratch).
     """
     crit = criterion_for(exps) if criterion is None else criterion
-    per, pts = [], []
+    per, pts, fp_new, fp_cur = [], [], [], []
     for r in range(len(exps)):
         others = [e for i, e in enumerate(exps) if i != r]
         th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev)
         th_n = _refit(new_ext, rig, new_theta, others, linear, max_nfev)
-        d = (_lpd([exps[r]], _simulate(new_ext, rig, th_n, [exps[r]]), crit)
-             - _lpd([exps[r]], _simulate(cur_ext, rig, th_c, [exps[r]]), crit))
+        y_n = _simulate(new_ext, rig, th_n, [exps[r]])
+        y_c = _simulate(cur_ext, rig, th_c, [exps[r]])
+        d = _lpd([exps[r]], y_n, crit) - _lpd([exps[r]], y_c, crit)
         per.append(float(d.sum()))
         pts.append(d)
+        fp_new.append(fit_percent(exps[r].y_m, y_n[0]).tolist())
+        fp_cur.append(fit_percent(exps[r].y_m, y_c[0]).tolist())
     d = np.concatenate(pts)
     se = crit.se(d, _shapes(exps))
     total = float(d.sum())
     return {"delta_lpd": total, "se": se, "z": total / se if se > 0 else np.inf,
-            "records": per, "criterion": crit.name}
+            "records": per, "criterion": crit.name, "fit_percent": fp_new,
+            "fit_percent_current": fp_cur}
 
 
 def _grid(cand, rig, cur_names, cur_par, theta_lin, exps) -> np.ndarray:
