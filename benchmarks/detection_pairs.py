@@ -16,6 +16,8 @@ Usage::
 
     python benchmarks/detection_pairs.py --seeds 20 --nulls 50 --workers 2 --out pairs.json
     python benchmarks/detection_pairs.py --seeds 20 --nulls 50 --out pairs.json --resume
+    python benchmarks/detection_pairs.py --records 2 --cases input_offset drive_deadband \
+        --seeds 13 --nulls 13 --workers 1 --out pairs2.json
 """
 
 from __future__ import annotations
@@ -37,8 +39,24 @@ from scipy import stats  # noqa: E402
 SEED_OFFSET = 20_000  # disjoint from the tests' seeds and from detection.py's
 
 
+def _records(e, seed: int, n_records: int) -> list:
+    """``n_records`` training records of one rig: ``e`` and copies of its response with
+    more sensor noise (half an encoder count, rms), quantised again (same input), as in
+    ``tests/test_diagnose_forward.py``.  Several records switch diagnose to the
+    output-error score and the leave-one-record-out test."""
+    from bayesmodal.data import ECP_M_PER_COUNT as q
+    from bayesmodal.data import Experiment
+
+    out = [e]
+    rng = np.random.default_rng(seed + 1)
+    for k in range(1, n_records):
+        y = np.round((e.y_m + rng.normal(0, 0.5 * q, e.y_m.shape)) / q) * q
+        out.append(Experiment(e.t_s, e.v_volt, y, name=f"{e.name}-{k}"))
+    return out
+
+
 def _job(args):
-    case, seed, n_null, n_samples, max_effects = args
+    case, seed, n_null, n_samples, max_effects, n_records = args
     import warnings
 
     from hidden_effects import make
@@ -50,8 +68,9 @@ def _job(args):
     t0 = time.perf_counter()
     h = make(None, seed, n_samples) if case == "none" else make_case(case, seed, n_samples)
     try:
-        d = diagnose(h.experiment, posterior=False, n_null=n_null, rng=seed,
-                     max_effects=max_effects)
+        exps = _records(h.experiment, seed, n_records)
+        d = diagnose(exps, train=list(range(n_records)), posterior=False, n_null=n_null,
+                     rng=seed, max_effects=max_effects)
         if case == "none":
             ok, found = d.cause == "none", [(c.cause, c.location) for c in d.causes]
         else:
@@ -90,7 +109,7 @@ def table(rows, cases):
 
 
 #: settings a resumed run must share with the stored rows (the rest may differ)
-SAME_SETTINGS = ("calibration_nulls", "samples", "max_effects")
+SAME_SETTINGS = ("calibration_nulls", "samples", "max_effects", "records")
 
 
 def _stored_rows(path: Path, args) -> list:
@@ -99,8 +118,9 @@ def _stored_rows(path: Path, args) -> list:
         return []
     old = json.loads(path.read_text())
     for key in SAME_SETTINGS:
-        if old["args"][key] != getattr(args, key):
-            raise SystemExit(f"--resume: {path} was made with {key} = {old['args'][key]}, "
+        stored = old["args"].get(key, 1 if key == "records" else None)
+        if stored != getattr(args, key):
+            raise SystemExit(f"--resume: {path} was made with {key} = {stored}, "
                              f"this command has {getattr(args, key)}; use another --out")
     return old["rows"]
 
@@ -116,6 +136,9 @@ def main(argv=None) -> int:
                     help="null data sets of each calibration inside diagnose (default 19)")
     ap.add_argument("--samples", type=int, default=2400, help="record length (5 ms samples)")
     ap.add_argument("--max-effects", type=int, default=3)
+    ap.add_argument("--records", type=int, default=1,
+                    help="training records per data set: the case's record and re-noised "
+                    "copies of it (default 1; 2 or more test the several-record criterion)")
     ap.add_argument("--cases", nargs="*", default=list(CASES))
     ap.add_argument("--out", default="detection_pairs.json", help="JSON output file")
     ap.add_argument("--resume", action="store_true",
@@ -127,7 +150,9 @@ def main(argv=None) -> int:
     # has every case at about the same number of seeds
     wanted = [("none", SEED_OFFSET + s) for s in range(args.nulls)]
     wanted += [(c, SEED_OFFSET + s) for s in range(args.seeds) for c in args.cases]
-    jobs = [(c, s, args.calibration_nulls, args.samples, args.max_effects)
+    if args.records < 1:
+        raise SystemExit(f"--records must be at least 1, got {args.records}")
+    jobs = [(c, s, args.calibration_nulls, args.samples, args.max_effects, args.records)
             for c, s in wanted if (c, s) not in done]
     cases = list(dict.fromkeys(list(args.cases) + [r["case"] for r in rows if r["case"] != "none"]))
     t0 = time.perf_counter()

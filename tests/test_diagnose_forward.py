@@ -261,6 +261,23 @@ def test_pairs_benchmark_resumes_only_from_rows_made_with_the_same_settings(tmp_
     with pytest.raises(SystemExit, match="samples = 2400"):
         bench.main(["--seeds", "1", "--nulls", "1", "--samples", "1200", "--out", str(out),
                     "--resume"])
+    # rows stored before --records existed were made with one record
+    with pytest.raises(SystemExit, match="records = 1"):
+        bench.main(["--seeds", "1", "--nulls", "1", "--records", "2", "--out", str(out),
+                    "--resume"])
+
+
+def test_pairs_benchmark_several_records_are_quantised_copies_with_more_noise():
+    bench = _pairs_benchmark()
+    e = make_case("input_offset", 3, 400).experiment
+    exps = bench._records(e, 3, 3)
+    assert len(exps) == 3 and exps[0] is e
+    q = ECP_M_PER_COUNT
+    for x in exps[1:]:
+        np.testing.assert_array_equal(x.v_volt, e.v_volt)
+        np.testing.assert_allclose(x.y_m / q, np.round(x.y_m / q), atol=1e-9)
+        assert not np.array_equal(x.y_m, e.y_m)
+    assert not np.array_equal(exps[1].y_m, exps[2].y_m)
 
 
 def test_forward_steps_offer_exchanges_of_the_plant_side_effect():
