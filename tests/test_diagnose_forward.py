@@ -571,15 +571,17 @@ def test_a_refinement_simplified_to_what_it_refines_is_a_cause():
 
 
 def test_two_training_records_name_a_hidden_offset_and_nothing_on_null_data():
-    """The several-record path end to end (output-error score, leave-one-record-out
+    """The several-record path of the first step (output-error score, leave-one-record-out
     test): two records of a rig with a hidden input offset name it; two records without
-    an effect give ``none`` (negative control)."""
+    an effect give ``none`` (negative control).  Forward selection on several records:
+    ``benchmarks/detection_pairs.py --records 2`` (docs/diagnose.md)."""
     from bayesmodal.discrepancy.diagnosis import diagnose
 
     found = {}
     for case, seed in (("input_offset", 0), (None, 1)):
         d = diagnose(_two_records(case, seed), train=[0, 1], posterior=False, n_null=N_NULL,
-                     rng=seed, max_effects=3)
+                     rng=seed, max_effects=1,
+                     candidates=("input_offset", "drive_deadband", "motor_lag"))
         found[case] = [c.cause for c in d.causes]
         if case:
             assert d.causes[0].gain["held_out"]["criterion"] == "output_error"
