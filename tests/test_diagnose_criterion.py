@@ -9,10 +9,12 @@ from scipy import stats
 
 from bayesmodal.discrepancy.diagnosis.scoring import (
     AR1,
+    EITHER,
     OUTPUT_ERROR,
     ar1_pointwise,
     autocorr_se,
     criterion_for,
+    held_out_significant,
     output_error_pointwise,
 )
 
@@ -126,9 +128,43 @@ def test_the_ar1_test_is_the_likelihood_ratio_with_bic():
     assert sig == (pv < 0.01 and bic > 0)
 
 
-def test_criterion_for_one_record_is_ar1_and_for_several_output_error():
+def test_criterion_for_one_record_is_ar1_and_for_several_either():
     class E:  # the criterion needs only the number of records
         pass
 
     assert criterion_for([E()]) is AR1
-    assert criterion_for([E(), E()]) is OUTPUT_ERROR
+    assert criterion_for([E(), E()]) is EITHER
+
+
+def test_either_is_significant_when_one_test_is_at_half_the_level():
+    """``"either"`` runs both tests at ``level / 2``: the level seen by the output error
+    alone counts, a gain of both counts, no gain counts for neither (negative control);
+    its gain, LR and BIC gain are the AR(1) score's and its p-value the Bonferroni one."""
+    rng = np.random.default_rng(5)
+    phi, sigma = 0.999, 1e-5
+    shapes = [(3000, 3), (3000, 3)]
+    noise = [_ar1(rng, n, m, phi, sigma=sigma) for n, m in shapes]
+    c = 2 * max(float(np.std(x)) for x in noise)
+    pw_new = EITHER.pointwise(noise)
+    assert pw_new.shape == (2, 2 * 3000 * 3)
+    np.testing.assert_array_equal(pw_new[0], AR1.pointwise(noise))
+    np.testing.assert_array_equal(pw_new[1], OUTPUT_ERROR.pointwise(noise))
+    lvl = 0.01
+    for cur, expect in (([x + c for x in noise], True), ([x.copy() for x in noise], False)):
+        pw_cur = EITHER.pointwise(cur)
+        g, lr, pv, bic, sig = EITHER.test(pw_new, pw_cur, 1, shapes, lvl)
+        a = AR1.test(pw_new[0], pw_cur[0], 1, shapes, lvl / 2)
+        o = OUTPUT_ERROR.test(pw_new[1], pw_cur[1], 1, shapes, lvl / 2)
+        assert (g, lr, bic) == (a[0], a[1], a[3])
+        assert pv == pytest.approx(min(1.0, 2 * min(a[2], o[2])))
+        assert sig is expect is (a[-1] or o[-1])
+    assert EITHER.total(pw_new) == pytest.approx(pw_new[0].sum())
+    # held out: either z above the quantile of level / 2
+    d = pw_new - EITHER.pointwise([x + c for x in noise])
+    ho = dict(EITHER.held_out(d, shapes), criterion="either")
+    assert ho["z"] == pytest.approx(d[0].sum() / np.sqrt(d[0].size * np.var(d[0])))
+    q = stats.norm.ppf(1 - lvl / 2)
+    assert held_out_significant(ho, lvl) is bool(ho["z"] > q or ho["output_error"]["z"] > q)
+    assert ho["output_error"]["z"] > q  # the level, seen by the output error
+    no = dict(ho, z=0.0, output_error=dict(ho["output_error"], z=0.0))
+    assert not held_out_significant(no, lvl)

@@ -72,15 +72,15 @@ class CandidateScore:
         False when it was not fitted (outside the top candidates) or the fit failed.
     gain_nll : float
         Drop of the AR(1)-whitened negative log-likelihood (profiled noise) on the
-        training data, nats; with several training records, of the output error's
-        (``scoring.Criterion``).
+        training data, nats (also with several training records, whose test adds the
+        output error's, ``scoring.Criterion``).
     lr_statistic : float
         ``2 gain_nll``.
     n_params : int
         Extension parameters.
     p_value : float
-        ``chi2.sf(lr_statistic, n_params)``; with several records the normal tail of
-        ``gain_nll`` over its autocorrelation-aware SE.
+        ``chi2.sf(lr_statistic, n_params)``; with several records the Bonferroni
+        ``2 min`` of it and the output error's normal tail.
     score : float
         BIC gain ``lr_statistic - n_params ln N`` (ranking key).
     significant : bool

@@ -31,20 +31,22 @@ found, a ``Combined`` model):
    ``LR = 2 (lpd_new - lpd_cur)`` of the AR(1)-whitened Gaussian likelihood (noise
    profiled per output) against ``chi2(k)`` (``k`` added parameters) at
    ``alpha / n_candidates``, and a positive BIC gain ``LR - k ln N``.  With several
-   training records the score is the output error (``scoring.Criterion``: a Gaussian
-   per output with its variance profiled, which sees a level where the AR(1) score with
-   ``phi`` near 1 does not: on the four ECP records an input offset that halves the
-   cost scored 796 nats *below* the model without it), its gain tested by
-   ``z = gain / SE`` with an autocorrelation-aware SE (``scoring.autocorr_se``), and the
-   same BIC gain.  For a pure addition ``lpd_cur`` is the current model at its best
+   training records a gain counts when that test or a test of the output error finds
+   it, each at half the level (``scoring.Criterion("either")``): the output error (a
+   Gaussian per output with its variance profiled, ``z = gain / SE`` with an
+   autocorrelation-aware SE, ``scoring.autocorr_se``) sees a level where the AR(1)
+   score with ``phi`` near 1 does not (on the four ECP records an input offset that
+   halves the cost scored 796 nats *below* the model without it).  For a pure addition
+   ``lpd_cur`` is the current model at its best
    known point: its fit, or its value at the candidate's optimum without the added
    effects, whichever scores higher (``_reference``), so that a better optimum of the
    shared parameters found by the candidate's fit is not credited to the effect.  With
    two or more training records the criterion is the
    leave-one-record-out gain: both models are refitted on the other records (started
    from their full fits) and predict the held-out one; the sum over records of the
-   held-out output-error gain ``G`` must exceed ``z_(1 - alpha / n_candidates)`` times
-   its autocorrelation-aware standard error (the in-sample test is kept as well).  The
+   held-out AR(1) gain must exceed ``z_(1 - alpha / (2 n_candidates))`` times its SE
+   ``sqrt(n var(d_i))``, or the output-error gain the same quantile times its
+   autocorrelation-aware SE (the in-sample test is kept as well).  The
    significant candidate of largest gain (held-out when available, else
    BIC) is accepted.  A candidate with stick-slip friction that gains in sample is first
    refitted by a global search (``effects.global_fit``), since its local fit may stop on
@@ -70,7 +72,6 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from ..._errors import DataError, ModelError
 from ..._json import to_jsonable
@@ -84,7 +85,7 @@ from ..effects import EXTENSIONS, ExtensionFit, fit_extension_lsq, get_extension
 from ..effects.fit import extension_fit_at, extension_residuals
 from ..effects.global_fit import fit_extension_global, is_stick_slip
 from .null import NullCalibration, calibrate_null, fit_noise, run_diagnostics
-from .scoring import Criterion, criterion_for
+from .scoring import Criterion, criterion_for, held_out_significant
 from .starts import extra_starts
 
 __all__ = ["Cause", "ForwardResult", "forward_select", "loro_gain", "REFINES",
@@ -224,15 +225,18 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
     For every record, both models are refitted by least squares on the other records
     (started from their fits to all records) and predict the held-out record; the gain
     is the sum over records of the held-out score (``criterion``, default that of the
-    records, ``criterion_for``: the output error for two or more records, each output's
-    variance profiled on each prediction's residual), new minus current.
+    records, ``criterion_for``: for two or more records the AR(1) log density and the
+    output error, each output's noise profiled on each prediction's residual), new minus
+    current; :func:`scoring.held_out_significant` tests it.
 
     Returns
     -------
     dict
         ``delta_lpd`` (nats), ``se`` (the criterion's standard error of the summed
         pointwise differences: ``autocorr_se`` for the output error), ``z``
-        (``delta_lpd / se``), ``records`` (per held-out record, nats), ``criterion``,
+        (``delta_lpd / se``), ``records`` (per held-out record, nats), ``criterion``;
+        for ``"either"`` these are the AR(1) score's and ``output_error`` holds the
+        output error's ``delta_lpd``, ``se``, ``z`` and ``records``;
         and ``fit_percent`` / ``fit_percent_current``: per held-out record, the fit
         percentage of each output of the new and the current model's prediction.  The
         refits start from fits that have seen the held-out record, so these are
@@ -240,7 +244,7 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
         records, docs/discrepancy.md section 6, which fits each fold from scratch).
     """
     crit = criterion_for(exps) if criterion is None else criterion
-    per, pts, fp_new, fp_cur = [], [], [], []
+    per, per_oe, pts, fp_new, fp_cur = [], [], [], [], []
     for r in range(len(exps)):
         others = [e for i, e in enumerate(exps) if i != r]
         th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev)
@@ -248,16 +252,18 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
         y_n = _simulate(new_ext, rig, th_n, [exps[r]])
         y_c = _simulate(cur_ext, rig, th_c, [exps[r]])
         d = _lpd([exps[r]], y_n, crit) - _lpd([exps[r]], y_c, crit)
-        per.append(float(d.sum()))
+        per.append(crit.total(d))
+        if d.ndim == 2:
+            per_oe.append(float(d[1].sum()))
         pts.append(d)
         fp_new.append(fit_percent(exps[r].y_m, y_n[0]).tolist())
         fp_cur.append(fit_percent(exps[r].y_m, y_c[0]).tolist())
-    d = np.concatenate(pts)
-    se = crit.se(d, _shapes(exps))
-    total = float(d.sum())
-    return {"delta_lpd": total, "se": se, "z": total / se if se > 0 else np.inf,
-            "records": per, "criterion": crit.name, "fit_percent": fp_new,
-            "fit_percent_current": fp_cur}
+    out = crit.held_out(np.concatenate(pts, axis=-1), _shapes(exps))
+    out.update(records=per, criterion=crit.name, fit_percent=fp_new,
+               fit_percent_current=fp_cur)
+    if per_oe:
+        out["output_error"]["records"] = per_oe
+    return out
 
 
 def _grid(cand, rig, cur_names, cur_par, theta_lin, exps) -> np.ndarray:
@@ -358,7 +364,8 @@ def _reference(new, f, ext, fit, rig, exps, cur_pw):
         return fit.theta, cur_pw
     with np.errstate(all="ignore"):
         pw = _lpd(exps, _simulate(ext, rig, th, exps))
-    if np.all(np.isfinite(pw)) and pw.sum() > cur_pw.sum():
+    crit = criterion_for(exps)
+    if np.all(np.isfinite(pw)) and crit.total(pw) > crit.total(cur_pw):
         return th, pw
     return fit.theta, cur_pw
 
@@ -461,7 +468,8 @@ def _better_by_score(simple, rig, start, f, exps, linear) -> ExtensionFit | None
         return f
     if f is None:
         return at
-    score = [float(np.sum(_lpd(exps, _simulate(simple, rig, x.theta, exps)))) for x in (at, f)]
+    crit = criterion_for(exps)
+    score = [crit.total(_lpd(exps, _simulate(simple, rig, x.theta, exps))) for x in (at, f)]
     return at if score[0] > score[1] else f
 
 
@@ -564,7 +572,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
         ho = None
         if sig and len(exps) >= 2:
             ho = loro_gain(exps, rig, ext, ref_theta, new, f.theta, linear, loro_nfev)
-            sig = sig and bool(ho["delta_lpd"] > stats.norm.ppf(1 - level) * ho["se"])
+            sig = sig and held_out_significant(ho, level)
         rows.append({"cause": c, "added": added_, "dropped": dropped, "names": new_names,
                      "fit": f, "delta_lpd": g, "lr": lr, "n_params": k, "p_value": pv,
                      "bic_gain": bic, "cost_ratio": f.cost / fit.cost, "held_out": ho,

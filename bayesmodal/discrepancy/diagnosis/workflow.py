@@ -14,9 +14,10 @@ Steps (``posterior=False`` gives the same decision, only without the MCMC interv
    (``bayesmodal.discrepancy.effects.fit_extension_lsq``) and score each by the drop of the
    AR(1)-whitened negative log-likelihood (noise profiled): likelihood-ratio statistic
    ``LR = 2 gain`` against ``chi2(k)`` at level ``alpha / n_candidates``, ranking key the
-   BIC gain ``LR - k ln N``; with several training records the output error instead,
-   which sees a level, its gain tested by a z-test with an autocorrelation-aware SE
-   (``scoring.Criterion``), and the leave-one-record-out gain must be significant too;
+   BIC gain ``LR - k ln N``; with several training records a gain also counts when a
+   z-test of the output error (which sees a level, autocorrelation-aware SE) finds it,
+   each test at half the level (``scoring.Criterion``), and the leave-one-record-out
+   gain must be significant too;
 5. accept the best-scoring significant candidate whose residuals then pass its signature
    diagnostics and lower ``T``; report where it acts, its parameters, the fit percentages
    before and after (training and held-out experiments), the movement of the linear
@@ -49,7 +50,7 @@ from .null import (
     infer_quantum,
     run_diagnostics,
 )
-from .scoring import ar1_pointwise, criterion_for, laplace_sd
+from .scoring import ar1_pointwise, criterion_for, held_out_significant, laplace_sd
 from .starts import best_starts
 
 __all__ = ["diagnose", "DEFAULT_CANDIDATES"]
@@ -306,7 +307,7 @@ def diagnose(
             if c in signature:
                 signature[c] += max(t.z, 0.0)
     order = sorted(cands, key=lambda c: (-signature[c], cands.index(c)))
-    # one record: the AR(1) log density; several: the output error, which sees a level
+    # one record: the AR(1) log density; several: it or the output error (sees a level)
     crit = criterion_for(train_exps)
     shapes = [(e.n_samples, e.n_outputs) for e in train_exps]
     lin_pointwise = crit.pointwise([e.y_m - y for e, y in zip(train_exps, y_lin, strict=True)])
@@ -386,7 +387,7 @@ def diagnose(
         if sig and len(train_exps) >= 2:
             # several records: the leave-one-record-out gain must be significant too
             held_out = loro_gain(train_exps, rig, None, linear.theta, ext, ef.theta, linear)
-            sig = bool(held_out["delta_lpd"] > stats.norm.ppf(1 - level) * held_out["se"])
+            sig = held_out_significant(held_out, level)
         lin_theta = ef.theta[: model.n_params]
         d_after = [run_diagnostics(e, model, lin_theta, quantum_m=q, y_pred=y)
                    for e, y in zip(train_exps, y_ext, strict=True)]
@@ -478,12 +479,13 @@ def diagnose(
         gain["heldout_fit_percent_after"] = _fit_percent(held_exps, held_ext)
     # plug-in ELPD (lpd minus parameter count) with the SE of pointwise differences
     d = pw - lin_pointwise
-    label = "AR(1) lpd" if crit.name == "ar1" else "output-error lpd"
-    gain.update(delta_elpd=float(d.sum() - n_extra),
+    label = "output-error lpd" if crit.name == "output_error" else "AR(1) lpd"
+    gain.update(delta_elpd=crit.total(d) - n_extra,
                 delta_elpd_se=crit.se(d, shapes),
                 criterion=f"plug-in ELPD ({label} at the least-squares fits minus the "
                           "number of extra parameters); SE from the pointwise differences"
-                          + ("" if crit.name == "ar1" else ", autocorrelation-aware"))
+                          + (", autocorrelation-aware" if crit.name == "output_error"
+                             else ""))
     if held_exps:
         hd = ar1_pointwise([e.y_m - y for e, y in zip(held_exps, held_ext, strict=True)]) - \
             ar1_pointwise([e.y_m - y for e, y in zip(held_exps, held_lin, strict=True)])
