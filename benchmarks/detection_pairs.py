@@ -41,9 +41,9 @@ SEED_OFFSET = 20_000  # disjoint from the tests' seeds and from detection.py's
 
 def _records(e, seed: int, n_records: int) -> list:
     """``n_records`` training records of one rig: ``e`` and copies of its response with
-    more sensor noise (half an encoder count, rms), quantised again (same input), as in
-    ``tests/test_diagnose_forward.py``.  Several records switch diagnose to the
-    output-error score and the leave-one-record-out test."""
+    more sensor noise (half an encoder count, rms), quantised again (same input; the
+    tests' two-record data too).  Several records switch diagnose to its several-record
+    test (AR(1) or output error) and the leave-one-record-out test."""
     from bayesmodal.data import ECP_M_PER_COUNT as q
     from bayesmodal.data import Experiment
 

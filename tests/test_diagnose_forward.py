@@ -17,7 +17,7 @@ from hidden_effects import make
 from hidden_pairs import CASES, judge, make_case
 
 from bayesmodal import ConfigError, ModelError
-from bayesmodal.data import ECP_M_PER_COUNT, Experiment
+from bayesmodal.data import ECP_M_PER_COUNT
 from bayesmodal.discrepancy.diagnosis import diagnose
 from bayesmodal.discrepancy.diagnosis.forward import REFINES, loro_gain
 from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq, get_extension
@@ -31,13 +31,10 @@ N_SAMPLES = 2400
 
 def _two_records(case, seed):
     """Two records of one rig: the first from the reference simulator, the second the
-    same response with more sensor noise, quantised again (same input)."""
+    same response with more sensor noise, quantised again (same input; the benchmark's
+    ``_records``)."""
     h = make_case(case, seed, 1600) if case else make(None, seed, 1600)
-    e = h.experiment
-    rng = np.random.default_rng(seed + 1)
-    q = ECP_M_PER_COUNT
-    y2 = np.round((e.y_m + rng.normal(0, 0.5 * q, e.y_m.shape)) / q) * q
-    return [e, Experiment(e.t_s, e.v_volt, y2, name=e.name + "-b")]
+    return _pairs_benchmark()._records(h.experiment, seed, 2)
 
 
 def test_loro_gain_is_significant_for_a_hidden_offset_and_not_without():

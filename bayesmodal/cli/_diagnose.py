@@ -109,11 +109,11 @@ def _report(d) -> str:
     lines.append("ranking:")
     for c in d.ranking:
         lines.append(f"   {c.name:18s} score {c.score:10.1f}  {c.message}")
-    score = "AR(1)" if len(d.train) < 2 else "output-error"
+    test = "" if len(d.train) < 2 else "; significant by the AR(1) or the output-error test"
     for k, st in enumerate(d.as_dict()["forward_steps"], 2):
         lines.append(f"forward step {k} after {st['model']} (T = {st['T']:.1f}, threshold "
-                     f"{st['threshold']:.1f}): in-sample {score} gain, least-squares cost "
-                     "ratio, held-out gain")
+                     f"{st['threshold']:.1f}): in-sample AR(1) gain, least-squares cost "
+                     f"ratio, held-out AR(1) gain{test}")
         width = max((len(c["cause"]) for c in st["candidates"]), default=0)
         for c in st["candidates"]:
             ho = c.get("held_out")

@@ -479,13 +479,10 @@ def diagnose(
         gain["heldout_fit_percent_after"] = _fit_percent(held_exps, held_ext)
     # plug-in ELPD (lpd minus parameter count) with the SE of pointwise differences
     d = pw - lin_pointwise
-    label = "output-error lpd" if crit.name == "output_error" else "AR(1) lpd"
-    gain.update(delta_elpd=crit.total(d) - n_extra,
+    gain.update(delta_elpd=crit.total(d) - n_extra,  # the AR(1) row with several records
                 delta_elpd_se=crit.se(d, shapes),
-                criterion=f"plug-in ELPD ({label} at the least-squares fits minus the "
-                          "number of extra parameters); SE from the pointwise differences"
-                          + (", autocorrelation-aware" if crit.name == "output_error"
-                             else ""))
+                criterion="plug-in ELPD (AR(1) lpd at the least-squares fits minus the "
+                          "number of extra parameters); SE from the pointwise differences")
     if held_exps:
         hd = ar1_pointwise([e.y_m - y for e, y in zip(held_exps, held_ext, strict=True)]) - \
             ar1_pointwise([e.y_m - y for e, y in zip(held_exps, held_lin, strict=True)])
