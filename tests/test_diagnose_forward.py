@@ -572,6 +572,7 @@ def test_two_training_records_name_a_hidden_offset_and_nothing_on_null_data():
     test): two records of a rig with a hidden input offset name it; two records without
     an effect give ``none`` (negative control).  Forward selection on several records:
     ``benchmarks/detection_pairs.py --records 2`` (docs/diagnose.md)."""
+    from bayesmodal.cli._diagnose import _report
     from bayesmodal.discrepancy.diagnosis import diagnose
 
     found = {}
@@ -582,4 +583,11 @@ def test_two_training_records_name_a_hidden_offset_and_nothing_on_null_data():
         found[case] = [c.cause for c in d.causes]
         if case:
             assert d.causes[0].gain["held_out"]["criterion"] == "either"
+            # the text report lists each record's diagnostics under the record's name
+            text = _report(d).split("tests:\n", 1)[1].split("ranking:", 1)[0]
+            heads = [ln.strip() for ln in text.splitlines() if ln.startswith("  ") and
+                     ln.strip().endswith(":")]
+            assert heads == [f"{e}:" for e in d.experiments], heads
+            per = len({t.name for t in d.tests})
+            assert len(text.splitlines()) == len(d.tests) + len(heads) == 2 * per + 2
     assert found == {"input_offset": ["input_offset"], None: []}, found

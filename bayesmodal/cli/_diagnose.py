@@ -103,7 +103,10 @@ def _report(d) -> str:
     if g.get("delta_elpd") is not None:
         lines.append(f"delta ELPD: {g['delta_elpd']:.1f} +- {g['delta_elpd_se']:.1f}")
     lines.append("tests:")
-    for t in d.tests:
+    several = len({t.experiment for t in d.tests}) > 1
+    for k, t in enumerate(d.tests):
+        if several and (k == 0 or t.experiment != d.tests[k - 1].experiment):
+            lines.append(f"  {t.experiment}:")  # each record's diagnostics under its name
         mark = "!" if t.exceeded else " "
         lines.append(f" {mark} {t.name:22s} z = {t.z:7.1f}  {t.summary}")
     lines.append("ranking:")
