@@ -48,7 +48,7 @@ problem in a file is collected and reported at once, each naming the file and th
     burn = 1000
     thin = 5
     seed = 1
-    moves = "de"                # de, stretch, de-snooker, walk, kde or "de:0.8,de-snooker:0.2"
+    moves = "de"                # de, stretch, de-snooker, de-jump, walk, kde, "de:0.8,de-jump:0.2"
     restart = 500               # optional: re-centre the walkers on the best one at this
                                 # step (< burn), for walkers stuck in a negligible mode
     init = "ball"               # or "laplace": walkers drawn from the Gaussian at the
@@ -92,7 +92,7 @@ from .system import DAMPING_MODELS, ECP210_SPRINGS_N_M
 __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
 
 #: Move names of ``[sampler] moves`` (``bayesmodal.inference.moves.MOVES``).
-MOVES = ("stretch", "de", "de-snooker", "walk", "kde")
+MOVES = ("stretch", "de", "de-snooker", "de-jump", "walk", "kde")
 #: Moves whose implementation changed the result: a configuration naming one hashes with
 #: its revision, so a run sampled before the change does not resume (the snooker move is
 #: emcee's with the fix of its pull request #531 since 24 Nov 2026; the released one

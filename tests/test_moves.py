@@ -11,7 +11,13 @@ import pytest
 
 from bayesmodal import config
 from bayesmodal._errors import ConfigError
-from bayesmodal.inference.moves import MOVES, SnookerMove, default_moves, parse_moves
+from bayesmodal.inference.moves import (
+    MOVES,
+    ModeJumpMove,
+    SnookerMove,
+    default_moves,
+    parse_moves,
+)
 
 NDIM, WALKERS, STEPS = 12, 40, 2500
 
@@ -53,6 +59,51 @@ def test_corrected_snooker_keeps_the_variance():
 def test_snooker_alone_keeps_the_variance():
     r, se = _variance_ratio(SnookerMove())
     assert abs(r - 1.0) < 4 * se, (r, se)
+
+
+def test_mode_jumps_keep_the_variance():
+    r, se = _variance_ratio([(emcee.moves.DEMove(), 0.9), (ModeJumpMove(), 0.1)])
+    assert abs(r - 1.0) < 4 * se, (r, se)
+
+
+def _share_in_second_mode(moves, seed=2):
+    """Two equal Gaussians 40 sd apart in 6 dimensions, 36 walkers started in the first and
+    4 in the second: the share of the kept draws in the second mode, and its Monte Carlo
+    standard error (binomial, with the effective sample size of the mode indicator)."""
+    ndim, walkers, steps, sep = 6, 40, 3000, 40.0
+    centre = np.zeros(ndim)
+    centre[0] = sep
+
+    def logp(x):
+        a = -0.5 * np.sum(x**2, axis=1)
+        b = -0.5 * np.sum((x - centre) ** 2, axis=1)
+        return np.logaddexp(a, b)
+
+    rng = np.random.default_rng(seed)
+    p0 = rng.standard_normal((walkers, ndim))
+    p0[:4] += centre
+    s = emcee.EnsembleSampler(walkers, ndim, logp, moves=moves, vectorize=True)
+    s.run_mcmc(emcee.State(p0, random_state=np.random.RandomState(seed).get_state()), steps)
+    ind = (s.get_chain()[steps // 2 :, :, 0] > sep / 2).astype(float)
+    share = float(ind.mean())
+    if 0.0 < share < 1.0 and np.ptp(ind, axis=0).all():
+        tau = float(emcee.autocorr.integrated_time(ind[:, :, None], quiet=True)[0])
+    else:  # no walker ever changed mode: the share is its starting value
+        tau = float(ind.shape[0])
+    se = np.sqrt(max(share * (1 - share), 1e-12) / (ind.size / tau))
+    return share, se
+
+
+def test_mode_jumps_give_two_equal_modes_equal_shares():
+    """ter Braak's gamma = 1 step moves walkers between modes: the draws split 50/50
+    between two equal Gaussians, within their Monte Carlo error; the ordinary step alone
+    keeps the start's 10 % (negative control)."""
+    share, se = _share_in_second_mode([(emcee.moves.DEMove(), 0.8), (ModeJumpMove(), 0.2)])
+    assert abs(share - 0.5) < 4 * se, (share, se)
+    # the ordinary step proposes points between the modes (e^-100 below them): no walker
+    # crosses, the share stays at the start's 4 of 40
+    share0, _ = _share_in_second_mode(default_moves())
+    assert share0 < 0.5 - 4 * se, (share0, se)
 
 
 @pytest.mark.skipif(emcee.__version__ != "3.1.6",

@@ -55,10 +55,30 @@ class SnookerMove(emcee.moves.DESnookerMove):
         return q, (ndim - 1.0) * metropolis
 
 
+def ModeJumpMove() -> emcee.moves.DEMove:
+    """Differential evolution with the full difference of two walkers (``gamma = 1``).
+
+    Ter Braak (2006, "A Markov chain Monte Carlo version of the genetic algorithm
+    Differential Evolution", Stat. Comput. 16) mixes this step into the ordinary one (mean
+    ``2.38 / sqrt(2 d)``) so that a walker can jump between modes: with ``x_b`` in another
+    mode and ``x_a`` in its own, ``x + (x_b - x_a)`` lands in the other mode, where the
+    small step only ever proposes points between them.  The proposal is symmetric, so the
+    move leaves the posterior invariant alone or in any mixture.  Configuration name
+    ``de-jump``, e.g. ``moves = "de:0.9,de-jump:0.1"``.
+
+    Examples
+    --------
+    >>> ModeJumpMove().gamma0
+    1.0
+    """
+    return emcee.moves.DEMove(gamma0=1.0)
+
+
 #: Move names of the configuration string (``[sampler] moves``); ``de-snooker`` is the
-#: corrected :class:`SnookerMove`.
+#: corrected :class:`SnookerMove`, ``de-jump`` :func:`ModeJumpMove`.
 MOVES = {"stretch": emcee.moves.StretchMove, "de": emcee.moves.DEMove,
-         "de-snooker": SnookerMove, "walk": emcee.moves.WalkMove, "kde": emcee.moves.KDEMove}
+         "de-snooker": SnookerMove, "de-jump": ModeJumpMove, "walk": emcee.moves.WalkMove,
+         "kde": emcee.moves.KDEMove}
 
 
 def default_moves() -> list:
