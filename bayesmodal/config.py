@@ -51,6 +51,7 @@ problem in a file is collected and reported at once, each naming the file and th
     moves = "de"                # de, stretch, de-snooker, de-jump, walk, kde, "de:0.8,de-jump:0.2"
     restart = 500               # optional: re-centre the walkers on the best one at this
                                 # step (< burn), for walkers stuck in a negligible mode
+    # prune = 3000              # or: move only the walkers stranded far below the others
     init = "ball"               # or "laplace": walkers drawn from the Gaussian at the
                                 # posterior mode (an extended model on several records)
 
@@ -116,7 +117,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "records": {"per_record": dict, "noise_per_record": bool, "noise_scale": str},
     "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
-                "moves": str, "restart": int, "init": str},
+                "moves": str, "restart": int, "prune": int, "init": str},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
                 "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool,
                 "chain": str},
@@ -153,6 +154,7 @@ class RunConfig:
     seed: int = 1
     moves: str = "de"
     restart: int | None = None
+    prune: int | None = None
     init: str = "ball"
     out_dir: str = ""
     plots: bool = True
@@ -185,7 +187,7 @@ class RunConfig:
                      "temperature": 1.0,
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None, "columns": None, "input_scale": 1.0,
-                     "time_scale": 1.0, "init": "ball"}
+                     "time_scale": 1.0, "init": "ball", "prune": None}
 
     def read_options(self):
         """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
@@ -512,6 +514,16 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             err("sampler.restart", f"must be in [1, sampler.burn) = [1, {burn}) so that "
                 f"every retained draw comes after it, got {restart}")
         kw["restart"] = restart
+    prune = values.get(("sampler", "prune"))
+    if prune is not None:
+        burn = values.get(("sampler", "burn"), RunConfig.burn)
+        if restart is not None:
+            err("sampler.prune", "give restart or prune, not both: restart re-centres "
+                "every walker, prune moves only the stranded ones")
+        elif not 1 <= prune < burn:
+            err("sampler.prune", f"must be in [1, sampler.burn) = [1, {burn}) so that "
+                f"every retained draw comes after it, got {prune}")
+        kw["prune"] = prune
     init = values.get(("sampler", "init"))
     if init is not None:
         if init not in ("ball", "laplace"):

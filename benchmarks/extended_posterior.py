@@ -71,6 +71,7 @@ def _one(job: dict) -> dict:
             priors=prep.priors, n_walkers=walkers, n_steps=steps, burn=burn,
             moves=prep.moves, rng=job["seed"], warn=False, extension=prep.extension,
             restart=cfg.restart if cfg.restart is not None and cfg.restart < burn else None,
+            prune=cfg.prune if cfg.prune is not None and cfg.prune < burn else None,
             layout=cfg.layout, temperature=cfg.temperature, init=job["init"] or cfg.init,
             backend=job["backend"], progress=job["progress"])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0

@@ -41,6 +41,7 @@ from ..system import LinearModel
 from .likelihood import Likelihood, as_experiments
 from .moves import default_moves
 from .priors import PriorSet, default_priors
+from .stragglers import prune_stragglers
 
 __all__ = [
     "ConvergenceWarning",
@@ -500,17 +501,20 @@ def _open_backend(backend, n_walkers: int, n_params: int, chash: str):
     return backend, done
 
 
-def _advance(sampler, state, n_steps: int, progress: bool) -> None:
+def _advance(sampler, state, n_steps: int, progress: bool, check: bool = True) -> None:
     """``sampler.run_mcmc(state, n_steps)`` with the package's progress display.
 
     The same ``sampler.sample`` iterations as ``run_mcmc`` (identical draws); ``state``
     None continues from the backend's last sample, as ``run_mcmc(None, ...)`` does for a
-    sampler opened on a filled backend.
+    sampler opened on a filled backend.  ``check=False`` skips emcee's test that the
+    walkers are linearly independent (for positions taken from the chain itself, whose
+    strongly correlated posterior can fail emcee's condition-number heuristic).
     """
-    if state is None:
-        state = sampler.get_last_sample()
+    if state is None:  # a continuation: the walkers are the chain's own
+        state, check = sampler.get_last_sample(), False
     with progress_bar(n_steps, desc="sampling", unit="step", enabled=bool(progress)) as bar:
-        for _ in sampler.sample(state, iterations=n_steps):
+        for _ in sampler.sample(state, iterations=n_steps,
+                                skip_initial_state_check=not check):
             bar.update(1)
 
 
@@ -550,6 +554,7 @@ def sample_posterior(
     warn: bool = True,
     extension=None,
     restart: int | None = None,
+    prune: int | None = None,
     layout=None,
     temperature: float = 1.0,
     initial_state: str = "rest",
@@ -618,6 +623,15 @@ def sample_posterior(
         the restart and have had ``burn - restart`` steps to spread out again.  The
         restart is deterministic for an integer ``rng`` and survives a resume from
         ``backend``.
+    prune : int, optional
+        After ``prune`` steps of burn-in, move only the walkers stranded far below the
+        others (log posterior more than ``chi2_P(1 - 1e-6) / 2`` below the median) onto
+        randomly chosen other walkers (``bayesmodal.inference.stragglers``); the rest of
+        the ensemble goes on as it is.  The gentler alternative to ``restart`` (which
+        re-centres every walker) for a posterior with local modes far below the best, as
+        the LuGre model on the four measured records.  Must be smaller than ``burn``;
+        give ``restart`` or ``prune``, not both.  Deterministic for an integer ``rng`` and
+        survives a resume from ``backend``.
     layout : RecordLayout, optional
         Several records, one physical system (``bayesmodal.inference.records``): the
         parameters named in ``layout.per_record`` get one value per record, independent
@@ -719,6 +733,17 @@ def sample_posterior(
             raise ConfigError(
                 f"restart must be in [1, burn) = [1, {burn}) so that every retained draw "
                 f"comes after it, got {restart}")
+    if prune is not None:
+        if restart is not None:
+            raise ConfigError("give restart or prune, not both: restart re-centres every "
+                              "walker, prune moves only the stranded ones")
+        if isinstance(prune, bool) or not isinstance(prune, (int, np.integer)):
+            raise ConfigError(f"prune must be an integer number of steps, got {prune!r}")
+        prune = int(prune)
+        if not 1 <= prune < burn:
+            raise ConfigError(
+                f"prune must be in [1, burn) = [1, {burn}) so that every retained draw "
+                f"comes after it, got {prune}")
     if isinstance(backend, (str, Path)) and not Path(backend).parent.is_dir():
         # before the least-squares start and the sampling, not when the first step is saved
         raise ConfigError(f"backend {str(backend)!r}: folder {str(Path(backend).parent)!r} "
@@ -762,7 +787,8 @@ def sample_posterior(
     # the restart ball's seed comes from a copy of the generator, so that the stream of
     # the start ball (and the first stage) is the one of a run without restart, and a
     # resumed run, which draws no start ball, re-creates it
-    restart_seed = None if restart is None else np.random.SeedSequence(
+    split = restart if restart is not None else prune  # the one step between two stages
+    restart_seed = None if split is None else np.random.SeedSequence(
         [int(np.random.Generator(copy.deepcopy(gen.bit_generator)).integers(2**63)),
          0x52455354])
     config = {
@@ -782,6 +808,7 @@ def sample_posterior(
         "seed": int(rng) if isinstance(rng, (int, np.integer)) else None,
         "refine": bool(refine),
         **({} if restart is None else {"restart": restart}),
+        **({} if prune is None else {"prune": prune}),
         **({} if layout is None else {"layout": lik.layout.to_dict()}),
         **({} if temperature == 1.0 else {"temperature": float(temperature)}),
         # (absent for the default, so that the hashes of earlier runs stay valid)
@@ -811,7 +838,7 @@ def sample_posterior(
         return _start_ball(priors, c, scale, n_walkers, generator, log_post)
 
     # the run is split at ``restart`` (if any); ``stop`` is the end of the current stage
-    stop = restart if restart is not None and done <= restart else n_steps
+    stop = split if split is not None and done <= split else n_steps
     if done == 0:
         z_init = ball(centre, gen)
         mt = np.random.RandomState(np.random.MT19937(np.random.SeedSequence(
@@ -826,12 +853,20 @@ def sample_posterior(
         _advance(sampler, None, stop - done, progress)
         n_eval += n_walkers * (stop - done)
         done = stop
-    if done == restart:  # (restart < burn < n_steps)
-        best = be.get_chain()[restart - 1, np.argmax(be.get_log_prob()[restart - 1])]
-        z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
+    if split is not None and done == split:  # (split < burn < n_steps)
+        lp_split = be.get_log_prob()[split - 1]
+        if restart is not None:
+            best = be.get_chain()[split - 1, np.argmax(lp_split)]
+            z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
+        else:
+            z_init = prune_stragglers(be.get_chain()[split - 1], lp_split,
+                                      np.random.default_rng(restart_seed)).z
         state = emcee.State(z_init, random_state=be.random_state)
-        _advance(sampler, state, n_steps - restart, progress)
-        n_eval += n_walkers * (n_steps - restart + 1)
+        if restart is not None:
+            _advance(sampler, state, n_steps - split, progress)
+        else:  # positions from the chain itself: emcee's independence check does not apply
+            _advance(sampler, state, n_steps - split, progress, check=False)
+        n_eval += n_walkers * (n_steps - split + 1)
     elapsed = time.perf_counter() - t0
 
     z_chain = be.get_chain()[:n_steps]
