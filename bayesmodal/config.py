@@ -99,6 +99,10 @@ MOVES = ("stretch", "de", "de-snooker", "de-jump", "walk", "kde")
 #: emcee's with the fix of its pull request #531 since 24 Nov 2026; the released one
 #: made the posteriors about 18 % too narrow, docs/uncertainty.md).
 MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
+#: Model extensions whose numerics changed the result, hashed the same way: LuGre friction
+#: steps with 4 sub-steps per sample since 25 Nov 2026 (8 before; 1.3 instead of 0.35
+#: encoder count of discretisation error, half the cost).
+EXTENSION_REVISIONS = {"lugre_friction": "n_sub=4"}
 
 #: ``[records] noise_scale`` values (``bayesmodal.inference.record_scale``): one level in
 #: metres, the level times each record's relative response size, or that size to a
@@ -257,6 +261,9 @@ class RunConfig:
         revised = {m: r for m, r in MOVE_REVISIONS.items() if m in d["moves"]}
         if revised:
             d["move_revisions"] = revised
+        ext_revised = {e: r for e, r in EXTENSION_REVISIONS.items() if e in d["extensions"]}
+        if ext_revised:
+            d["extension_revisions"] = ext_revised
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
 
 

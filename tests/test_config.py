@@ -167,3 +167,25 @@ def test_snooker_runs_hash_apart_from_the_released_move(cfg_dir, monkeypatch):
     monkeypatch.setattr(config, "MOVE_REVISIONS", {})
     assert snooker.hash() != now[0]
     assert de.hash() == now[1]
+
+
+def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatch):
+    """A configuration with LuGre friction hashes with the kernel's revision (4 sub-steps
+    since 25 Nov 2026), in the run configuration and in the sampler's own hash, so a run
+    sampled with 8 sub-steps does not resume into the new target; others keep theirs."""
+    import bayesmodal.config as config
+    from bayesmodal.discrepancy.effects import get_extension
+    from bayesmodal.inference.sampling import _ext_revisions
+
+    def cfg(exts):
+        model = {**_toml(GOOD)["model"], "damping": "free", "extensions": exts}
+        return parse_config({**_toml(GOOD), "model": model}, base=cfg_dir)
+
+    lugre, coulomb = cfg(["lugre_friction", "input_offset"]), cfg(["coulomb_friction"])
+    now = lugre.hash(), coulomb.hash()
+    assert _ext_revisions(get_extension("lugre_friction+input_offset")) == {
+        "lugre_friction": "n_sub=4"}
+    assert _ext_revisions(get_extension("coulomb_friction")) == {}
+    monkeypatch.setattr(config, "EXTENSION_REVISIONS", {})
+    assert lugre.hash() != now[0]
+    assert coulomb.hash() == now[1]

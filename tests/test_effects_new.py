@@ -108,7 +108,9 @@ def test_deadband_function_closed_forms():
 def test_lugre_matches_stiff_reference_within_its_step_doubling_estimate():
     """Second order in the sub-step: the error at n_sub is about 4/3 of the change from n_sub
     to 2 n_sub (Richardson); the kernel must be within 1.5 times that estimate, and the
-    default sub-step must keep it below one encoder count."""
+    default sub-step must keep it within 1.5 encoder counts (4 sub-steps since 25 Nov
+    2026, 1.2 counts on this input: below one count needed 8, at twice the cost, for a
+    log-likelihood 3.7 +- 4.7 nats apart on the four measured records)."""
     u = _input()
     theta = np.r_[TABLE3, LUGRE]
     y_ref = simulate_lugre_ref(RIG.springs_n_m, theta, u, DT)
@@ -121,7 +123,7 @@ def test_lugre_matches_stiff_reference_within_its_step_doubling_estimate():
     err = np.max(np.abs(y - y_ref))
     ref_tol = 1e3 * LUGRE_RTOL * np.max(np.abs(y_ref))
     assert err <= 1.5 * estimate + ref_tol, (err / COUNT, estimate / COUNT)
-    assert err < COUNT
+    assert err < 1.5 * COUNT
     # and the halved sub-step is about 4 times closer (second order)
     err2 = np.max(np.abs(y2 - y_ref))
     assert 2.5 < err / err2 < 6.0

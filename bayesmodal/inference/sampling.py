@@ -794,6 +794,8 @@ def sample_posterior(
     config = {
         "damping": model.damping,
         **({} if ext is None else {"extension": ext.name}),
+        **({} if ext is None or not _ext_revisions(ext) else
+           {"extension_revisions": _ext_revisions(ext)}),
         "springs_n_m": list(model.rig.springs_n_m),
         # (absent for the chain, so that the hashes of earlier runs stay valid)
         **({} if model.rig.is_chain else {"rig": _rig_dict(model.rig)}),
@@ -900,6 +902,14 @@ def sample_posterior(
         n_evaluations=n_eval,
         config=config,
     )
+
+
+def _ext_revisions(ext) -> dict:
+    """``config.EXTENSION_REVISIONS`` of the effects in ``ext`` (a run sampled before a
+    change of their numerics then does not resume into the new target)."""
+    from ..config import EXTENSION_REVISIONS
+
+    return {e: r for e, r in EXTENSION_REVISIONS.items() if e in ext.name.split("+")}
 
 
 def _rig_dict(rig) -> dict:
