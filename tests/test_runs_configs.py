@@ -24,7 +24,7 @@ SHIPPED = {
     "impulses_friction": ("free", ("coulomb_friction",), ["data_impulses"]),
     "records_free": ("free", (), ["data_impulses", "data_steps", "data_sine_sweep_fast",
                                   "data_sine_sweep_slow"]),
-    "records_friction": ("free", ("lugre_friction", "input_offset"),
+    "records_friction": ("free", ("lugre_friction", "drive_deadband", "input_offset"),
                          ["data_impulses", "data_steps", "data_sine_sweep_fast",
                           "data_sine_sweep_slow"]),
 }

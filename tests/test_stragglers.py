@@ -1,7 +1,8 @@
 """Walkers stranded far below the others are moved onto them (``prune``), and only they.
 
-The cut is the chi-square quantile of a Gaussian posterior's log density (closed form for
-two parameters: ``-ln p``); a stationary ensemble loses no walker (negative control);
+The cut is the chi-square tail of a Gaussian posterior's log density beyond its median
+(closed form for two parameters: ``-ln(2 p)``); a stationary ensemble loses no walker
+(negative control);
 after ``sample_posterior(prune=...)`` no walker is below the cut where the same chain
 without it still has some, a run survives a resume across the pruning step, and bad
 values are refused.
@@ -29,8 +30,9 @@ KW = dict(noise="white", n_walkers=18, n_steps=60, burn=30, prune=20, refine=Fal
 def test_cut_is_the_chi_square_quantile():
     z = np.zeros((6, 2)) + np.arange(6)[:, None]
     r = prune_stragglers(z, np.zeros(6), rng=0)
-    # two degrees of freedom: chi2 quantile -2 ln p, so the cut is -ln p nats
-    assert r.cut == pytest.approx(-np.log(STRAGGLER_P), rel=1e-12)
+    # two degrees of freedom: chi2 quantile -2 ln p, median 2 ln 2, so the cut is
+    # -ln(2 p) nats
+    assert r.cut == pytest.approx(-np.log(2 * STRAGGLER_P), rel=1e-12)
     assert r.moved.size == 0
     np.testing.assert_array_equal(r.z, z)
 
@@ -46,7 +48,7 @@ def test_stationary_ensemble_keeps_every_walker_and_stragglers_are_moved():
     stranded = [3, 17, 250]
     z2, lp2 = z.copy(), lp.copy()
     z2[stranded] += 40.0
-    lp2[stranded] -= chi2.ppf(1 - STRAGGLER_P, P) / 2 + 1.0   # just beyond the cut
+    lp2[stranded] = np.median(lp) - (chi2.isf(STRAGGLER_P, P) - chi2.median(P)) / 2 - 1.0
     lp2[5] = -np.inf                                          # outside the support
     r = prune_stragglers(z2, lp2, rng=1)
     assert sorted(r.moved.tolist()) == sorted(stranded + [5])
@@ -81,7 +83,7 @@ def test_stragglers_of_the_burn_in_join_the_others(exp, reference):  # noqa: F81
     plain = sample_posterior(exp, MODEL, rng=5, warn=False, start=THETA, init_scale=1e-2,
                              **{**KW, "prune": None})
     np.testing.assert_array_equal(r.chain[:20], plain.chain[:20])
-    cut = chi2.isf(STRAGGLER_P, r.priors.n_params) / 2
+    cut = (chi2.isf(STRAGGLER_P, r.priors.n_params) - chi2.median(r.priors.n_params)) / 2
     floor = np.median(r.log_prob[19]) - cut
     below = [int(np.sum(x.log_prob[20] < floor)) for x in (r, plain)]
     assert below[0] == 0 < below[1], below

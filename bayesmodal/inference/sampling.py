@@ -625,13 +625,14 @@ def sample_posterior(
         ``backend``.
     prune : int, optional
         After ``prune`` steps of burn-in, move only the walkers stranded far below the
-        others (log posterior more than ``chi2_P(1 - 1e-6) / 2`` below the median) onto
-        randomly chosen other walkers (``bayesmodal.inference.stragglers``); the rest of
-        the ensemble goes on as it is.  The gentler alternative to ``restart`` (which
-        re-centres every walker) for a posterior with local modes far below the best, as
-        the LuGre model on the four measured records.  Must be smaller than ``burn``;
-        give ``restart`` or ``prune``, not both.  Deterministic for an integer ``rng`` and
-        survives a resume from ``backend``.
+        others (log posterior below the median by more than the chi-square tail
+        ``(chi2_P(1 - 1e-6) - median(chi2_P)) / 2``) onto randomly chosen other walkers
+        (``bayesmodal.inference.stragglers``); the rest of the ensemble goes on as it is.
+        The gentler alternative to ``restart`` (which re-centres every walker) for a
+        posterior with local modes far below the best, as the LuGre model on the four
+        measured records.  Must be smaller than ``burn``; give ``restart`` or ``prune``,
+        not both.  Deterministic for an integer ``rng`` and survives a resume from
+        ``backend``.
     layout : RecordLayout, optional
         Several records, one physical system (``bayesmodal.inference.records``): the
         parameters named in ``layout.per_record`` get one value per record, independent
