@@ -726,25 +726,11 @@ def sample_posterior(
         raise ConfigError(f"thin must be >= 1, got {thin}")
     if init not in ("ball", "laplace"):
         raise ConfigError(f"init must be 'ball' or 'laplace', got {init!r}")
-    if restart is not None:
-        if isinstance(restart, bool) or not isinstance(restart, (int, np.integer)):
-            raise ConfigError(f"restart must be an integer number of steps, got {restart!r}")
-        restart = int(restart)
-        if not 1 <= restart < burn:
-            raise ConfigError(
-                f"restart must be in [1, burn) = [1, {burn}) so that every retained draw "
-                f"comes after it, got {restart}")
-    if prune is not None:
-        if restart is not None:
-            raise ConfigError("give restart or prune, not both: restart re-centres every "
-                              "walker, prune moves only the stranded ones")
-        if isinstance(prune, bool) or not isinstance(prune, (int, np.integer)):
-            raise ConfigError(f"prune must be an integer number of steps, got {prune!r}")
-        prune = int(prune)
-        if not 1 <= prune < burn:
-            raise ConfigError(
-                f"prune must be in [1, burn) = [1, {burn}) so that every retained draw "
-                f"comes after it, got {prune}")
+    if restart is not None and prune is not None:
+        raise ConfigError("give restart or prune, not both: restart re-centres every "
+                          "walker, prune moves only the stranded ones")
+    restart = _burn_in_step("restart", restart, burn)
+    prune = _burn_in_step("prune", prune, burn)
     if isinstance(backend, (str, Path)) and not Path(backend).parent.is_dir():
         # before the least-squares start and the sampling, not when the first step is saved
         raise ConfigError(f"backend {str(backend)!r}: folder {str(Path(backend).parent)!r} "
@@ -903,6 +889,18 @@ def sample_posterior(
         n_evaluations=n_eval,
         config=config,
     )
+
+
+def _burn_in_step(name: str, step, burn: int) -> int | None:
+    """``step`` checked as a step of the burn-in (``restart``, ``prune``), or None."""
+    if step is None:
+        return None
+    if isinstance(step, bool) or not isinstance(step, (int, np.integer)):
+        raise ConfigError(f"{name} must be an integer number of steps, got {step!r}")
+    if not 1 <= int(step) < burn:
+        raise ConfigError(f"{name} must be in [1, burn) = [1, {burn}) so that every "
+                          f"retained draw comes after it, got {step}")
+    return int(step)
 
 
 def _ext_revisions(ext) -> dict:
