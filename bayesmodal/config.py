@@ -104,6 +104,13 @@ MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
 #: encoder count of discretisation error, half the cost).
 EXTENSION_REVISIONS = {"lugre_friction": "n_sub=4"}
 
+
+def extension_revisions(names) -> dict:
+    """The :data:`EXTENSION_REVISIONS` of the effects named in ``names`` (a sequence of
+    effect names, or one name with ``+`` between effects); empty when none changed."""
+    parts = names.split("+") if isinstance(names, str) else list(names)
+    return {e: r for e, r in EXTENSION_REVISIONS.items() if e in parts}
+
 #: ``[records] noise_scale`` values (``bayesmodal.inference.record_scale``): one level in
 #: metres, the level times each record's relative response size, or that size to a
 #: sampled power.
@@ -261,7 +268,7 @@ class RunConfig:
         revised = {m: r for m, r in MOVE_REVISIONS.items() if m in d["moves"]}
         if revised:
             d["move_revisions"] = revised
-        ext_revised = {e: r for e, r in EXTENSION_REVISIONS.items() if e in d["extensions"]}
+        ext_revised = extension_revisions(d["extensions"])
         if ext_revised:
             d["extension_revisions"] = ext_revised
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
@@ -514,23 +521,18 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             kw[key] = v
     if values.get(("sampler", "burn"), 0) >= values.get(("sampler", "steps"), 5000):
         err("sampler.burn", "must be smaller than sampler.steps")
-    restart = values.get(("sampler", "restart"))
-    if restart is not None:
-        burn = values.get(("sampler", "burn"), RunConfig.burn)
-        if not 1 <= restart < burn:
-            err("sampler.restart", f"must be in [1, sampler.burn) = [1, {burn}) so that "
-                f"every retained draw comes after it, got {restart}")
-        kw["restart"] = restart
-    prune = values.get(("sampler", "prune"))
-    if prune is not None:
-        burn = values.get(("sampler", "burn"), RunConfig.burn)
-        if restart is not None:
+    burn = values.get(("sampler", "burn"), RunConfig.burn)
+    for key in ("restart", "prune"):  # steps of the burn-in, one or the other
+        step = values.get(("sampler", key))
+        if step is None:
+            continue
+        if key == "prune" and "restart" in kw:
             err("sampler.prune", "give restart or prune, not both: restart re-centres "
                 "every walker, prune moves only the stranded ones")
-        elif not 1 <= prune < burn:
-            err("sampler.prune", f"must be in [1, sampler.burn) = [1, {burn}) so that "
-                f"every retained draw comes after it, got {prune}")
-        kw["prune"] = prune
+        elif not 1 <= step < burn:
+            err(f"sampler.{key}", f"must be in [1, sampler.burn) = [1, {burn}) so that "
+                f"every retained draw comes after it, got {step}")
+        kw[key] = step
     init = values.get(("sampler", "init"))
     if init is not None:
         if init not in ("ball", "laplace"):

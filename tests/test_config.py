@@ -175,7 +175,6 @@ def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatc
     sampled with 8 sub-steps does not resume into the new target; others keep theirs."""
     import bayesmodal.config as config
     from bayesmodal.discrepancy.effects import get_extension
-    from bayesmodal.inference.sampling import _ext_revisions
 
     def cfg(exts):
         model = {**_toml(GOOD)["model"], "damping": "free", "extensions": exts}
@@ -183,9 +182,9 @@ def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatc
 
     lugre, coulomb = cfg(["lugre_friction", "input_offset"]), cfg(["coulomb_friction"])
     now = lugre.hash(), coulomb.hash()
-    assert _ext_revisions(get_extension("lugre_friction+input_offset")) == {
+    assert config.extension_revisions(get_extension("lugre_friction+input_offset").name) == {
         "lugre_friction": "n_sub=4"}
-    assert _ext_revisions(get_extension("coulomb_friction")) == {}
+    assert config.extension_revisions(get_extension("coulomb_friction").name) == {}
     monkeypatch.setattr(config, "EXTENSION_REVISIONS", {})
     assert lugre.hash() != now[0]
     assert coulomb.hash() == now[1]

@@ -35,6 +35,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from .._progress import progress_bar
+from ..config import extension_revisions
 from ..data import Experiment
 from ..fit import LSQResult, fit_lsq
 from ..system import LinearModel
@@ -778,11 +779,11 @@ def sample_posterior(
     restart_seed = None if split is None else np.random.SeedSequence(
         [int(np.random.Generator(copy.deepcopy(gen.bit_generator)).integers(2**63)),
          0x52455354])
+    revised = {} if ext is None else extension_revisions(ext.name)
     config = {
         "damping": model.damping,
         **({} if ext is None else {"extension": ext.name}),
-        **({} if ext is None or not _ext_revisions(ext) else
-           {"extension_revisions": _ext_revisions(ext)}),
+        **({"extension_revisions": revised} if revised else {}),
         "springs_n_m": list(model.rig.springs_n_m),
         # (absent for the chain, so that the hashes of earlier runs stay valid)
         **({} if model.rig.is_chain else {"rig": _rig_dict(model.rig)}),
@@ -901,14 +902,6 @@ def _burn_in_step(name: str, step, burn: int) -> int | None:
         raise ConfigError(f"{name} must be in [1, burn) = [1, {burn}) so that every "
                           f"retained draw comes after it, got {step}")
     return int(step)
-
-
-def _ext_revisions(ext) -> dict:
-    """``config.EXTENSION_REVISIONS`` of the effects in ``ext`` (a run sampled before a
-    change of their numerics then does not resume into the new target)."""
-    from ..config import EXTENSION_REVISIONS
-
-    return {e: r for e, r in EXTENSION_REVISIONS.items() if e in ext.name.split("+")}
 
 
 def _rig_dict(rig) -> dict:
