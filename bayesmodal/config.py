@@ -241,7 +241,8 @@ class RunConfig:
             n_steps=self.crossval_steps or self.steps, burn=None if self.crossval_steps
             else self.burn, n_predictive=self.crossval_draws, seed=self.seed,
             temperature=1.0 if self.temperature == "loro" else self.temperature,
-            springs_n_m=self.springs_n_m, init=self.init,
+            springs_n_m=self.springs_n_m, init=self.init, moves=self.moves,
+            prune=self.prune, restart=self.restart,
             rig=None if self.rig is None else self.make_rig())
 
     def to_dict(self) -> dict:
@@ -533,6 +534,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             err(f"sampler.{key}", f"must be in [1, sampler.burn) = [1, {burn}) so that "
                 f"every retained draw comes after it, got {step}")
         kw[key] = step
+        cv_steps = values.get(("crossval", "steps"))
+        if cv_steps is not None and step >= cv_steps // 2:  # the folds burn half their steps
+            err("crossval.steps", f"the folds burn in {cv_steps // 2} steps (half of "
+                f"crossval.steps), not more than sampler.{key} = {step}; give at least "
+                f"{2 * step + 2} steps")
     init = values.get(("sampler", "init"))
     if init is not None:
         if init not in ("ball", "laplace"):

@@ -132,6 +132,64 @@ def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
         crossval(recs[:1], spec)
 
 
+def test_fold_samples_with_the_configured_moves_and_pruning(monkeypatch):
+    """The folds get the run's moves and burn-in step: the LuGre posterior needs the
+    mode-jumping move and the pruning of stranded walkers (docs/discrepancy.md)."""
+    import bayesmodal.inference.sampling as sampling
+    from bayesmodal.inference.crossval import run_fold
+    from bayesmodal.inference.moves import ModeJumpMove
+
+    seen = {}
+
+    class Reached(Exception):
+        pass
+
+    def fake(*args, **kw):
+        seen.update(kw)
+        raise Reached
+
+    monkeypatch.setattr(sampling, "sample_posterior", fake)
+    spec = CrossvalSpec(n_steps=100, moves="de:0.8,de-jump:0.2", prune=20, noise="white")
+    with pytest.raises(Reached):
+        run_fold(spec, _records(n=200), 0)
+    assert seen["prune"] == 20 and seen["restart"] is None
+    kinds = [(type(m).__name__, w) for m, w in seen["moves"]]
+    assert kinds == [("DEMove", 0.8), ("DEMove", 0.2)]
+    assert seen["moves"][1][0].gamma0 == ModeJumpMove().gamma0 == 1.0
+    # negative control: the default spec gives differential evolution alone, no pruning
+    with pytest.raises(Reached):
+        run_fold(CrossvalSpec(n_steps=100, noise="white"), _records(n=200), 0)
+    assert seen["prune"] is None and len(seen["moves"]) == 1
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"moves": "hamiltonian"}, "unknown move"),
+    ({"prune": 50}, r"\[1, burn\) = \[1, 50\)"),
+    ({"prune": 10, "restart": 10}, "not both"),
+])
+def test_crossval_spec_rejects_bad_sampler_settings(kw, message):
+    with pytest.raises(ConfigError, match=message):
+        CrossvalSpec(n_steps=100, **kw)
+
+
+def test_config_hands_its_moves_and_pruning_to_crossval(tmp_path):
+    from bayesmodal.config import parse_config
+
+    (tmp_path / "a.csv").write_text("t,v,x1,x2,x3\n")
+    cfg = parse_config(_toml('[data]\nfiles=["a.csv", "a.csv"]\n[sampler]\nsteps=400\n'
+                             'burn=200\nprune=100\nmoves="de:0.8,de-jump:0.2"'),
+                       base=tmp_path, check_files=False)
+    spec = cfg.crossval_spec()
+    assert (spec.moves, spec.prune, spec.restart, spec.burn) == (
+        "de:0.8,de-jump:0.2", 100, None, 200)
+
+
+def _toml(text):
+    import tomllib
+
+    return tomllib.loads(text)
+
+
 def test_crossval_takes_a_rig_description(tmp_path):
     """--rig reaches the folds' model (a two-cart preset: two outputs, its own names)."""
     from bayesmodal.cli import build_parser

@@ -59,6 +59,13 @@ class CrossvalSpec:
         A rig description (``bayesmodal.rigs``); overrides ``springs_n_m``.
     init : {"ball", "laplace"}
         How each fold's walkers start (``sample_posterior(init=...)``).
+    moves : str
+        emcee moves of each fold, a ``[sampler] moves`` string such as
+        ``"de:0.8,de-jump:0.2"`` (default ``"de"``).
+    prune, restart : int, optional
+        Burn-in step at which stranded walkers join the others (``prune``) or every walker
+        restarts around the best one (``restart``), as in ``sample_posterior``; each in
+        ``[1, burn)``, at most one of them.
     """
 
     damping: str = "free"
@@ -74,8 +81,24 @@ class CrossvalSpec:
     springs_n_m: tuple[float, ...] | None = None
     rig: object = None
     init: str = "ball"
+    moves: str = "de"
+    prune: int | None = None
+    restart: int | None = None
 
     def __post_init__(self) -> None:
+        from .moves import parse_moves
+
+        parse_moves(self.moves)  # a one-line error for a bad moves string, here
+        if self.prune is not None and self.restart is not None:
+            raise ConfigError("give restart or prune, not both: restart moves every walker, "
+                              "prune moves only the stranded ones")
+        burn = self.n_steps // 2 if self.burn is None else self.burn
+        for name in ("prune", "restart"):
+            step = getattr(self, name)
+            if step is not None and not (isinstance(step, (int, np.integer))
+                                         and 1 <= step < burn):
+                raise ConfigError(f"crossval {name} must be a step in [1, burn) = [1, {burn}) "
+                                  f"of each fold, got {step!r}; lower it or raise the steps")
         if self.n_predictive < 2:
             raise ConfigError(f"n_predictive must be >= 2 draws, got {self.n_predictive}")
         if not (np.isfinite(self.temperature) and self.temperature > 0):
@@ -210,6 +233,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     With ``heldout=None`` the posterior is sampled on all records (the joint run); its
     ``estimates`` then hold each record's ``g_v`` under keys ``g_v[name]``.
     """
+    from .moves import parse_moves
     from .records import RecordsLikelihood, record_priors
     from .sampling import sample_posterior
 
@@ -233,7 +257,9 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     run = sample_posterior(train, model, noise=noise, extension=spec.extension,
                            layout=spec.layout, priors=priors, n_walkers=walkers,
                            n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
-                           progress=progress, temperature=spec.temperature, init=spec.init)
+                           progress=progress, temperature=spec.temperature, init=spec.init,
+                           moves=parse_moves(spec.moves), prune=spec.prune,
+                           restart=spec.restart)
     rng = np.random.default_rng(seed + 7)
     flat = run.flat_draws
     take = rng.choice(flat.shape[0], size=min(spec.n_predictive, flat.shape[0]),
