@@ -21,7 +21,8 @@ Usage::
     python benchmarks/extended_posterior.py                         # the config as it is
     python benchmarks/extended_posterior.py --steps 600 --burn 200  # a short probe
     python benchmarks/extended_posterior.py --init ball             # the old start
-    python benchmarks/extended_posterior.py runs/records_friction.toml --ensembles 2
+    python benchmarks/extended_posterior.py runs/records_friction.toml --ensembles 2 \
+        --save chain.npz        # keep the chain to dissect a run that falls short
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ def _one(job: dict) -> dict:
             backend=job["backend"], progress=job["progress"])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     z = run.priors.to_sampling(run.chain[run.burn :])
-    return {"z": z, "acceptance": run.acceptance, "names": run.names, "wall_s": wall,
+    return {"z": z, "lp": run.log_prob[run.burn :], "acceptance": run.acceptance, "names": run.names, "wall_s": wall,
             "cpu_s": cpu, "sampling_s": run.elapsed_s, "n_evaluations": run.n_evaluations,
             "walkers": walkers, "steps": steps, "burn": burn,
             "extension": run.extension_name, "seed": job["seed"],
@@ -98,6 +99,9 @@ def main(argv=None) -> int:
                     help="HDF checkpoint (one ensemble): resume or extend a run")
     ap.add_argument("--progress", action="store_true")
     ap.add_argument("--json", default=None, help="write the figures to this file")
+    ap.add_argument("--save", default=None, metavar="FILE.npz",
+                    help="save the pooled post-burn-in chain (sampling coordinates, "
+                         "steps x walkers x parameters), its log posterior and the names")
     args = ap.parse_args(argv)
     from bayesmodal.inference.sampling import convergence_diagnostics
 
@@ -169,6 +173,10 @@ def main(argv=None) -> int:
         print(f"extrapolated   {x['steps_per_walker']} steps per walker for ESS > "
               f"{ESS_TARGET:.0f} and {MIN_N_OVER_TAU:.0f} tau: {x['cpu_s'] / 60:.1f} CPU min, "
               f"{x['idle_wall_s_on_2_cores'] / 60:.1f} min wall on 2 idle cores")
+    if args.save:
+        np.savez_compressed(args.save, z=z, log_prob=np.concatenate([r["lp"] for r in res],
+                                                                     axis=1),
+                            names=np.array(names), ensembles=args.ensembles)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1, default=float))
     return 0
