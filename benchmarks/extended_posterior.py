@@ -77,7 +77,8 @@ def _one(job: dict) -> dict:
             backend=job["backend"], progress=job["progress"])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     z = run.priors.to_sampling(run.chain[run.burn :])
-    return {"z": z, "lp": run.log_prob[run.burn :], "acceptance": run.acceptance, "names": run.names, "wall_s": wall,
+    return {"z": z, "lp": run.log_prob[run.burn :], "acceptance": run.acceptance,
+            "names": run.names, "wall_s": wall,
             "cpu_s": cpu, "sampling_s": run.elapsed_s, "n_evaluations": run.n_evaluations,
             "walkers": walkers, "steps": steps, "burn": burn,
             "extension": run.extension_name, "seed": job["seed"],
