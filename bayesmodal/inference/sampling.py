@@ -40,6 +40,7 @@ from ..data import Experiment
 from ..fit import LSQResult, fit_lsq
 from ..system import LinearModel
 from .likelihood import Likelihood, as_experiments
+from .mode import posterior_mode
 from .moves import default_moves
 from .priors import PriorSet, default_priors
 from .stragglers import prune_stragglers
@@ -323,63 +324,6 @@ def config_hash(config: dict) -> str:
 def default_thin(n_walkers: int, n_kept_steps: int, target: int = TARGET_DRAWS) -> int:
     """Thinning that keeps about ``target`` draws over all walkers."""
     return max(1, math.ceil(n_walkers * max(n_kept_steps, 1) / target))
-
-
-def _z_bounds(priors: PriorSet) -> list[tuple[float | None, float | None]]:
-    out = []
-    for p, tr in zip(priors.priors, priors.transforms, strict=True):
-        lo, hi = p.support
-        if tr == "log":
-            out.append((float(np.log(lo)) if lo > 0 else None,
-                        float(np.log(hi)) if np.isfinite(hi) else None))
-        elif tr == "tanh":
-            out.append((None, None))
-        else:
-            out.append((lo if np.isfinite(lo) else None, hi if np.isfinite(hi) else None))
-    return out
-
-
-def posterior_mode(log_post: LogPosterior, theta0: np.ndarray, *, max_iter: int = 2000):
-    """Maximum of the posterior density of the sampling coordinates, from ``theta0``.
-
-    L-BFGS-B on ``-log p(z | y)`` with forward-difference gradients evaluated in one batched
-    likelihood call; prior bounds become box bounds in z.
-
-    Parameters
-    ----------
-    log_post : LogPosterior
-    theta0 : ndarray, shape (P,)
-        Physical starting point with finite posterior density.
-
-    Returns
-    -------
-    theta : ndarray, shape (P,)
-        Physical parameters at the mode (``theta0`` if the optimiser does not improve it).
-    """
-    from scipy.optimize import minimize
-
-    priors = log_post.priors
-    bounds = _z_bounds(priors)
-    z0 = priors.to_sampling(theta0)
-    upper = np.array([np.inf if b[1] is None else b[1] for b in bounds])
-
-    def fun(z):
-        h = 1e-6 * np.maximum(1.0, np.abs(z))
-        h = np.where(z + h > upper, -h, h)  # step inwards at an upper bound
-        zs = np.repeat(z[None], z.size + 1, axis=0)
-        zs[1:] += np.diag(h)
-        v = -log_post(zs)[:, 0]
-        if not np.isfinite(v[0]):
-            return 1e300, np.zeros_like(z)
-        g = np.where(np.isfinite(v[1:]), (v[1:] - v[0]) / h, 0.0)
-        return v[0], g
-
-    f0 = fun(z0)[0]
-    res = minimize(fun, z0, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": max_iter})
-    if not (np.isfinite(res.fun) and res.fun < f0):
-        return np.asarray(theta0, dtype=float)
-    return priors.to_physical(res.x)
 
 
 def _inside_priors(theta_mech: np.ndarray, priors: PriorSet) -> np.ndarray:

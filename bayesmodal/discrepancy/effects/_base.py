@@ -288,6 +288,14 @@ class Extension(ABC):
         q = len(self.specs(rig))
         return np.zeros(q), np.full(q, np.inf)
 
+    def mode_starts(self, rig: Rig, theta_ext: np.ndarray) -> np.ndarray:
+        """Alternative starts of the posterior-mode search around a fit, shape (k, n_ext).
+
+        For parameters that do nothing on a face of the parameter space where a fit may
+        end (``bayesmodal.inference.mode``).  Default: none.
+        """
+        return np.empty((0, len(self.specs(rig))))
+
     def start_grid(self, rig: Rig) -> np.ndarray:
         """Candidate starting values of the extension parameters, shape (n_grid, n_ext).
 

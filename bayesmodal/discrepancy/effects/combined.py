@@ -221,6 +221,17 @@ class Combined(Extension):
         lo, hi = zip(*(e.opt_bounds(rig) for e in self.effects), strict=True)
         return np.concatenate(lo), np.concatenate(hi)
 
+    def mode_starts(self, rig: Rig, theta_ext: np.ndarray) -> np.ndarray:
+        """Each effect's alternative starts, the other effects at ``theta_ext``'s values."""
+        theta_ext = np.asarray(theta_ext, dtype=float)
+        rows = []
+        for e, sl in zip(self.effects, self._slices(rig), strict=True):
+            for g in e.mode_starts(rig, theta_ext[sl]):
+                r = theta_ext.copy()
+                r[sl] = g
+                rows.append(r)
+        return np.array(rows).reshape(len(rows), theta_ext.size)
+
     def start_grid(self, rig: Rig) -> np.ndarray:
         """Each effect's start grid with the other effects at their null values."""
         null = self.null_values(rig)
