@@ -190,6 +190,32 @@ def _toml(text):
     return tomllib.loads(text)
 
 
+@pytest.mark.parametrize("flags, joint", [([], True), (["--no-joint"], False)])
+def test_crossval_cli_runs_the_joint_posterior_unless_told_not_to(tmp_path, monkeypatch,
+                                                                  flags, joint):
+    import bayesmodal.inference.crossval as cv
+    from bayesmodal.cli import main
+    from bayesmodal.data import save_csv
+
+    seen = {}
+
+    class Reached(BaseException):  # past the CLI's one-line error handler
+        pass
+
+    def fake(exps, spec, **kw):
+        seen.update(kw)
+        raise Reached
+
+    monkeypatch.setattr(cv, "crossval", fake)
+    recs = _records(n=50)
+    for r in recs[:2]:
+        save_csv(r, tmp_path / f"{r.name}.csv")
+    with pytest.raises(Reached):
+        main(["crossval", *(str(tmp_path / f"{r.name}.csv") for r in recs[:2]), "--quiet",
+              "--out", str(tmp_path / "o"), *flags])
+    assert seen["joint"] is joint
+
+
 def test_crossval_takes_a_rig_description(tmp_path):
     """--rig reaches the folds' model (a two-cart preset: two outputs, its own names)."""
     from bayesmodal.cli import build_parser

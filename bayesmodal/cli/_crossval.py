@@ -69,6 +69,9 @@ def register(sub) -> None:
                    help="Dask scheduler address; the folds run as its tasks (default: local)")
     p.add_argument("--out", default="runs/crossval", metavar="DIR",
                    help="output folder (default runs/crossval)")
+    p.add_argument("--no-joint", dest="joint", action="store_false",
+                   help="skip the run on all records together (the forest plot then has no "
+                        "joint interval); saves one posterior run of all records")
     p.add_argument("--json", action="store_true", help="print crossval.json to stdout")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
@@ -117,8 +120,8 @@ def run(args) -> int:
     say = None if args.quiet else (lambda line: print(f"bayesmodal crossval: {line}",
                                                       file=sys.stderr, flush=True))
     if say:
-        say(f"{len(exps)} folds + the joint run, {spec.n_walkers} walkers x {spec.n_steps} "
-            "steps each")
+        say(f"{len(exps)} folds{' + the joint run' if args.joint else ''}, "
+            f"{spec.n_walkers} walkers x {spec.n_steps} steps each")
     cal = None
     if _calibrating(args):
         from ..inference.temperature import calibrate_loro
@@ -126,10 +129,10 @@ def run(args) -> int:
         grid = [_number(t, "--temperatures") for t in args.temperatures.split(",")]
         cal, res = calibrate_loro(exps, spec, temperatures=grid, criterion=args.criterion,
                                   workers=args.workers, scheduler=args.scheduler,
-                                  progress=say)
+                                  progress=say, joint=args.joint)
     else:
         res = crossval(exps, spec, workers=args.workers, scheduler=args.scheduler,
-                       progress=say)
+                       progress=say, joint=args.joint)
     path = write_crossval(res, Path(args.out), calibration=cal)
     if args.json:
         print_json({**res.to_dict(), **({} if cal is None else
