@@ -127,14 +127,19 @@ def test_per_lane_inputs_through_plant_kernels_equal_single_runs(plant, own):
         np.testing.assert_array_equal(y[j], y1)
 
 
-@pytest.mark.slow  # compiles the friction kernel with its input stages (minutes when busy)
-def test_friction_kernel_input_stages_equal_the_numpy_transforms():
-    """The friction kernel applies offset, saturation and amplitude gain to the shared
-    input itself (no per-lane input block): each lane gives bit for bit the friction
+@pytest.mark.parametrize("plant,own", [
+    ("lugre_friction", LUGRE),
+    # compiles the friction kernel with its input stages (minutes when busy)
+    pytest.param("coulomb_friction", [0.1, 0.15, 0.08, 0.15, 0.2, 0.12],
+                 marks=pytest.mark.slow),
+])
+def test_friction_kernel_input_stages_equal_the_numpy_transforms(plant, own):
+    """The friction kernels apply offset, saturation and amplitude gain to the shared
+    input themselves (no per-lane input block): each lane gives bit for bit the friction
     simulation under that lane's voltage transformed by the effects' own numpy code."""
     names = ["input_offset", "input_saturation", "amplitude_gain"]
-    ext = get_extension(["coulomb_friction", *names])
-    own = [0.1, 0.15, 0.08, 0.15, 0.2, 0.12]
+    ext = get_extension([plant, *names])
+    assert ext.plant.fuses_input_stages
     u = _input(400)
     rng = np.random.default_rng(6)
     nb = 20  # more than the friction kernel's packed group of 16
@@ -147,7 +152,7 @@ def test_friction_kernel_input_stages_equal_the_numpy_transforms():
         v = u
         for name, value in zip(names, stage[j], strict=True):  # offset, clip, gain
             v = EXTENSIONS[name].transform_input(v, np.array([[value]]))[0]
-        y1 = EXTENSIONS["coulomb_friction"].simulate(RIG, np.r_[lin[j], own], v, DT)
+        y1 = EXTENSIONS[plant].simulate(RIG, np.r_[lin[j], own], v, DT)
         np.testing.assert_array_equal(y[j], y1)
     clipped = np.clip(u + stage[:, :1], -stage[:, 1:2], stage[:, 1:2])
     assert np.any(clipped != u + stage[:, :1])  # the clip acts on some lanes

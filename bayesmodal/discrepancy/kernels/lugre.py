@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, run_batched
+from .coulomb import INPUT_STAGES, _staged_inputs
 
 #: Arguments of ``e^{-x}`` are clipped at this value (``e^{-40} = 4e-18``, nil next to 1).
 _EXP_CLIP = 40.0
@@ -81,19 +82,28 @@ def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def lugre_kernel(n: int, width: int, per_lane: bool = False):
-    """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``)."""
+def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, ...] = ()):
+    """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``); ``stages`` (of
+    ``kernels.coulomb.INPUT_STAGES``, shared input only) are applied to the input in the
+    kernel, with parameter rows ``s0, s1, ...``."""
+    stages = tuple(stages)
+    unknown = [k for k in stages if k not in INPUT_STAGES]
+    if unknown:  # only names of that module's stages reach the generated source
+        raise ValueError(f"unknown input stage {unknown[0]!r}; use one of {INPUT_STAGES}")
+    if stages and per_lane:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
     s, w = 2 * n, width
     R, C = range(s), range(n)
     P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("G", n * s), ("gb", n),
-                       ("mi", n), ("fc", n), ("fs", n), ("s0", 1), ("s1", 1), ("ivs", 1)])
+                       ("mi", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
+              + [(f"s{j}", 1) for j in range(len(stages))])
     X = _Rows("X", w, [("x", s), ("z", n), ("fr", n)])
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    ih = 1.0 / h"]
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = " " * 16
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
-    L += [f"{t}s0 = {P('s0')}", f"{t}s1 = {P('s1')}"]
+    L += [f"{t}s0 = {P('sg0')}", f"{t}s1 = {P('sg1')}"]
     for i in C:
         L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}"]
     # the velocity at mid-step from the acceleration at the start (the friction force of
@@ -112,10 +122,14 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False):
     L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
     if per_lane:
         return _compile(_lane_inputs(L, w), f"<bayesmodal lugre1 n={n} w={w} per-lane>")
+    if stages:
+        return _compile(_staged_inputs(L, P, None, stages, None),
+                        f"<bayesmodal lugre1 n={n} w={w}{''.join(' ' + k for k in stages)}>")
     return _compile(L, f"<bayesmodal lugre1 n={n} w={w}>")
 
 
-def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0):
+def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0,
+              input_stages=()):
     """LuGre friction on every cart (see ``extensions.lugre``), bristles relaxed at start.
 
     Parameters
@@ -143,6 +157,11 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     h : float
         Sub-step, s.
     x0 : ndarray, shape (nb, s)
+    input_stages : sequence of (str, ndarray of shape (nb,))
+        Memoryless stages (``kernels.coulomb.INPUT_STAGES``) applied in this order to the
+        shared input ``u`` (N,) inside the kernel, each with its parameter per lane: bit
+        for bit the same stages applied in ``effects`` to a per-lane input, without the
+        ``(N, lanes)`` input block.
 
     Returns
     -------
@@ -154,5 +173,11 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     params = [Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1,
               1.0 / np.asarray(v_stribeck, dtype=float)]
     state = [x0, np.zeros((nb, n)), np.zeros((nb, n))]
-    return run_batched(functools.partial(lugre_kernel, n), params, state, u, n, int(n_sub),
-                       float(h))
+    kinds = tuple(kind for kind, _ in input_stages)
+    if kinds and u.ndim != 1:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
+    params += [np.asarray(values, dtype=float).reshape(-1, 1) for _, values in input_stages]
+    kernel = functools.partial(lugre_kernel, n)
+    if kinds:
+        kernel = functools.partial(kernel, stages=kinds)
+    return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
