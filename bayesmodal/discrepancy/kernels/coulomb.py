@@ -60,6 +60,18 @@ def _stage_code(t: str, kind: str, p: str) -> list[str]:
     raise ValueError(f"unknown input stage {kind!r}; use one of {INPUT_STAGES}")
 
 
+def checked_stages(stages, per_lane: bool) -> tuple[str, ...]:
+    """``stages`` as a tuple of ``INPUT_STAGES`` names for a kernel with a shared input;
+    only these names reach generated source."""
+    stages = tuple(stages)
+    unknown = [k for k in stages if k not in INPUT_STAGES]
+    if unknown:
+        raise ValueError(f"unknown input stage {unknown[0]!r}; use one of {INPUT_STAGES}")
+    if stages and per_lane:
+        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
+    return stages
+
+
 def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
                    packed_from: int | None) -> list[str]:
     """Kernel source applying ``stages`` to the shared input in every lane loop.
@@ -396,12 +408,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``.
     """
     asym = bool(asymmetric)
-    stages = tuple(stages)
-    unknown = [k for k in stages if k not in INPUT_STAGES]
-    if unknown:  # only names of this module's stages reach the generated source
-        raise ValueError(f"unknown input stage {unknown[0]!r}; use one of {INPUT_STAGES}")
-    if stages and per_lane:
-        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
+    stages = checked_stages(stages, per_lane)
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),

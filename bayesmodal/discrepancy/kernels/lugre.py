@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, run_batched
-from .coulomb import INPUT_STAGES, _staged_inputs
+from .coulomb import _staged_inputs, checked_stages
 
 #: Arguments of ``e^{-x}`` are clipped at this value (``e^{-40} = 4e-18``, nil next to 1).
 _EXP_CLIP = 40.0
@@ -86,12 +86,7 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``); ``stages`` (of
     ``kernels.coulomb.INPUT_STAGES``, shared input only) are applied to the input in the
     kernel, with parameter rows ``s0, s1, ...``."""
-    stages = tuple(stages)
-    unknown = [k for k in stages if k not in INPUT_STAGES]
-    if unknown:  # only names of that module's stages reach the generated source
-        raise ValueError(f"unknown input stage {unknown[0]!r}; use one of {INPUT_STAGES}")
-    if stages and per_lane:
-        raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
+    stages = checked_stages(stages, per_lane)
     s, w = 2 * n, width
     R, C = range(s), range(n)
     P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("G", n * s), ("gb", n),
