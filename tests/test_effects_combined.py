@@ -257,3 +257,14 @@ def test_least_squares_fit_of_a_combination_recovers_truth_within_its_standard_e
     se = np.sqrt(np.diag(cov))[-2:]
     assert np.all(np.abs(fit.theta[-2:] - truth[-2:]) < 4 * se), (fit.theta[-2:], se)
     assert np.all(se < 0.01)  # the record does pin both down (to 10 mV)
+
+
+def test_kernel_input_stages_are_checked_before_any_code_is_generated():
+    from bayesmodal.discrepancy.kernels.coulomb import coulomb_kernel
+    from bayesmodal.discrepancy.kernels.lugre import lugre_kernel
+
+    for kernel in (coulomb_kernel, lugre_kernel):
+        with pytest.raises(ValueError, match="unknown input stage 'magic'"):
+            kernel(3, 16, stages=("offset", "magic"))
+        with pytest.raises(ValueError, match="shared input"):
+            kernel(3, 16, per_lane=True, stages=("offset",))
