@@ -407,8 +407,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     ``fc`` forwards, ``fn`` backwards); ``stages`` (of ``INPUT_STAGES``, shared input
     only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``.
     """
-    asym = bool(asymmetric)
     stages = checked_stages(stages, per_lane)
+    asym = bool(asymmetric)
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
