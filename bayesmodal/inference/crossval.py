@@ -87,18 +87,12 @@ class CrossvalSpec:
 
     def __post_init__(self) -> None:
         from .moves import parse_moves
+        from .sampling import burn_in_steps
 
-        parse_moves(self.moves)  # a one-line error for a bad moves string, here
-        if self.prune is not None and self.restart is not None:
-            raise ConfigError("give restart or prune, not both: restart moves every walker, "
-                              "prune moves only the stranded ones")
-        burn = self.n_steps // 2 if self.burn is None else self.burn
-        for name in ("prune", "restart"):
-            step = getattr(self, name)
-            if step is not None and not (isinstance(step, (int, np.integer))
-                                         and 1 <= step < burn):
-                raise ConfigError(f"crossval {name} must be a step in [1, burn) = [1, {burn}) "
-                                  f"of each fold, got {step!r}; lower it or raise the steps")
+        # one-line errors here, not in each fold: the moves, and the burn-in step
+        parse_moves(self.moves)
+        burn_in_steps(self.restart, self.prune,
+                      self.n_steps // 2 if self.burn is None else self.burn)
         if self.n_predictive < 2:
             raise ConfigError(f"n_predictive must be >= 2 draws, got {self.n_predictive}")
         if not (np.isfinite(self.temperature) and self.temperature > 0):

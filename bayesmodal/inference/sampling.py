@@ -671,11 +671,7 @@ def sample_posterior(
         raise ConfigError(f"thin must be >= 1, got {thin}")
     if init not in ("ball", "laplace"):
         raise ConfigError(f"init must be 'ball' or 'laplace', got {init!r}")
-    if restart is not None and prune is not None:
-        raise ConfigError("give restart or prune, not both: restart re-centres every "
-                          "walker, prune moves only the stranded ones")
-    restart = _burn_in_step("restart", restart, burn)
-    prune = _burn_in_step("prune", prune, burn)
+    restart, prune = burn_in_steps(restart, prune, burn)
     if isinstance(backend, (str, Path)) and not Path(backend).parent.is_dir():
         # before the least-squares start and the sampling, not when the first step is saved
         raise ConfigError(f"backend {str(backend)!r}: folder {str(Path(backend).parent)!r} "
@@ -834,6 +830,15 @@ def sample_posterior(
         n_evaluations=n_eval,
         config=config,
     )
+
+
+def burn_in_steps(restart, prune, burn: int) -> tuple[int | None, int | None]:
+    """``restart`` and ``prune`` checked as steps of a burn-in of ``burn`` steps (at most
+    one of them given); one-line ``ConfigError`` otherwise."""
+    if restart is not None and prune is not None:
+        raise ConfigError("give restart or prune, not both: restart re-centres every "
+                          "walker, prune moves only the stranded ones")
+    return _burn_in_step("restart", restart, burn), _burn_in_step("prune", prune, burn)
 
 
 def _burn_in_step(name: str, step, burn: int) -> int | None:
