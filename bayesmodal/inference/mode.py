@@ -97,19 +97,19 @@ class _OptCoordinates:
 
 def _curvature_scale(f, u0: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Per-coordinate scale ``1 / sqrt(d2f / du_i2)`` at ``u0`` (central differences, one
-    batched call of ``2 P`` points); a coordinate without positive finite curvature there
-    gets a hundred times its difference step."""
+    batched call of ``2 P + 1`` points); a coordinate without positive finite curvature
+    there gets a hundred times its difference step."""
+    P = u0.size
     h = 1e-4 * np.maximum(1.0, np.abs(u0))
     h = np.where(u0 + h > upper, -h, h)
-    us = np.repeat(u0[None], 2 * u0.size, axis=0)
-    us[: u0.size] += np.diag(h)
-    us[u0.size :] -= np.diag(h)
+    us = np.repeat(u0[None], 2 * P + 1, axis=0)
+    us[:P] += np.diag(h)
+    us[P : 2 * P] -= np.diag(h)
     v = f(us)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d2 = (v[: u0.size] - 2 * f(u0[None])[0] + v[u0.size :]) / h**2
-        scale = 1.0 / np.sqrt(np.where(d2 > 0, d2, np.nan))
+    with np.errstate(invalid="ignore"):
+        d2 = (v[:P] - 2 * v[2 * P] + v[P : 2 * P]) / h**2
     good = np.isfinite(d2) & (d2 > 0)
-    return np.where(good, np.where(good, scale, 1.0), 100 * np.abs(h))
+    return np.where(good, 1.0 / np.sqrt(np.where(good, d2, 1.0)), 100 * np.abs(h))
 
 
 def _lbfgsb(log_post, coords: _OptCoordinates, z0: np.ndarray, bounds,
@@ -202,12 +202,12 @@ def posterior_mode(log_post, theta0: np.ndarray, *, max_iter: int = 2000,
             th = theta0.copy()
             th[coords.idx] = row
             candidates.append(th)
-    best_z, best_lp = priors.to_sampling(theta0[None])[0], -np.inf
+    best_z, best_lp = None, -np.inf
     for th in candidates:
         z0 = priors.to_sampling(th[None])[0]
         z, lp = _local_mode(log_post, coords, z0, bounds, max_iter)
         if lp > best_lp:
             best_z, best_lp = z, lp
-    if not np.isfinite(best_lp):
+    if best_z is None:  # no start with a finite posterior
         return theta0
     return priors.to_physical(best_z[None])[0]
