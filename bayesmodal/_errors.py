@@ -15,3 +15,11 @@ class ModelError(ValueError):
 
 class ConfigError(ValueError):
     """A run configuration is invalid."""
+
+
+def one_line(exc: BaseException) -> str:
+    """Every problem of a (configuration) error on one line, joined by ``"; "``."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    if len(lines) > 1 and lines[0].endswith("in the configuration:"):
+        lines = lines[1:]
+    return "; ".join(lines) or type(exc).__name__

@@ -107,6 +107,15 @@ def test_crossval_cli_errors_name_the_fix(tmp_path, capsys):
     assert main(["crossval", str(tmp_path / "one.csv"), str(tmp_path / "two.csv"),
                  "--temperature", "hot", "--out", str(tmp_path / "o")]) == 2
     assert "give a number (e.g. 10) or 'loro'" in capsys.readouterr().err
+    # a configuration's problems are named on the one line, not only their count
+    (tmp_path / "bad.toml").write_text(
+        '[data]\nfiles = ["one.csv", "two.csv"]\n[sampler]\nsteps = 400\nburn = 200\n'
+        'prune = 100\n[crossval]\nsteps = 150\n')
+    assert main(["crossval", str(tmp_path / "one.csv"), str(tmp_path / "two.csv"),
+                 "--config", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "[crossval.steps]" in err and "give at least 202 steps" in err
     assert not (tmp_path / "o").exists()
 
 

@@ -14,7 +14,7 @@ import traceback
 import warnings
 
 from .. import __version__
-from .._errors import ConfigError, DataError, ModelError
+from .._errors import ConfigError, DataError, ModelError, one_line
 
 #: Sub-command modules, in help order.
 COMMANDS = ("report", "lsq", "static", "modal", "bench", "sample", "compare", "ema",
@@ -100,7 +100,10 @@ def main(argv: list[str] | None = None) -> int:
     except (DataError, ModelError, ConfigError, CLIError, OSError, ValueError) as exc:
         if args.debug:
             traceback.print_exc()
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, ConfigError):  # a configuration's problems, all of them
+            msg = one_line(exc)
+        else:
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"bayesmodal {args.command}: error: {msg}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: still one line, the traceback with --debug

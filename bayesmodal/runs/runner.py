@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import ConfigError, DataError
+from .._errors import ConfigError, DataError, one_line
 from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
 from ..inference.moves import parse_moves
@@ -96,14 +96,6 @@ class RunOutcome:
     action: str
     summary: dict
     wall_time_s: float
-
-
-def one_line(exc: BaseException) -> str:
-    """Every problem of a (configuration) error on one line, joined by ``"; "``."""
-    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
-    if len(lines) > 1 and lines[0].endswith("in the configuration:"):
-        lines = lines[1:]
-    return "; ".join(lines) or type(exc).__name__
 
 
 def _prior(ov):
