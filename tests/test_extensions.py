@@ -99,6 +99,22 @@ def test_batch_equals_single_and_shapes(name):
     np.testing.assert_array_equal(batch[0], ext.simulate(RIG, th, u, DT))
     np.testing.assert_array_equal(batch[0], batch[2])
     np.testing.assert_array_equal(batch[1], ext.simulate(RIG, other, u, DT))
+    # six sets run in a 16-lane (vectorised) kernel, the single ones in a scalar one
+    six = ext.simulate(RIG, np.stack([th, other] * 3), u, DT)
+    np.testing.assert_array_equal(six[::2], np.broadcast_to(batch[0], (3, 400, 3)))
+    np.testing.assert_array_equal(six[1::2], np.broadcast_to(batch[1], (3, 400, 3)))
+
+
+def test_kernel_width_vectorises_batches_above_four_sets():
+    from bayesmodal.discrepancy.kernels import MAX_WIDTH, padded_width
+    from bayesmodal.discrepancy.kernels._codegen import MIN_VECTOR_WIDTH, SCALAR_MAX
+
+    for nb in range(1, 3 * MAX_WIDTH):
+        w = padded_width(nb)
+        assert w & (w - 1) == 0 and w <= MAX_WIDTH  # a power of two, at most MAX_WIDTH
+        assert w >= min(nb, MAX_WIDTH)  # the batch fits in chunks of w lanes
+        assert (w >= MIN_VECTOR_WIDTH) == (nb > SCALAR_MAX)
+        assert w < 2 * max(min(nb, MAX_WIDTH), MIN_VECTOR_WIDTH)  # never wider than needed
 
 
 def test_reference_simulator_matches_the_linear_closed_form():

@@ -48,12 +48,23 @@ def _fma_sum(init: str, products) -> str:
     return expr
 
 
+#: Narrowest kernel for a batch of more than ``SCALAR_MAX`` parameter sets.  The compiler
+#: vectorises a lane loop only from 16 lanes (8-lane vectors, two per iteration): below
+#: that the loop runs one lane at a time, and a 16-lane kernel is faster for 5 to 8 sets
+#: (on 8 sets, per call: LuGre 4x, Coulomb 1.7x, backlash as fast; bayesmodal bench).
+MIN_VECTOR_WIDTH = 16
+#: Batches of at most this many sets keep their own (scalar) width: padding 3-4 sets to
+#: 16 lanes costs the Coulomb kernel more than it gains.
+SCALAR_MAX = 4
+
+
 def padded_width(nb: int) -> int:
-    """Kernel width for a batch of ``nb`` parameter sets (power of two <= MAX_WIDTH)."""
+    """Kernel width for a batch of ``nb`` parameter sets: a power of two, at most
+    ``MAX_WIDTH``, at least ``MIN_VECTOR_WIDTH`` above ``SCALAR_MAX`` sets."""
     w = 1
     while w < min(nb, MAX_WIDTH):
         w *= 2
-    return w
+    return max(w, MIN_VECTOR_WIDTH) if nb > SCALAR_MAX else w
 
 
 def _kernel_dir() -> Path | None:
