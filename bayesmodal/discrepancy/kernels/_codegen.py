@@ -22,7 +22,8 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-MAX_WIDTH = 64
+from ..._kernels import MAX_WIDTH  # noqa: F401  (the package exports it from here)
+from ..._kernels import padded_width as _linear_width
 
 _JIT = {"nogil": True, "boundscheck": False, "error_model": "numpy"}
 
@@ -51,7 +52,7 @@ def _fma_sum(init: str, products) -> str:
 #: Narrowest kernel for a batch of more than ``SCALAR_MAX`` parameter sets.  The compiler
 #: vectorises a lane loop only from 16 lanes (8-lane vectors, two per iteration): below
 #: that the loop runs one lane at a time, and a 16-lane kernel is faster for 5 to 8 sets
-#: (on 8 sets, per call: LuGre 4x, Coulomb 1.7x, backlash as fast; bayesmodal bench).
+#: (on 8 sets, per call: LuGre 3.8x, Coulomb 1.9x, backlash as fast; docs/performance.md).
 MIN_VECTOR_WIDTH = 16
 #: Batches of at most this many sets keep their own (scalar) width: padding 3-4 sets to
 #: 16 lanes costs the Coulomb kernel more than it gains.
@@ -61,9 +62,7 @@ SCALAR_MAX = 4
 def padded_width(nb: int) -> int:
     """Kernel width for a batch of ``nb`` parameter sets: a power of two, at most
     ``MAX_WIDTH``, at least ``MIN_VECTOR_WIDTH`` above ``SCALAR_MAX`` sets."""
-    w = 1
-    while w < min(nb, MAX_WIDTH):
-        w *= 2
+    w = _linear_width(nb)
     return max(w, MIN_VECTOR_WIDTH) if nb > SCALAR_MAX else w
 
 
