@@ -7,11 +7,13 @@ import pytest
 
 from bayesmodal.bench import (
     BEST_COMBINED,
+    BUSY_LOAD_PER_CORE,
     COMBINED,
     COMBINED_MAX_RATIO,
     EXTENSION_MAX_RATIO,
     bench_extensions,
     headline,
+    machine_load,
     rig_input,
 )
 from bayesmodal.cli import main
@@ -49,6 +51,7 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
         assert isinstance(r["meets_target"], bool)
     assert out["headline"] == headline(out["extensions"])
     assert set(out["headline"]) == {"coulomb_friction", "best_combined"}
+    assert set(out["machine"]) == {"load_average", "cores", "busy"}
     s = out["sampler"]
     assert s["n_samples"] == 300
     # the emcee run does all a likelihood call does and more, which does all a bare
@@ -103,6 +106,31 @@ def test_headline_takes_friction_and_the_costlier_best_combination():
     assert h["best_combined"]["meets_target"] == (25.0 <= COMBINED_MAX_RATIO)
     assert headline({a: result(1.0, 2.0)}).keys() == {"best_combined"}
     assert headline({}) == {}
+
+
+def test_best_combined_includes_the_posteriors_lugre_model_and_is_timed_by_default():
+    # the converged posterior of docs/discrepancy.md is the LuGre model with dead band and
+    # offset: the headline must not leave the costliest model it is about out
+    assert "lugre_friction+drive_deadband+input_offset" in BEST_COMBINED
+    assert set(BEST_COMBINED) <= set(COMBINED)
+
+
+def test_machine_load_calls_busy_above_the_per_core_threshold():
+    import os
+
+    cores = os.cpu_count() or 1
+    below = BUSY_LOAD_PER_CORE * cores * 0.9
+    above = BUSY_LOAD_PER_CORE * cores * 1.1
+    assert machine_load(lambda: (below, 0.0, 0.0))["busy"] is False
+    m = machine_load(lambda: (above, 1.0, 2.0))
+    assert m["busy"] is True and m["load_average"] == [above, 1.0, 2.0]
+    assert m["cores"] == cores
+
+    def unavailable():
+        raise OSError("no load average")
+
+    assert machine_load(unavailable) == {"load_average": None, "cores": os.cpu_count(),
+                                         "busy": None}
 
 
 def test_no_benchmark_script_shadows_an_installed_module():

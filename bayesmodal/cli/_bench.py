@@ -8,6 +8,7 @@ from ..bench import (
     bench_extensions,
     bench_linear,
     headline,
+    machine_load,
 )
 from ._common import print_json
 
@@ -38,7 +39,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    out = {"linear": bench_linear(args.samples, args.batch, quick=args.quick)}
+    out = {"machine": machine_load(),
+           "linear": bench_linear(args.samples, args.batch, quick=args.quick)}
     if not args.no_extensions:
         names = None if args.extensions is None else tuple(
             n.strip() for n in args.extensions.split(",") if n.strip())
@@ -52,6 +54,12 @@ def run(args) -> int:
     if args.json:
         print_json(out)
     else:
+        m = out["machine"]
+        if m["load_average"] is not None:
+            print(f"machine: load {m['load_average'][0]:.2f} (1 min) on {m['cores']} cores"
+                  + ("; BUSY (other jobs running or just finished): ratios measured "
+                     "beside other jobs have come out lower than on an idle machine "
+                     "(docs/performance.md)" if m["busy"] else ""))
         lin = out["linear"]
         print(f"linear simulator, N={lin['n_samples']}, batch={lin['batch']}:")
         print(f"  {lin['us_per_eval']:.1f} us/eval (reused buffer), "
