@@ -10,6 +10,12 @@ bulk ESS, likelihood evaluations per second, and the machine's load while it ran
 processes and pools them: the numba kernels are single-threaded, so on 2 cores two
 ensembles use both, and R-hat then also compares ensembles started from different draws.
 
+When the run converges, the line ``converged from`` gives the shortest prefix of the
+chain from which every longer checked prefix (every ``--every`` steps) is converged
+(``bayesmodal.inference.converged_from``: what a shorter run with the same seeds would
+have reported) and the wall time to that step, the start plus the sampling's wall time in
+proportion to its steps: the run length the configuration could have asked for.
+
 When the run falls short, the line ``extrapolated`` gives the steps per walker that the
 measured autocorrelation time says are needed for bulk ESS > 400 over all walkers
 (``ESS ~ n_walkers * kept_steps / tau``) and their CPU time at the measured CPU cost per
@@ -99,11 +105,15 @@ def main(argv=None) -> int:
     ap.add_argument("--backend", default=None,
                     help="HDF checkpoint (one ensemble): resume or extend a run")
     ap.add_argument("--progress", action="store_true")
+    ap.add_argument("--every", type=int, default=500,
+                    help="spacing of the chain prefixes checked for lasting convergence, "
+                         "steps")
     ap.add_argument("--json", default=None, help="write the figures to this file")
     ap.add_argument("--save", default=None, metavar="FILE.npz",
                     help="save the pooled post-burn-in chain (sampling coordinates, "
                          "steps x walkers x parameters), its log posterior and the names")
     args = ap.parse_args(argv)
+    from bayesmodal.inference import converged_from
     from bayesmodal.inference.sampling import convergence_diagnostics
 
     jobs = [{"config": args.config, "steps": args.steps, "burn": args.burn,
@@ -121,6 +131,10 @@ def main(argv=None) -> int:
     z = np.concatenate([r["z"] for r in res], axis=1)  # walkers of all ensembles as chains
     acc = np.concatenate([r["acceptance"] for r in res])
     names = res[0]["names"]
+    if args.save:
+        np.savez_compressed(args.save, z=z, log_prob=np.concatenate([r["lp"] for r in res],
+                                                                     axis=1),
+                            names=np.array(names), ensembles=args.ensembles)
     d = convergence_diagnostics(z, acc, names, min_ess=ESS_TARGET, max_rhat=RHAT_TARGET)
     n_eval = sum(r["n_evaluations"] for r in res)
     cpu = sum(r["cpu_s"] for r in res)
@@ -148,6 +162,19 @@ def main(argv=None) -> int:
         "problems": list(d.problems), "load_before": load_before, "load_after": _load(),
         "cores": os.cpu_count(), "sampling_wall_s_per_process": sampling_cpu / len(res),
     }
+    if out["converged"]:
+        rl = converged_from(z, names, every=min(args.every, z.shape[0]),
+                            max_rhat=RHAT_TARGET, min_ess=ESS_TARGET)
+        if rl.lasting is not None:
+            steps = res[0]["steps"]
+            frac = (res[0]["burn"] + rl.lasting) / steps
+            # per process: its start (mode search, Laplace draws) then the sampling
+            wall_to = max(r["wall_s"] - r["sampling_s"] + r["sampling_s"] * frac for r in res)
+            out["converged_from"] = {
+                "steps_per_walker": res[0]["burn"] + rl.lasting, "kept_steps": rl.lasting,
+                "wall_s_estimate": wall_to + (wall - max(r["wall_s"] for r in res)),
+                "checked_kept_steps": rl.kept_steps.tolist(),
+                "max_rhat": rl.max_rhat.tolist(), "min_ess": rl.min_ess.tolist()}
     if need_kept is not None:
         need_steps = need_kept + res[0]["burn"]
         evals = need_steps * walkers_total
@@ -169,15 +196,16 @@ def main(argv=None) -> int:
     print(f"tau max        {tau_max:9.1f} steps, acceptance {d.acceptance:.2f}")
     print(f"converged      {out['converged']} (R-hat < {RHAT_TARGET}, bulk ESS > "
           f"{ESS_TARGET:.0f})")
+    if "converged_from" in out:
+        c = out["converged_from"]
+        print(f"converged from {c['steps_per_walker']} steps per walker of "
+              f"{res[0]['steps']} (every longer prefix checked every {args.every} steps "
+              f"too): about {c['wall_s_estimate'] / 60:.1f} min wall to there")
     if "extrapolated" in out:
         x = out["extrapolated"]
         print(f"extrapolated   {x['steps_per_walker']} steps per walker for ESS > "
               f"{ESS_TARGET:.0f} and {MIN_N_OVER_TAU:.0f} tau: {x['cpu_s'] / 60:.1f} CPU min, "
               f"{x['idle_wall_s_on_2_cores'] / 60:.1f} min wall on 2 idle cores")
-    if args.save:
-        np.savez_compressed(args.save, z=z, log_prob=np.concatenate([r["lp"] for r in res],
-                                                                     axis=1),
-                            names=np.array(names), ensembles=args.ensembles)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1, default=float))
     return 0

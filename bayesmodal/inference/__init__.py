@@ -49,6 +49,7 @@ from .propagate import (
     modal_intervals,
     propagate_modes,
 )
+from .run_length import RunLength, converged_from
 from .sampling import (
     ConvergenceWarning,
     Diagnostics,
@@ -88,11 +89,13 @@ __all__ = [
     "PosteriorRun",
     "PredictiveScore",
     "PriorSet",
+    "RunLength",
     "Uniform",
     "ar1_terms",
     "bayes_factor",
     "choose_model",
     "comparison_markdown",
+    "converged_from",
     "convergence_diagnostics",
     "credible_interval",
     "default_moves",
