@@ -212,4 +212,9 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from bayesmodal._errors import ConfigError
+
+    try:
+        raise SystemExit(main())
+    except ConfigError as exc:  # a bad --steps/--burn/config: one line, not a traceback
+        raise SystemExit(f"extended_posterior.py: error: {exc}") from None
