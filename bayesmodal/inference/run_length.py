@@ -90,7 +90,7 @@ def converged_from(chain: np.ndarray, names: Sequence[str], *, every: int,
     ok = (rh < max_rhat) & (es > min_ess)
     lasting = None
     if ok[-1]:
-        first_bad_from_end = np.flatnonzero(~ok)
-        i = 0 if first_bad_from_end.size == 0 else int(first_bad_from_end[-1]) + 1
+        bad = np.flatnonzero(~ok)  # the prefixes that are not converged
+        i = 0 if bad.size == 0 else int(bad[-1]) + 1
         lasting = int(ks[i])
     return RunLength(np.array(ks), rh, es, ok, lasting)
