@@ -36,7 +36,7 @@ from .simulate import LinearSimulator, simulate_linear
 from .system import LinearModel, Rig
 
 __all__ = ["BEST_COMBINED", "BUSY_LOAD_PER_CORE", "COMBINED", "COMBINED_MAX_RATIO",
-           "EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear", "headline",
+           "EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear", "extension_theta", "headline",
            "machine_load", "rig_input", "time_per_call"]
 
 #: Report Table 3 (free damping), the centre of the benchmark parameter cloud.
@@ -86,6 +86,27 @@ BEST_COMBINED = ("coulomb_friction+input_offset", "coulomb_friction+drive_deadba
 
 #: 1-minute load average per core above which ``machine_load`` calls the machine busy.
 BUSY_LOAD_PER_CORE = 0.25
+
+
+def extension_theta(theta: np.ndarray, name: str) -> np.ndarray:
+    """The benchmark's parameter rows of an extension or combination.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (nb, 9)
+        Linear-model parameter sets (``_bench_problem``).
+    name : str
+        An extension or a ``+``-joined combination, e.g. ``coulomb_friction+input_offset``.
+
+    Returns
+    -------
+    ndarray, shape (nb, 9 + extension parameters)
+        ``theta`` followed by each effect's benchmark values (``_EFFECTS``: realistic sizes
+        on the rig, effect active) on every row.
+    """
+    nb = theta.shape[0]
+    return np.concatenate([theta] + [np.tile(_EFFECTS[e], (nb, 1)) for e in name.split("+")],
+                          axis=1)
 
 
 def machine_load(loadavg: Callable[[], tuple] | None = None) -> dict:
@@ -299,11 +320,7 @@ def bench_extensions(
     rounds = (1 if quick else 3) if rounds is None else int(rounds)
     names = tuple(EXTENSIONS) + COMBINED if names is None else tuple(names)
     exts = {name: get_extension(name) for name in names}
-    thetas = {
-        name: np.concatenate(
-            [theta] + [np.tile(_EFFECTS[e], (batch, 1)) for e in name.split("+")], axis=1)
-        for name in names
-    }
+    thetas = {name: extension_theta(theta, name) for name in names}
 
     def timings(u):
         linear = reused_linear(model, theta, u, dt)

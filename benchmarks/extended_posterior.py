@@ -53,10 +53,12 @@ MIN_N_OVER_TAU = 50.0
 
 
 def _load() -> str:
-    try:
-        return "load average (1, 5, 15 min) " + " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
+    from bayesmodal.bench import machine_load
+
+    load = machine_load()["load_average"]
+    if load is None:
         return "load average unavailable"
+    return "load average (1, 5, 15 min) " + " ".join(f"{x:.2f}" for x in load)
 
 
 def _one(job: dict) -> dict:

@@ -47,7 +47,13 @@ def _neighbour(kind: str, stop) -> None:
 
 
 def main(argv=None) -> int:
-    from bayesmodal.bench import _EFFECTS, _bench_problem, reused_linear, rig_input, time_per_call
+    from bayesmodal.bench import (
+        _bench_problem,
+        extension_theta,
+        reused_linear,
+        rig_input,
+        time_per_call,
+    )
     from bayesmodal.discrepancy.effects import get_extension
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -58,8 +64,7 @@ def main(argv=None) -> int:
     u = rig_input(n, dt)
     linear = reused_linear(model, theta, u, dt)
     exts = {m: get_extension(m) for m in MODELS}
-    thetas = {m: np.concatenate([theta] + [np.tile(_EFFECTS[e], (batch, 1))
-                                           for e in m.split("+")], axis=1) for m in MODELS}
+    thetas = {m: extension_theta(theta, m) for m in MODELS}
 
     def timed(fn):
         return time_per_call(fn, min_time_s=1.0, repeat=3, clock=time.process_time)
