@@ -54,6 +54,9 @@ problem in a file is collected and reported at once, each naming the file and th
     # prune = 3000              # or: move only the walkers stranded far below the others
     init = "ball"               # or "laplace": walkers drawn from the Gaussian at the
                                 # posterior mode (an extended model on several records)
+    threads = 1                 # or "auto", or N: each half-ensemble evaluated in blocks
+                                # of walkers on N threads; the same chain, faster for an
+                                # extended model (not part of the run's identity)
 
     [outputs]
     dir = "impulses-free"       # relative to the output root; no "..", not absolute
@@ -128,7 +131,8 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "records": {"per_record": dict, "noise_per_record": bool, "noise_scale": str},
     "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,
-                "moves": str, "restart": int, "prune": int, "init": str},
+                "moves": str, "restart": int, "prune": int, "init": str,
+                "threads": (int, str)},
     "outputs": {"dir": str, "plots": bool, "report": bool, "predictive_draws": int,
                 "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool,
                 "chain": str},
@@ -167,6 +171,7 @@ class RunConfig:
     restart: int | None = None
     prune: int | None = None
     init: str = "ball"
+    threads: int = 1  # execution only: the chain is the same with any number
     out_dir: str = ""
     plots: bool = True
     report: bool = True
@@ -254,7 +259,7 @@ class RunConfig:
         """SHA-256 of the canonical JSON of everything that affects the result."""
         d = self.to_dict()
         for k in ("source", "name", "out_dir", "plots", "report", "ema",
-                  "checkpoint_every_s", "pointwise_loglik", "chain_storage"):
+                  "checkpoint_every_s", "pointwise_loglik", "chain_storage", "threads"):
             d.pop(k)
         if d["restart"] is None:  # keeps the hashes of configs written before the key
             d.pop("restart")
@@ -544,6 +549,15 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         if init not in ("ball", "laplace"):
             err("sampler.init", f"must be 'ball' or 'laplace', got {init!r}")
         kw["init"] = init
+    threads = values.get(("sampler", "threads"))
+    if threads is not None:
+        from .inference.threads import resolve_threads  # noqa: PLC0415
+
+        try:
+            kw["threads"] = resolve_threads(threads)
+        except ConfigError:
+            err("sampler.threads", f"must be a positive integer or \"auto\" (one per "
+                f"usable core), got {threads!r}")
     moves = values.get(("sampler", "moves"))
     if moves is not None:
         for problem in move_spec(moves)[1]:

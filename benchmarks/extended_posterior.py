@@ -65,6 +65,7 @@ def _one(job: dict) -> dict:
     """One ensemble: its post-burn-in chain in sampling coordinates and its costs."""
     from bayesmodal.config import load_config
     from bayesmodal.inference import sample_posterior
+    from bayesmodal.inference.threads import resolve_threads
     from bayesmodal.runs.runner import prepare_run
 
     cfg = load_config(job["config"])
@@ -82,7 +83,8 @@ def _one(job: dict) -> dict:
             restart=cfg.restart if cfg.restart is not None and cfg.restart < burn else None,
             prune=cfg.prune if cfg.prune is not None and cfg.prune < burn else None,
             layout=cfg.layout, temperature=cfg.temperature, init=job["init"] or cfg.init,
-            backend=job["backend"], progress=job["progress"])
+            backend=job["backend"], progress=job["progress"],
+            threads=job["threads"] or cfg.threads)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     z = run.priors.to_sampling(run.chain[run.burn :])
     return {"z": z, "lp": run.log_prob[run.burn :], "acceptance": run.acceptance,
@@ -90,7 +92,8 @@ def _one(job: dict) -> dict:
             "cpu_s": cpu, "sampling_s": run.elapsed_s, "n_evaluations": run.n_evaluations,
             "walkers": walkers, "steps": steps, "burn": burn,
             "extension": run.extension_name, "seed": job["seed"],
-            "median": np.median(run.flat_draws, axis=0)}
+            "median": np.median(run.flat_draws, axis=0),
+            "threads": resolve_threads(job["threads"] or cfg.threads)}
 
 
 def main(argv=None) -> int:
@@ -104,6 +107,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--ensembles", type=int, default=1,
                     help="independent ensembles run in parallel processes and pooled")
+    ap.add_argument("--threads", default=None,
+                    help="threads per ensemble, an integer or auto (config's [sampler] "
+                         "threads)")
     ap.add_argument("--backend", default=None,
                     help="HDF checkpoint (one ensemble): resume or extend a run")
     ap.add_argument("--progress", action="store_true")
@@ -121,6 +127,7 @@ def main(argv=None) -> int:
     jobs = [{"config": args.config, "steps": args.steps, "burn": args.burn,
              "walkers": args.walkers, "init": args.init, "seed": args.seed + k,
              "backend": args.backend if args.ensembles == 1 else None,
+             "threads": args.threads,
              "progress": args.progress and k == 0} for k in range(args.ensembles)]
     load_before = _load()
     t0 = time.perf_counter()
@@ -152,6 +159,7 @@ def main(argv=None) -> int:
     out = {
         "config": args.config, "extension": res[0]["extension"],
         "init": args.init or "config", "ensembles": args.ensembles,
+        "threads_per_ensemble": res[0]["threads"],
         "walkers_per_ensemble": res[0]["walkers"], "steps": res[0]["steps"],
         "burn": res[0]["burn"], "parameters": len(names),
         "wall_s": wall, "cpu_s": cpu, "evaluations": n_eval,
@@ -184,10 +192,10 @@ def main(argv=None) -> int:
                                "steps_per_walker": need_steps,
                                "cpu_s": evals * cpu_per_eval,
                                "idle_wall_s_on_2_cores": evals * cpu_per_eval
-                               / min(2, max(args.ensembles, 1))}
+                               / min(2, args.ensembles * res[0]["threads"])}
     print(f"{out['extension']} on {len(names)} parameters, init {out['init']}, "
           f"{args.ensembles} x {res[0]['walkers']} walkers x {res[0]['steps']} steps "
-          f"(burn {res[0]['burn']})")
+          f"(burn {res[0]['burn']}), {res[0]['threads']} thread(s) per ensemble")
     print(f"wall time      {wall:9.1f} s   ({out['load_before']} before; "
           f"{out['load_after']} after; {out['cores']} cores)")
     print(f"CPU time       {cpu:9.1f} s   ({cpu_per_eval * 1e3:.2f} ms per evaluation)")

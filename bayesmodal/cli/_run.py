@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
 from .._errors import ConfigError
 from .._format import sig
@@ -28,17 +29,24 @@ def register(sub) -> None:
                    help="continue an interrupted run from its checkpoint")
     g.add_argument("--force", action="store_true",
                    help="delete the run files in the folder and start over")
+    p.add_argument("--threads", default=None, metavar="N|auto",
+                   help="threads evaluating each half-ensemble (auto: one per core); the "
+                   "same chain, faster for an extended model (default: [sampler] threads "
+                   "of CONFIG, 1 if not given)")
     p.add_argument("--quiet", action="store_true", help="no progress bars, no text output")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from ..config import load_config
+    from ..inference.threads import resolve_threads
     from ..runs import default_out_dir, execute_run, prepare_run
     from ..runs.runner import one_line
 
     try:
         cfg = load_config(args.config)
+        if args.threads is not None:
+            cfg = replace(cfg, threads=resolve_threads(args.threads))
         prep = prepare_run(cfg)
     except ConfigError as exc:
         raise ConfigError(one_line(exc)) from exc

@@ -72,6 +72,9 @@ def add_sampler_args(p) -> None:
     p.add_argument("--init", choices=["ball", "laplace"], default="ball",
                    help="walker start: a small ball at the posterior mode, or draws of the "
                    "Laplace approximation there (shorter burn-in; default ball)")
+    p.add_argument("--threads", default="1", metavar="N|auto",
+                   help="threads evaluating each half-ensemble (auto: one per core); the "
+                   "same chain, faster for a costly likelihood (default 1)")
 
 
 def sample_to_dir(exps, args, damping: str, out: Path):
@@ -102,6 +105,7 @@ def sample_to_dir(exps, args, damping: str, out: Path):
             n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
             progress=not args.quiet, initial_state=getattr(args, "initial_state", "rest"),
             init=getattr(args, "init", "ball"),
+            threads=getattr(args, "threads", "1"),
         )
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)

@@ -69,6 +69,7 @@ from .summary import (
     summary_dict,
     write_run,
 )
+from .threads import ThreadedLogPosterior, resolve_threads
 
 __all__ = [
     "BayesFactor",
@@ -90,6 +91,7 @@ __all__ = [
     "PredictiveScore",
     "PriorSet",
     "RunLength",
+    "ThreadedLogPosterior",
     "Uniform",
     "ar1_terms",
     "bayes_factor",
@@ -121,6 +123,7 @@ __all__ = [
     "predictive_check",
     "priors_from_idata",
     "propagate_modes",
+    "resolve_threads",
     "sample_posterior",
     "save_idata",
     "simulate_noise",

@@ -44,6 +44,7 @@ from .mode import posterior_mode
 from .moves import default_moves
 from .priors import PriorSet, default_priors
 from .stragglers import prune_stragglers
+from .threads import ThreadedLogPosterior, resolve_threads
 
 __all__ = [
     "ConvergenceWarning",
@@ -504,6 +505,7 @@ def sample_posterior(
     temperature: float = 1.0,
     initial_state: str = "rest",
     init: str = "ball",
+    threads: int | str = 1,
 ) -> PosteriorRun:
     """Sample the posterior of the mechanical and noise parameters with emcee.
 
@@ -602,6 +604,12 @@ def sample_posterior(
         evaluations and shortens the burn-in of an extended model on several records from
         thousands of steps to hundreds (docs/discrepancy.md, "A posterior that
         converges").  The restart (``restart``) uses the same start.
+    threads : int or "auto"
+        Threads that evaluate each half-ensemble in blocks of walkers
+        (``bayesmodal.inference.threads``; ``"auto"``: one per usable core).  The chain is
+        the same bit for bit with any number; what pays is an extended model, whose
+        likelihood is compiled simulation (LuGre friction on the four measured records:
+        1.85 times faster with 2 threads on 2 cores; the linear model 1.17).
 
     Returns
     -------
@@ -672,6 +680,7 @@ def sample_posterior(
     if init not in ("ball", "laplace"):
         raise ConfigError(f"init must be 'ball' or 'laplace', got {init!r}")
     restart, prune = burn_in_steps(restart, prune, burn)
+    threads = resolve_threads(threads)
     if isinstance(backend, (str, Path)) and not Path(backend).parent.is_dir():
         # before the least-squares start and the sampling, not when the first step is saved
         raise ConfigError(f"backend {str(backend)!r}: folder {str(Path(backend).parent)!r} "
@@ -750,54 +759,59 @@ def sample_posterior(
 
     if moves is None:
         moves = default_moves()
-    sampler = emcee.EnsembleSampler(
-        n_walkers, n_par, log_post, vectorize=True, moves=moves, backend=be
-    )
-    t0 = time.perf_counter()
-    n_eval = 0
-    # scale of the ball: log units for log/tanh parameters, relative for linear ones
-    width = np.array([p.support[1] - p.support[0] for p in priors.priors])
-    lin = np.array([t == "identity" for t in priors.transforms])
+    # each half-ensemble in blocks of walkers on ``threads`` threads: the same numbers
+    run_post = ThreadedLogPosterior(log_post, threads)
+    try:
+        sampler = emcee.EnsembleSampler(
+            n_walkers, n_par, run_post, vectorize=True, moves=moves, backend=be
+        )
+        t0 = time.perf_counter()
+        n_eval = 0
+        # scale of the ball: log units for log/tanh parameters, relative for linear ones
+        width = np.array([p.support[1] - p.support[0] for p in priors.priors])
+        lin = np.array([t == "identity" for t in priors.transforms])
 
-    def ball(theta, generator):
-        if init == "laplace":
-            return _laplace_start(log_post, posterior_mode(log_post, theta), n_walkers,
-                                  generator)
-        c = posterior_mode(log_post, theta) if refine else theta
-        scale = np.where(lin, init_scale * np.maximum(np.abs(c), 1e-3 * width), init_scale)
-        return _start_ball(priors, c, scale, n_walkers, generator, log_post)
+        def ball(theta, generator):
+            if init == "laplace":
+                return _laplace_start(run_post, posterior_mode(run_post, theta), n_walkers,
+                                      generator)
+            c = posterior_mode(run_post, theta) if refine else theta
+            scale = np.where(lin, init_scale * np.maximum(np.abs(c), 1e-3 * width), init_scale)
+            return _start_ball(priors, c, scale, n_walkers, generator, run_post)
 
-    # the run is split at ``restart`` (if any); ``stop`` is the end of the current stage
-    stop = split if split is not None and done <= split else n_steps
-    if done == 0:
-        z_init = ball(centre, gen)
-        mt = np.random.RandomState(np.random.MT19937(np.random.SeedSequence(
-            int(gen.integers(2**63)))))
-        state = emcee.State(z_init, random_state=mt.get_state())
-        be.reset(n_walkers, n_par)
-        _set_backend_attr(be, "bayesmodal_config_hash", chash)
-        _advance(sampler, state, stop, progress)
-        n_eval += n_walkers * (stop + 1)
-        done = stop
-    elif done < stop:
-        _advance(sampler, None, stop - done, progress)
-        n_eval += n_walkers * (stop - done)
-        done = stop
-    if split is not None and done == split:  # (split < burn < n_steps)
-        lp_split = be.get_log_prob()[split - 1]
-        if restart is not None:
-            best = be.get_chain()[split - 1, np.argmax(lp_split)]
-            z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
-        else:
-            z_init = prune_stragglers(be.get_chain()[split - 1], lp_split,
-                                      np.random.default_rng(restart_seed)).z
-        state = emcee.State(z_init, random_state=be.random_state)
-        if restart is not None:
-            _advance(sampler, state, n_steps - split, progress)
-        else:  # positions from the chain itself: emcee's independence check does not apply
-            _advance(sampler, state, n_steps - split, progress, check=False)
-        n_eval += n_walkers * (n_steps - split + 1)
-    elapsed = time.perf_counter() - t0
+        # the run is split at ``restart`` (if any); ``stop`` is the end of the current stage
+        stop = split if split is not None and done <= split else n_steps
+        if done == 0:
+            z_init = ball(centre, gen)
+            mt = np.random.RandomState(np.random.MT19937(np.random.SeedSequence(
+                int(gen.integers(2**63)))))
+            state = emcee.State(z_init, random_state=mt.get_state())
+            be.reset(n_walkers, n_par)
+            _set_backend_attr(be, "bayesmodal_config_hash", chash)
+            _advance(sampler, state, stop, progress)
+            n_eval += n_walkers * (stop + 1)
+            done = stop
+        elif done < stop:
+            _advance(sampler, None, stop - done, progress)
+            n_eval += n_walkers * (stop - done)
+            done = stop
+        if split is not None and done == split:  # (split < burn < n_steps)
+            lp_split = be.get_log_prob()[split - 1]
+            if restart is not None:
+                best = be.get_chain()[split - 1, np.argmax(lp_split)]
+                z_init = ball(priors.to_physical(best), np.random.default_rng(restart_seed))
+            else:
+                z_init = prune_stragglers(be.get_chain()[split - 1], lp_split,
+                                          np.random.default_rng(restart_seed)).z
+            state = emcee.State(z_init, random_state=be.random_state)
+            if restart is not None:
+                _advance(sampler, state, n_steps - split, progress)
+            else:  # positions from the chain itself: emcee's independence check does not apply
+                _advance(sampler, state, n_steps - split, progress, check=False)
+            n_eval += n_walkers * (n_steps - split + 1)
+        elapsed = time.perf_counter() - t0
+    finally:
+        run_post.close()
 
     z_chain = be.get_chain()[:n_steps]
     blobs = be.get_blobs()[:n_steps]

@@ -588,7 +588,8 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                 n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
                 moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
                 warn=False, extension=prep.extension, restart=cfg.restart, prune=cfg.prune,
-                layout=cfg.layout, temperature=temperature, init=cfg.init)
+                layout=cfg.layout, temperature=temperature, init=cfg.init,
+                threads=cfg.threads)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
