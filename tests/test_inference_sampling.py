@@ -165,6 +165,16 @@ def test_short_run_warns_not_converged():
         sample_posterior(exp, model, noise="ar1", n_walkers=24, n_steps=20, burn=5, rng=1)
 
 
+def test_too_few_kept_steps_are_not_converged_rather_than_an_error():
+    # three kept steps: ArviZ's split R-hat and ESS are NaN for every parameter; the run
+    # ends and says why (it crashed in the diagnostics with "All-NaN slice")
+    model, exp = _synthetic(n=300, seed=1)
+    with pytest.warns(ConvergenceWarning, match="undefined on a chain of 3 kept steps"):
+        run = sample_posterior(exp, model, noise="ar1", n_walkers=24, n_steps=4, burn=1,
+                               rng=1)
+    assert not run.diagnostics.converged and np.isnan(run.diagnostics.max_rhat)
+
+
 def test_configuration_errors():
     model, exp = _synthetic(n=300, seed=1)
     with pytest.raises(ConfigError, match="at least 2 x 12"):

@@ -18,9 +18,14 @@ from hidden_effects import make
 
 from bayesmodal._errors import ConfigError
 from bayesmodal.config import parse_config
-from bayesmodal.inference import Likelihood, default_priors, sample_posterior
+from bayesmodal.inference import (
+    Likelihood,
+    ThreadedLogPosterior,
+    default_priors,
+    resolve_threads,
+    sample_posterior,
+)
 from bayesmodal.inference.sampling import LogPosterior
-from bayesmodal.inference import ThreadedLogPosterior, resolve_threads
 from bayesmodal.system import LinearModel, Rig
 
 N_SAMPLES = 1500

@@ -193,12 +193,19 @@ def convergence_diagnostics(
     if not n_over > min_n_over_tau:
         problems.append(f"chain is {n_over:.1f} autocorrelation times long (want > "
                         f"{min_n_over_tau:g}; max tau {tau_max:.0f} steps)")
-    if not np.nanmax(rhat) < max_rhat:
-        worst = names[int(np.nanargmax(rhat))]
-        problems.append(f"max R-hat {np.nanmax(rhat):.3f} ({worst}) >= {max_rhat}")
-    if not np.nanmin(ess) > min_ess:
-        worst = names[int(np.nanargmin(ess))]
-        problems.append(f"min bulk ESS {np.nanmin(ess):.0f} ({worst}) <= {min_ess:g}")
+    # (too few kept steps leave R-hat and ESS undefined for every parameter: NaN)
+    rmax = float(np.nanmax(rhat)) if np.any(~np.isnan(rhat)) else np.nan
+    emin = float(np.nanmin(ess)) if np.any(~np.isnan(ess)) else np.nan
+    if np.isnan(rmax) or np.isnan(emin):
+        problems.append(f"R-hat and bulk ESS undefined on a chain of {n_steps} kept steps "
+                        "(run more steps after the burn-in)")
+    else:
+        if not rmax < max_rhat:
+            worst = names[int(np.nanargmax(rhat))]
+            problems.append(f"max R-hat {rmax:.3f} ({worst}) >= {max_rhat}")
+        if not emin > min_ess:
+            worst = names[int(np.nanargmin(ess))]
+            problems.append(f"min bulk ESS {emin:.0f} ({worst}) <= {min_ess:g}")
     lo, hi = acceptance_range
     if not lo < acc < hi:
         problems.append(f"mean acceptance {acc:.2f} outside ({lo}, {hi})")
@@ -208,8 +215,8 @@ def convergence_diagnostics(
         acceptance=acc,
         rhat=rhat,
         ess_bulk=ess,
-        max_rhat=float(np.nanmax(rhat)),
-        min_ess=float(np.nanmin(ess)),
+        max_rhat=rmax,
+        min_ess=emin,
         converged=not problems,
         problems=tuple(problems),
     )
