@@ -555,9 +555,8 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
         try:
             kw["threads"] = resolve_threads(threads)
-        except ConfigError:
-            err("sampler.threads", f"must be a positive integer or \"auto\" (one per "
-                f"usable core), got {threads!r}")
+        except ConfigError as exc:
+            err("sampler.threads", str(exc))
     moves = values.get(("sampler", "moves"))
     if moves is not None:
         for problem in move_spec(moves)[1]:

@@ -70,6 +70,7 @@ def _one(job: dict) -> dict:
 
     cfg = load_config(job["config"])
     prep = prepare_run(cfg)
+    threads = resolve_threads(job["threads"] or cfg.threads)
     steps = job["steps"] or cfg.steps
     burn = cfg.burn if job["burn"] is None else job["burn"]
     walkers = job["walkers"] or cfg.walkers
@@ -84,7 +85,7 @@ def _one(job: dict) -> dict:
             prune=cfg.prune if cfg.prune is not None and cfg.prune < burn else None,
             layout=cfg.layout, temperature=cfg.temperature, init=job["init"] or cfg.init,
             backend=job["backend"], progress=job["progress"],
-            threads=job["threads"] or cfg.threads)
+            threads=threads)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     z = run.priors.to_sampling(run.chain[run.burn :])
     return {"z": z, "lp": run.log_prob[run.burn :], "acceptance": run.acceptance,
@@ -93,7 +94,7 @@ def _one(job: dict) -> dict:
             "walkers": walkers, "steps": steps, "burn": burn,
             "extension": run.extension_name, "seed": job["seed"],
             "median": np.median(run.flat_draws, axis=0),
-            "threads": resolve_threads(job["threads"] or cfg.threads)}
+            "threads": threads}
 
 
 def main(argv=None) -> int:

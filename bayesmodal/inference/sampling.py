@@ -616,7 +616,8 @@ def sample_posterior(
         (``bayesmodal.inference.threads``; ``"auto"``: one per usable core).  The chain is
         the same bit for bit with any number; what pays is an extended model, whose
         likelihood is compiled simulation (LuGre friction on the four measured records:
-        1.85 times faster with 2 threads on 2 cores; the linear model 1.17).
+        1.6-1.9 times faster with 2 threads on 2 cores, the linear model 1.1;
+        ``python benchmarks/threads.py``).
 
     Returns
     -------
@@ -767,8 +768,7 @@ def sample_posterior(
     if moves is None:
         moves = default_moves()
     # each half-ensemble in blocks of walkers on ``threads`` threads: the same numbers
-    run_post = ThreadedLogPosterior(log_post, threads)
-    try:
+    with ThreadedLogPosterior(log_post, threads) as run_post:
         sampler = emcee.EnsembleSampler(
             n_walkers, n_par, run_post, vectorize=True, moves=moves, backend=be
         )
@@ -817,8 +817,6 @@ def sample_posterior(
                 _advance(sampler, state, n_steps - split, progress, check=False)
             n_eval += n_walkers * (n_steps - split + 1)
         elapsed = time.perf_counter() - t0
-    finally:
-        run_post.close()
 
     z_chain = be.get_chain()[:n_steps]
     blobs = be.get_blobs()[:n_steps]

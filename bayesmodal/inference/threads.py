@@ -11,9 +11,9 @@ run is the serial run, bit for bit, and the number of threads is not part of a r
 identity (its configuration hash).
 
 What it is for: an extended model, whose likelihood is almost all compiled simulation
-(LuGre friction on the four measured records: 105 ms for 28 walkers in one thread, 57 ms
-in two, 1.85 times faster on 2 cores).  The linear model spends a larger share of its
-evaluation in numpy under the lock (1.17 times faster on the same cores); run several
+(LuGre friction on the four measured records: 1.6-1.9 times faster with 2 threads on 2
+cores, ``python benchmarks/threads.py``).  The linear model spends a larger share of its
+evaluation in numpy under the lock (about 1.1 times faster on the same cores); run several
 independent jobs in processes there instead (``bayesmodal batch``, ``crossval``).
 """
 
