@@ -159,7 +159,7 @@ def test_coverage_colours_follow_the_sentence(tmp_path, n_fail):
     del s["heldout"]   # left-out records only (the main job): the legend is shown there
     page = _render(tmp_path / f"cv{n_fail}", s)
     assert "<span class='wide'>100</span>" in page
-    assert page.count("<span class='wide'>amber</span>: above") == 1
+    assert page.count("<span class='wide'>amber</span>: wider than needed") == 1
     assert "wider than needed" in run_verdict(s).sentence
     assert "<span class='ok'>100</span>" not in page
 
@@ -229,3 +229,53 @@ def test_diagnostics_rows_say_pass_or_fail_with_their_test(tmp_path):
     assert page.count("<span class='ok'>passes</span>") == 7
     # the white-noise limit of the lag-1 autocorrelation is explained with its value
     assert "here the limit is &plusmn;0.020" in page
+
+
+def _with_reference(rec: dict, *, pit, factor_pit, expected=(0.7, 1.0),
+                    factor_expected=(0.65, 1.45), factor=1.0) -> dict:
+    """A scored record carrying the fields of its coverage reference."""
+    n = len(rec["coverage_90"])
+    return {**rec, "coverage_90_expected": [list(expected)] * n,
+            "coverage_90_pit": [pit] * n, "band_factor_90": [factor] * n,
+            "band_factor_90_expected": [list(factor_expected)] * n,
+            "band_factor_90_pit": [factor_pit] * n, "record_pit_90": pit,
+            "record_band_factor_pit_90": factor_pit}
+
+
+def test_verdict_judges_coverage_against_what_a_calibrated_band_shows(tmp_path):
+    """With a coverage reference, 99 % coverage of a record on which calibrated bands
+    cover 70-100 % is no evidence against the band (green, no flag), while 83 % with
+    misses 1.9 times the band where a calibrated band needs at most 1.45 is too narrow;
+    a record is flagged only in a tail of VERDICT_FAMILY_LEVEL / (4 n_records)."""
+    from bayesmodal.runs.verdict import VERDICT_FAMILY_LEVEL, record_status
+
+    s = _summary()
+    del s["heldout"]
+    typical = _with_reference({"name": "rec_ok", "coverage_90": [0.99, 0.98, 0.99],
+                               "width_90": [1.3] * 3, "fit_percent": [75.0] * 3},
+                              pit=0.8, factor_pit=0.2, factor=0.7)
+    far = _with_reference({"name": "rec_far", "coverage_90": [0.83, 0.82, 0.83],
+                           "width_90": [0.6] * 3, "fit_percent": [60.0] * 3},
+                          pit=0.2, factor_pit=1.0, factor=1.9)
+    s["crossval"] = {"records": [typical]}
+    v = run_verdict(s)
+    assert v.intervals.status == "ok" and "too narrow" not in v.sentence
+    assert "a calibrated band would cover 70-100 %" in v.intervals.text
+    page = _render(tmp_path / "a", s)
+    assert "<span class='ok'>99</span>" in page and "70-100" in page
+    # without the reference the same coverage is amber (the fixed tolerance)
+    bare = {k: typical[k] for k in ("name", "coverage_90", "width_90", "fit_percent")}
+    assert record_status(bare) == "wide"
+    s["crossval"] = {"records": [typical, far]}
+    v = run_verdict(s)
+    assert v.intervals.status == "bad" and "too narrow" in v.sentence
+    assert "rec_far (its misses lie further out" in v.intervals.text
+    assert "1.9 times as wide, a calibrated one at most 1.4" in v.intervals.text
+    page = _render(tmp_path / "b", s)
+    assert "<span class='bad'>83</span>" in page
+    # the family-wise tail: just inside it is not flagged, just beyond it is
+    tail = VERDICT_FAMILY_LEVEL / (4 * 2)
+    for u, want in ((1.0 - 0.9 * tail, "wide"), (1.0 - 1.1 * tail, "ok"),
+                    (0.9 * tail, "narrow"), (1.1 * tail, "ok")):
+        rec = {**far, "record_band_factor_pit_90": 0.5, "record_pit_90": u}
+        assert record_status(rec, n_records=2) == want, (u, want)

@@ -27,6 +27,7 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..data import Experiment
+from .coverage_reference import calibration_summary
 from .predictive import PredictiveScores, predict_new_record, score_samples
 from .records import DEFAULT_LAYOUT, RecordLayout
 
@@ -164,30 +165,61 @@ class CrossvalResult:
     total_lpd_se: float
     wall_time_s: float
 
+    @property
+    def calibration(self) -> dict | None:
+        """Are the held-out coverages what calibrated bands would show?
+        (:func:`~.coverage_reference.calibration_summary` over the folds; None when a
+        fold has no coverage reference.)"""
+        refs = [f.scores.reference for f in self.folds]
+        if any(r is None for r in refs):
+            return None
+        return calibration_summary(
+            [r.record_pit(f.scores.coverage_90) for r, f in zip(refs, self.folds,
+                                                                 strict=True)],
+            window_probabilities=[r.window_probability() for r in refs])
+
     def to_dict(self) -> dict:
+        total = {"lpd": self.total_lpd, "lpd_se": self.total_lpd_se,
+                 "n_records": len(self.folds)}
+        if self.calibration is not None:
+            total["calibration"] = self.calibration
         return {"spec": self.spec.to_dict(),
                 "records": [f.to_dict() for f in self.folds],
                 "joint": None if self.joint is None else self.joint.to_dict(),
                 "own_lsq": self.own,
-                "total": {"lpd": self.total_lpd, "lpd_se": self.total_lpd_se,
-                          "n_records": len(self.folds)},
+                "total": total,
                 "wall_time_s": self.wall_time_s}
 
     def table(self) -> str:
         """Plain-text table: one row per held-out record and output."""
-        rows = ["record                   cart  fit %   cov50  cov90  width90  x90    crps    lpd"]
+        rows = ["record                   cart  fit %   cov50  cov90  (calibrated)  width90  "
+                "x90   (calibrated)  crps    lpd"]
         for f in self.folds:
             s = f.scores
+            ref = s.reference
             for j in range(s.fit_percent.size):
                 lpd = f"{s.lpd:.0f} +- {s.lpd_se:.1f}" if j == 0 else ""
+                cr = xr = " " * 11
+                if ref is not None:
+                    c, x = ref.interval(0.9)[j], ref.band_factor_interval()[j]
+                    cr, xr = f"{c[0]:4.2f}-{c[1]:4.2f}", f"{x[0]:4.2f}-{x[1]:4.2f}"
                 rows.append(f"{s.name[:24]:<24} {j + 1:>4}  {s.fit_percent[j]:5.1f}  "
                             f"{s.coverage_50[j]:5.2f}  {s.coverage_90[j]:5.2f}  "
-                            f"{s.width_90[j]:6.2f}  {s.band_factor_90[j]:5.2f}  "
-                            f"{s.crps[j]:5.3f}  {lpd}")
+                            f"({cr:>9})  {s.width_90[j]:6.2f}  {s.band_factor_90[j]:5.2f} "
+                            f"({xr:>9})  {s.crps[j]:5.3f}  {lpd}")
         rows.append(f"total held-out lpd: {self.total_lpd:.0f} +- {self.total_lpd_se:.0f} nats "
                     f"over {len(self.folds)} records")
         rows.append("x90: the factor on the 90 % band's half-widths that would cover 90 % "
                     "of the record (1 = calibrated, > 1 too narrow)")
+        cal = self.calibration
+        if cal is not None:
+            rows.append("(calibrated): the central 90 % of what a calibrated band shows on "
+                        "such a record (the predictive draws scored against the others)")
+            rows.append(f"records outside that range: {cal['n_outside']} of "
+                        f"{cal['n_records']} (below {cal['n_below']}, above "
+                        f"{cal['n_above']}; p = {cal['p_value']:.2f} if calibrated); "
+                        "calibrated bands would meet a fixed 80-95 % window on every "
+                        f"record and cart with probability {cal['window_probability_all']:.2f}")
         return "\n".join(rows)
 
 

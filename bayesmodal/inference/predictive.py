@@ -23,6 +23,12 @@ Scores per output (:class:`PredictiveScores`):
   over samples, divided by the record's standard deviation (0 is perfect; a point
   forecast with no spread scores its mean absolute error), from the sorted-ensemble form
   ``CRPS = mean|Y - y| - 1/2 mean|Y - Y'|``;
+- ``reference``: what coverage and band factor a *calibrated* band would show on a
+  record like this one, from the ensemble scored against itself
+  (:mod:`.coverage_reference`): ``coverage_90_expected`` (the central 90 % range),
+  ``coverage_90_pit`` (the record's rank in it), ``band_factor_90_expected``,
+  ``band_factor_90_pit``, ``record_pit_90``, ``record_band_factor_pit_90`` and
+  ``window_probability_90``;
 - ``lpd``: the log predictive density of the whole record (all outputs),
   ``log mean_s p(y | theta_s, new-record draws)``, with its Monte Carlo standard error
   (delta method on the mean of the likelihood ratios).  Per-record parameters drawn from
@@ -39,6 +45,12 @@ from scipy.special import logsumexp
 from .._errors import DataError
 from ..data import Experiment
 from ..metrics import fit_percent
+from .coverage_reference import (
+    MIN_REFERENCE_DRAWS,
+    CoverageReference,
+    coverage_reference,
+    reference_fields,
+)
 from .likelihood import Likelihood, residual_loglik, simulate_noise
 from .records import SIGNED
 
@@ -58,6 +70,9 @@ class PredictiveScores:
         record's standard deviation per output).
     band_factor_90 : ndarray, shape (n_out,)
         Scale of the 90 % band about its median that covers 90 % of the record.
+    reference : CoverageReference or None
+        The coverages a calibrated band would show on such a record (None below
+        :data:`~.coverage_reference.MIN_REFERENCE_DRAWS` draws).
     lpd : float
         Log predictive density of the record, nats.
     lpd_se : float
@@ -75,6 +90,15 @@ class PredictiveScores:
     lpd_se: float
     n_draws: int
     band_factor_90: np.ndarray | None = None
+    reference: CoverageReference | None = None
+
+    def reference_dict(self) -> dict:
+        """The reference in ``summary.json`` form ({} without one;
+        :func:`~.coverage_reference.reference_fields`)."""
+        if self.reference is None:
+            return {}
+        return reference_fields(self.reference, {0.5: self.coverage_50, 0.9: self.coverage_90},
+                                self.band_factor_90)
 
     def to_dict(self) -> dict:
         keys = ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps",
@@ -82,6 +106,7 @@ class PredictiveScores:
         return {"name": self.name,
                 **{k: np.asarray(getattr(self, k)).tolist() for k in keys
                    if getattr(self, k) is not None},
+                **self.reference_dict(),
                 "lpd": self.lpd, "lpd_se": self.lpd_se, "n_draws": self.n_draws}
 
 
@@ -234,7 +259,9 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
 
 def score_samples(name: str, y: np.ndarray, y_pred: np.ndarray, loglik: np.ndarray
                   ) -> PredictiveScores:
-    """Scores of predictive samples ``y_pred`` (S, N, n_out) against ``y`` (N, n_out)."""
+    """Scores of predictive samples ``y_pred`` (S, N, n_out) against ``y`` (N, n_out),
+    with the coverage reference of the ensemble (:func:`~.coverage_reference.
+    coverage_reference`) when it has at least ``MIN_REFERENCE_DRAWS`` members."""
     q = np.quantile(y_pred, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
     sd = np.std(y, axis=0)
     cov50 = np.mean((y >= q[1]) & (y <= q[3]), axis=0)
@@ -246,8 +273,9 @@ def score_samples(name: str, y: np.ndarray, y_pred: np.ndarray, loglik: np.ndarr
     w = np.exp(loglik - np.max(loglik))
     # delta method: se(log mean w) = sd(w) / (sqrt(S) mean(w))
     lpd_se = float(np.std(w, ddof=1) / (np.sqrt(s) * np.mean(w))) if s > 1 else float("nan")
+    ref = coverage_reference(y_pred) if y_pred.shape[0] >= MIN_REFERENCE_DRAWS else None
     return PredictiveScores(name, fit_percent(y, q[2]), cov50, cov90, width, crps, lpd,
-                            lpd_se, int(s), band_factor(y, q[0], q[2], q[4]))
+                            lpd_se, int(s), band_factor(y, q[0], q[2], q[4]), ref)
 
 
 def band_factor(y: np.ndarray, lower: np.ndarray, median: np.ndarray, upper: np.ndarray,

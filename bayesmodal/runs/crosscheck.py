@@ -290,13 +290,18 @@ def predictive_coverage(likelihood, draws: np.ndarray, *, prob: float = 0.9,
     list of dict
         Per record: ``name``, ``coverage`` (n_out,) fraction of samples inside the band,
         ``width_m`` (n_out,) mean band width, m, ``fit_percent`` (n_out,) fit of the
-        median noise-free prediction, ``n_draws``.
+        median noise-free prediction, ``n_draws``, ``band_factor`` (n_out,) the factor on
+        the band that would cover ``prob`` (``inference.predictive.band_factor``), and
+        ``reference`` (``inference.coverage_reference.CoverageReference``, None below
+        ``MIN_REFERENCE_DRAWS`` draws): what a calibrated band would show.
 
     Examples
     --------
     >>> # predictive_coverage(likelihood_from_idata(idata, heldout), draws, rng=1)
     """
     from ..inference import simulate_noise
+    from ..inference.coverage_reference import MIN_REFERENCE_DRAWS, coverage_reference
+    from ..inference.predictive import band_factor
     from ..metrics import fit_percent
 
     if not 0.0 < prob < 1.0:
@@ -310,11 +315,11 @@ def predictive_coverage(likelihood, draws: np.ndarray, *, prob: float = 0.9,
                     .round().astype(int))
     mech, sigma, phi = likelihood.split(draws[idx])
     y_hat = likelihood.predict(mech)  # per record (S, N, n_out)
-    qa = [(1 - prob) / 2, (1 + prob) / 2]
+    qa = [(1 - prob) / 2, 0.5, (1 + prob) / 2]
     out = []
     for e, yh in zip(likelihood.experiments, y_hat, strict=True):
         rep = yh + simulate_noise(sigma, phi, e.n_samples, rng)
-        lo, hi = np.quantile(rep, qa, axis=0)
+        lo, mid, hi = np.quantile(rep, qa, axis=0)
         inside = (e.y_m >= lo) & (e.y_m <= hi)
         out.append({
             "name": e.name,
@@ -323,5 +328,8 @@ def predictive_coverage(likelihood, draws: np.ndarray, *, prob: float = 0.9,
             "fit_percent": np.atleast_1d(np.asarray(
                 fit_percent(e.y_m, np.median(yh, axis=0)), float)),
             "n_draws": int(idx.size),
+            "band_factor": band_factor(e.y_m, lo, mid, hi, prob),
+            "reference": (coverage_reference(rep, (prob,))
+                          if idx.size >= MIN_REFERENCE_DRAWS else None),
         })
     return out

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from .folder import atomic_write_text
-from .verdict import COVERAGE_TOLERANCE, coverage_status, run_verdict
+from .verdict import COVERAGE_TOLERANCE, cell_statuses, run_verdict
 
 __all__ = ["render_report", "write_report", "REPORT_IMAGES"]
 
@@ -149,26 +149,35 @@ def _answer_word(question: str, status: str) -> str:
 _COVERAGE_CLASS = {"ok": "ok", "narrow": "bad", "wide": "wide"}
 
 
+def _ranges(pairs, fmt: str, scale: float = 1.0) -> str:
+    """'a-b, c-d' from per-output [lo, hi] pairs ('&ndash;' without)."""
+    txt = ", ".join(f"{format(scale * lo, fmt)}-{format(scale * hi, fmt)}"
+                    for lo, hi in (pairs or []))
+    return _e(txt) or "&ndash;"
+
+
 def _coverage_rows(records, role: str, *, relative: bool = False, factor: bool = False,
                    prob: float = 0.9) -> list[list[str]]:
     """Table rows; band widths in mm, or (``relative``) divided by the record's sd; each
-    coverage coloured by :func:`~.verdict.coverage_status`; with ``factor`` also the
-    factor on the band's width that would cover 90 % (``band_factor_90``)."""
+    coverage coloured by :func:`~.verdict.cell_statuses` (against the record's coverage
+    reference where it has one) and followed by the range a calibrated band would cover;
+    with ``factor`` also the factor on the band's width that would cover 90 %
+    (``band_factor_90``) and its calibrated range."""
     rows = []
     for r in records:
         cov = _flat(r.get("coverage_90", []))
         width = _flat(r.get("width_90", []))
         fit = _flat(r.get("fit_percent", []))
-        cells = []
-        for c in cov:
-            cls = _COVERAGE_CLASS[coverage_status(c, prob)]
-            cells.append(f"<span class='{cls}'>{100 * c:.0f}</span>")
+        cells = [f"<span class='{_COVERAGE_CLASS[st]}'>{100 * c:.0f}</span>"
+                 for c, st in zip(cov, cell_statuses(r, prob), strict=True)]
         row = [_e(r.get("name", "?")), _e(role), ", ".join(cells) or "&ndash;",
+               _ranges(r.get("coverage_90_expected"), ".0f", 100.0),
                _e(", ".join(f"{w:.2f}" if relative else f"{1e3 * w:.3f}"
                             for w in width)) or "&ndash;"]
         if factor:
-            row.append(_e(", ".join(f"{x:.2f}" for x in
-                                    _flat(r.get("band_factor_90", [])))) or "&ndash;")
+            row += [_e(", ".join(f"{x:.2f}" for x in
+                                 _flat(r.get("band_factor_90", [])))) or "&ndash;",
+                    _ranges(r.get("band_factor_90_expected"), ".2f")]
         rows.append(row + [_e(", ".join(f"{f:.1f}" for f in fit)) or "&ndash;"])
     return rows
 
@@ -199,24 +208,28 @@ def _section_verdict(s: dict) -> str:
     cv_rows = _coverage_rows(cv.get("records") or [], "left out", relative=True,
                              factor=True)
     legend = ("<p class='muted'>Coverage: the share of the measured samples inside the "
-              "90 % posterior-predictive band (model output plus fitted noise); a band "
-              "that holds covers about 90 % of a record it was not fitted to. "
-              f"<span class='ok'>Green</span>: within 90 &plusmn; {tol} %; "
-              "<span class='bad'>red</span>: below (the band is too narrow); "
-              "<span class='wide'>amber</span>: above (the band is wider than needed)."
-              "</p>")
+              "90 % posterior-predictive band (model output plus fitted noise). One "
+              "record is one draw of it: when the misfit is correlated over hundreds of "
+              "samples, even a calibrated band covers anything from about 70 to 100 % of "
+              "a single record. The <i>calibrated</i> columns give the central 90 % of "
+              "what a calibrated band shows on a record like this one (the predictive "
+              "draws scored against each other). <span class='ok'>Green</span>: inside "
+              "that range; <span class='bad'>red</span>: the band is too narrow (coverage "
+              "below it, or misses further out than a calibrated band's); "
+              "<span class='wide'>amber</span>: wider than needed. Without a calibrated "
+              f"range: green within 90 &plusmn; {tol} %.</p>")
     if rows:
         out += legend + _table(["record", "role", "coverage of 90 % band (%, per output)",
-                                "band width (mm, per output)", "fit % (per output)"], rows,
-                               left=(0, 1))
+                                "calibrated (%)", "band width (mm, per output)",
+                                "fit % (per output)"], rows, left=(0, 1))
     if cv_rows:
         method = cv.get("method") or "each record left out of the fit in turn"
         out += (f"<h3 id='crossval'>Leave-one-record-out ({_e(method)})</h3>"
                 + ("" if rows else legend)
                 + _table(["record", "role", "coverage of 90 % band (%, per output)",
-                          "band width / record sd (per output)",
+                          "calibrated (%)", "band width / record sd (per output)",
                           "width factor that would cover 90 % (per output)",
-                          "fit % (per output)"],
+                          "calibrated factor", "fit % (per output)"],
                          cv_rows, left=(0, 1)))
     return out
 

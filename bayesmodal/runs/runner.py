@@ -417,10 +417,14 @@ def _heldout(prep: PreparedRun, idata) -> dict | None:
 
 def _coverage_records(lik, draws, seed) -> list[dict]:
     """Coverage of the 90 % posterior-predictive band per record (``summary.json`` form)."""
+    from ..inference.coverage_reference import reference_fields
     from .crosscheck import predictive_coverage
 
     return [{"name": c["name"], "coverage_90": c["coverage"].tolist(),
-             "width_90": c["width_m"].tolist(), "fit_percent": c["fit_percent"].tolist()}
+             "width_90": c["width_m"].tolist(), "fit_percent": c["fit_percent"].tolist(),
+             "band_factor_90": c["band_factor"].tolist(),
+             **({} if c["reference"] is None else
+                reference_fields(c["reference"], {0.9: c["coverage"]}, c["band_factor"]))}
             for c in predictive_coverage(lik, draws, prob=0.9, rng=seed)]
 
 
@@ -449,7 +453,9 @@ def _heldout_new_records(prep: PreparedRun, idata) -> dict:
             "fit_percent_hi": q[2].tolist(), "scores": [s.to_dict() for s in scores],
             "records": [{"name": sc.name, "coverage_90": sc.coverage_90.tolist(),
                          "width_90": (sc.width_90 * np.std(e.y_m, axis=0)).tolist(),
-                         "fit_percent": sc.fit_percent.tolist()}
+                         "fit_percent": sc.fit_percent.tolist(),
+                         "band_factor_90": sc.band_factor_90.tolist(),
+                         **sc.reference_dict()}
                         for sc, e in zip(scores, prep.heldout, strict=True)],
             "predicted_as": "new records (per-record parameters drawn from the population)"}
 

@@ -18,31 +18,87 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Answer", "RunVerdict", "run_verdict", "coverage_status", "COVERAGE_TOLERANCE"]
+__all__ = ["Answer", "RunVerdict", "run_verdict", "cell_statuses", "coverage_status",
+           "record_status",
+           "COVERAGE_TOLERANCE", "VERDICT_FAMILY_LEVEL"]
 
-#: A 90 % predictive band is taken as "covering" new records when it covers at least
-#: 90 % - this (fraction), and as wider than needed above 90 % + this.  Coverage of
-#: autocorrelated residuals has a large sampling error (few independent stretches per
-#: record), so only a clear departure counts.
+#: Without a coverage reference (summaries written before it, or too few predictive
+#: draws), a 90 % predictive band is taken as "covering" new records when it covers at
+#: least 90 % - this (fraction), and as wider than needed above 90 % + this.
 COVERAGE_TOLERANCE = 0.05
 
+#: Probability with which the verdict calls *calibrated* bands too narrow or too wide
+#: somewhere among the records it checks (two statistics per record, Bonferroni):
+#: a record is flagged when the rank of its coverage or of its band factor among what a
+#: calibrated band shows (``inference.coverage_reference``) is in a tail of
+#: ``VERDICT_FAMILY_LEVEL / (4 n_records)``.
+VERDICT_FAMILY_LEVEL = 0.1
 
-def coverage_status(coverage: float, prob: float = 0.9) -> str:
+
+def coverage_status(coverage: float, prob: float = 0.9, *, coverage_pit: float | None = None,
+                    band_factor_pit: float | None = None, level: float = 0.9) -> str:
     """How honest a band of probability ``prob`` is that covers ``coverage`` of a record.
 
-    ``"ok"`` within ``prob +- COVERAGE_TOLERANCE``, ``"narrow"`` below (the band
-    understates the uncertainty), ``"wide"`` above (it covers by being wider than needed).
+    With the record's coverage reference (``coverage_pit``: the rank of its coverage
+    among the coverages a calibrated band shows on such a record; ``band_factor_pit``:
+    the same for the factor that would make the band cover ``prob``): ``"narrow"`` when
+    the coverage is in the lower tail or the band factor in the upper tail of the central
+    ``level`` range (the misses lie further out than a calibrated band's), ``"wide"`` in
+    the opposite tails, ``"ok"`` otherwise.  Without it: ``"ok"`` within ``prob +-
+    COVERAGE_TOLERANCE``, ``"narrow"`` below, ``"wide"`` above.
 
     Examples
     --------
     >>> [coverage_status(c) for c in (0.5, 0.88, 0.93, 1.0)]
     ['narrow', 'ok', 'ok', 'wide']
+    >>> coverage_status(0.99, coverage_pit=0.8, band_factor_pit=0.3)  # 99 % is typical
+    'ok'
+    >>> coverage_status(0.83, coverage_pit=0.2, band_factor_pit=0.99)  # far misses
+    'narrow'
     """
-    if coverage < prob - COVERAGE_TOLERANCE:
+    if coverage_pit is None:
+        if coverage < prob - COVERAGE_TOLERANCE:
+            return "narrow"
+        if coverage > min(1.0, prob + COVERAGE_TOLERANCE):
+            return "wide"
+        return "ok"
+    a = (1.0 - level) / 2
+    f = 0.5 if band_factor_pit is None else band_factor_pit
+    if coverage_pit < a or f > 1.0 - a:
         return "narrow"
-    if coverage > min(1.0, prob + COVERAGE_TOLERANCE):
+    if coverage_pit > 1.0 - a or f < a:
         return "wide"
     return "ok"
+
+
+def record_status(record: dict, n_records: int = 1, prob: float = 0.9) -> str:
+    """``"narrow"``, ``"wide"`` or ``"ok"`` for one scored record (``summary.json`` form).
+
+    With ``record_pit_90`` (and ``record_band_factor_pit_90``) the record-level ranks are
+    tested at the family-wise :data:`VERDICT_FAMILY_LEVEL` over ``n_records`` records;
+    without, the lowest and highest coverage of its outputs against the fixed tolerance.
+    """
+    u = record.get("record_pit_90")
+    if _finite(u):
+        v = record.get("record_band_factor_pit_90")
+        level = 1.0 - VERDICT_FAMILY_LEVEL / (2 * max(1, n_records))
+        return coverage_status(float("nan"), prob, coverage_pit=float(u),
+                               band_factor_pit=float(v) if _finite(v) else None,
+                               level=level)
+    cov = _flat(record.get("coverage_90", []))
+    if not cov:
+        return "ok"
+    lo, hi = coverage_status(min(cov), prob), coverage_status(max(cov), prob)
+    return "narrow" if "narrow" in (lo, hi) else ("wide" if "wide" in (lo, hi) else "ok")
+
+
+def cell_statuses(record: dict, prob: float = 0.9) -> list[str]:
+    """``coverage_status`` of each output of a scored record (its reference where given)."""
+    cov = _flat(record.get("coverage_90", []))
+    cp = record.get("coverage_90_pit") or [None] * len(cov)
+    fp = record.get("band_factor_90_pit") or [None] * len(cov)
+    return [coverage_status(c, prob, coverage_pit=u, band_factor_pit=f)
+            for c, u, f in zip(cov, cp, fp, strict=False)]
 
 
 @dataclass(frozen=True)
@@ -202,6 +258,39 @@ def _coverage_phrase(records: list[dict]) -> tuple[str, float | None, float | No
     return _span(cov, scale=100.0), min(cov), max(cov)
 
 
+def _expected_phrase(records: list[dict]) -> str:
+    """' (a calibrated band would cover a-b % ...)' from the records' references, or ''."""
+    rng = [x for r in records for x in _flat(r.get("coverage_90_expected", []))]
+    if not rng:
+        return ""
+    return (f" (a calibrated band would cover {_span([min(rng), max(rng)], scale=100.0)} "
+            "of records like these)")
+
+
+def _flagged(records: list[dict], prob: float) -> tuple[list[dict], list[dict]]:
+    """The records whose band is too narrow, and those whose band is wider than a
+    calibrated one (:func:`record_status` over all of them)."""
+    st = [record_status(r, len(records), prob) for r in records]
+    return ([r for r, x in zip(records, st, strict=True) if x == "narrow"],
+            [r for r, x in zip(records, st, strict=True) if x == "wide"])
+
+
+def _flag_detail(r: dict, status: str) -> str:
+    """One flagged record in words, with the numbers that flagged it."""
+    name = r.get("name", "?")
+    exp = _flat(r.get("coverage_90_expected", []))
+    cov = f"covers {_span(r.get('coverage_90', []), scale=100.0)}"
+    if exp:
+        cov += f" where a calibrated band covers {_span([min(exp), max(exp)], scale=100.0)}"
+    fexp = _flat(r.get("band_factor_90_expected", []))
+    f = _flat(r.get("band_factor_90", []))
+    if status == "narrow" and f and fexp:
+        return (f"{name} (its misses lie further out than a calibrated band's: it would "
+                f"have to be {_span(f, '.1f', unit='')} times as wide, a calibrated one at "
+                f"most {max(fexp):.1f}; {cov})")
+    return f"{name} ({cov})"
+
+
 def _intervals(s: dict, model: Answer) -> Answer:
     q = "How far can the intervals be trusted?"
     prob = float(s.get("prob", 0.9))
@@ -233,19 +322,25 @@ def _intervals(s: dict, model: Answer) -> Answer:
         if n_tot:
             parts.append(f"{n_tot - n_in} of {n_tot} model-free LSCE estimates of "
                          "frequency and damping lie outside them")
-    held_txt, held_min, _ = _coverage_phrase(_heldout_records(s))
-    cv_txt, cv_min, _ = _coverage_phrase(_crossval_records(s))
+    held, cvr = _heldout_records(s), _crossval_records(s)
+    held_txt, _, _ = _coverage_phrase(held)
+    cv_txt, _, _ = _coverage_phrase(cvr)
     if held_txt:
         parts.append(f"the {pct} predictive band covers {held_txt} of the held-out "
-                     "record(s)")
+                     "record(s)" + _expected_phrase(held))
     if cv_txt:
         parts.append(f"leaving one record out, the {pct} band covers {cv_txt} of the "
-                     "left-out record")
-    mins = [m for m in (held_min, cv_min) if m is not None]
-    covered = all(coverage_status(m, prob) != "narrow" for m in mins)
-    if model.status == "bad" or not covered:
+                     "left-out record" + _expected_phrase(cvr))
+    narrow, wide = _flagged(held + cvr, prob)
+    if narrow:
+        parts.append("it is too narrow for " + "; ".join(_flag_detail(r, "narrow")
+                                                        for r in narrow))
+    if wide:
+        parts.append("it is wider than a calibrated band for " + "; ".join(
+            _flag_detail(r, "wide") for r in wide))
+    if model.status == "bad" or narrow:
         status = "bad"
-    elif model.status == "unknown" or not mins:
+    elif model.status == "unknown" or not (held or cvr):
         status = "unknown"
     else:
         status = "ok"
@@ -287,8 +382,8 @@ def run_verdict(summary: dict) -> RunVerdict:
     c = _intervals(summary, b)
     prob = float(summary.get("prob", 0.9))
     pct = f"{100 * prob:.0f} %"
-    held_txt, held_min, held_max = _coverage_phrase(_heldout_records(summary))
-    cv_txt, cv_min, cv_max = _coverage_phrase(_crossval_records(summary))
+    held_txt, _, _ = _coverage_phrase(_heldout_records(summary))
+    cv_txt, _, _ = _coverage_phrase(_crossval_records(summary))
     cov_txt = ""
     if held_txt:
         cov_txt = f"held-out {pct} band covers {held_txt}"
@@ -307,10 +402,9 @@ def run_verdict(summary: dict) -> RunVerdict:
     else:
         second = "the residuals were not checked"
         joint = "; "
-    mins = [m for m in (held_min, cv_min) if m is not None]
-    maxs = [m for m in (held_max, cv_max) if m is not None]
-    narrow = bool(mins) and coverage_status(min(mins), prob) == "narrow"
-    wide = bool(maxs) and coverage_status(max(maxs), prob) == "wide"
+    flag_narrow, flag_wide = _flagged(_heldout_records(summary)
+                                      + _crossval_records(summary), prob)
+    narrow, wide = bool(flag_narrow), bool(flag_wide)
     if c.status == "bad":
         third = "the intervals below are conditional on this model"
         if narrow and wide:
