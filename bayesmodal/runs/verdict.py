@@ -291,7 +291,9 @@ def _flag_detail(r: dict, status: str) -> str:
     return f"{name} ({cov})"
 
 
-def _intervals(s: dict, model: Answer) -> Answer:
+def _intervals(s: dict, model: Answer, flags: tuple[list[dict], list[dict]]) -> Answer:
+    """The third answer; ``flags``: the records whose band is too narrow, and those
+    whose band is wider than a calibrated one (``_flagged``)."""
     q = "How far can the intervals be trusted?"
     prob = float(s.get("prob", 0.9))
     pct = f"{100 * prob:.0f} %"
@@ -331,7 +333,7 @@ def _intervals(s: dict, model: Answer) -> Answer:
     if cv_txt:
         parts.append(f"leaving one record out, the {pct} band covers {cv_txt} of the "
                      "left-out record" + _expected_phrase(cvr))
-    narrow, wide = _flagged(held + cvr, prob)
+    narrow, wide = flags
     if narrow:
         parts.append("it is too narrow for " + "; ".join(_flag_detail(r, "narrow")
                                                         for r in narrow))
@@ -379,8 +381,9 @@ def run_verdict(summary: dict) -> RunVerdict:
     """
     a = _sampler(summary)
     b = _model(summary)
-    c = _intervals(summary, b)
     prob = float(summary.get("prob", 0.9))
+    flags = _flagged(_heldout_records(summary) + _crossval_records(summary), prob)
+    c = _intervals(summary, b, flags)
     pct = f"{100 * prob:.0f} %"
     held_txt, _, _ = _coverage_phrase(_heldout_records(summary))
     cv_txt, _, _ = _coverage_phrase(_crossval_records(summary))
@@ -402,9 +405,7 @@ def run_verdict(summary: dict) -> RunVerdict:
     else:
         second = "the residuals were not checked"
         joint = "; "
-    flag_narrow, flag_wide = _flagged(_heldout_records(summary)
-                                      + _crossval_records(summary), prob)
-    narrow, wide = bool(flag_narrow), bool(flag_wide)
+    narrow, wide = bool(flags[0]), bool(flags[1])
     if c.status == "bad":
         third = "the intervals below are conditional on this model"
         if narrow and wide:
