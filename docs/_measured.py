@@ -18,3 +18,35 @@ def measured_records() -> list[Experiment]:
               file=sys.stderr)
         raise SystemExit(2)
     return [load_experiment(p) for p in paths]
+
+
+def run_studies(studies: dict, summarise, out: str, markdown, *, workers: int,
+                only: list[str] | None = None) -> dict:
+    """Leave-one-record-out studies of the four records, one per labelled ``CrossvalSpec``.
+
+    Each result goes through ``summarise(result, wall_s)`` into ``<out>.json``, written
+    after every study (``only`` runs the named studies and keeps the file's others); the
+    summaries through ``markdown`` into ``<out>.md``, which is also printed.
+    """
+    import json
+    import time
+    from pathlib import Path
+
+    from bayesmodal.inference.crossval import crossval
+
+    exps = measured_records()
+    path = Path(out).with_suffix(".json")
+    done = json.loads(path.read_text()) if only and path.exists() else {}
+    for label, spec in studies.items():
+        if only and label not in only:
+            continue
+        t0 = time.perf_counter()
+        res = crossval(exps, spec, workers=workers, joint=False,
+                       progress=lambda line, label=label: print(f"{label}: {line}",
+                                                               file=sys.stderr))
+        done[label] = summarise(res, time.perf_counter() - t0)
+        path.write_text(json.dumps(done, indent=1) + "\n")
+    table = markdown(done)
+    Path(out).with_suffix(".md").write_text(table)
+    print(table)
+    return done

@@ -22,17 +22,14 @@ Writes ``docs/figures/noise_scale.json`` and ``docs/figures/noise_scale.md``.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from _measured import measured_records  # docs/_measured.py (run as docs/<script>.py)
+from _measured import run_studies  # docs/_measured.py (run as docs/<script>.py)
 
 from bayesmodal.config import load_config
-from bayesmodal.inference.crossval import crossval
 from bayesmodal.inference.records import RecordLayout
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,18 +93,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures" / "noise_scale"),
                     help="output path without suffix (.json and .md are written)")
     args = ap.parse_args(argv)
-    exps = measured_records()
-    out = {}
-    for label, spec in studies(args.final).items():
-        t0 = time.perf_counter()
-        res = crossval(exps, spec, workers=args.workers, joint=False,
-                       progress=lambda line, label=label: print(f"{label}: {line}",
-                                                               file=sys.stderr))
-        out[label] = summarise(res, time.perf_counter() - t0)
-    Path(args.out).with_suffix(".json").write_text(json.dumps(out, indent=1) + "\n")
-    table = markdown(out)
-    Path(args.out).with_suffix(".md").write_text(table)
-    print(table)
+    run_studies(studies(args.final), summarise, args.out, markdown, workers=args.workers)
     return 0
 
 
