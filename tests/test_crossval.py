@@ -124,15 +124,20 @@ def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
     from bayesmodal.runs.crossval import write_crossval
 
     recs = _records(n=400)
-    spec = CrossvalSpec(n_walkers=48, n_steps=20, n_predictive=10, noise="white")
+    spec = CrossvalSpec(n_walkers=48, n_steps=20, n_predictive=24, noise="white")
     res = crossval(recs, spec, workers=1)
     d = json.loads((write_crossval(res, tmp_path)).read_text())
     assert [r["name"] for r in d["records"]] == [e.name for e in recs]
     for r in d["records"]:
         for key in ("fit_percent", "coverage_50", "coverage_90", "width_90", "crps",
-                    "band_factor_90"):
+                    "band_factor_90", "coverage_90_pit", "band_factor_90_pit"):
             assert len(r[key]) == 3
+        assert np.array(r["coverage_90_expected"]).shape == (3, 2)
+        assert 0.0 <= r["record_pit_90"] <= 1.0 and 0.0 <= r["window_probability_90"] <= 1.0
         assert np.isfinite(r["lpd"])
+    cal = d["total"]["calibration"]
+    assert cal["n_records"] == len(recs) and len(cal["record_pit_90"]) == len(recs)
+    assert "(calibrated)" in res.table() and "records outside that range" in res.table()
     assert d["total"]["lpd"] == pytest.approx(sum(r["lpd"] for r in d["records"]))
     assert set(d["own_lsq"]) == {e.name for e in recs}
     assert (tmp_path / "forest.png").is_file()
@@ -244,3 +249,22 @@ def test_crossval_takes_a_rig_description(tmp_path):
             for n in "ab"]
     lik = RecordsLikelihood(model, exps, "ar1")
     assert lik.n_outputs == 2 and lik.names[-4:] == ("sigma_1", "sigma_2", "phi_1", "phi_2")
+
+
+def test_compare_counts_left_out_records_with_calibrated_bands():
+    """``bayesmodal compare`` reports, next to the summed lpd, how many left-out records
+    the verdict finds consistent with a calibrated band (none without references)."""
+    from bayesmodal.runs.compare import _crossval_of, _cv_cell
+
+    def rec(name, u, f):
+        return {"name": name, "lpd": -1.0, "coverage_90": [0.9], "record_pit_90": u,
+                "record_band_factor_pit_90": f}
+
+    s = {"crossval": {"total": {"lpd": -2.0, "lpd_se": 1.0},
+                      "records": [rec("a", 0.5, 0.5), rec("b", 0.2, 1.0)]}}
+    cv = _crossval_of(s)
+    assert cv["calibrated"] == 1 and "bands calibrated on 1 of 2" in _cv_cell(cv)
+    for r in s["crossval"]["records"]:
+        del r["record_pit_90"]
+    assert _crossval_of(s)["calibrated"] is None
+    assert "calibrated" not in _cv_cell(_crossval_of(s))

@@ -135,15 +135,29 @@ class RunComparison:
 
 
 def _cv_cell(cv: dict | None) -> str:
-    return "" if not cv else f"{cv['lpd']:.1f} ({cv['lpd_se']:.1f})"
+    if not cv:
+        return ""
+    cell = f"{cv['lpd']:.1f} ({cv['lpd_se']:.1f})"
+    if cv.get("calibrated") is not None:
+        cell += f"; bands calibrated on {cv['calibrated']} of {len(cv['records'])}"
+    return cell
 
 
 def _crossval_of(summary: dict) -> dict | None:
+    """Summed leave-one-record-out lpd, per-record lpd, and (with coverage references)
+    the number of left-out records whose band the report's verdict finds consistent with
+    a calibrated band (``verdict.record_status``)."""
+    from .verdict import record_status
+
     cv = summary.get("crossval")
     if not cv or not cv.get("records"):
         return None
+    recs = cv["records"]
+    calibrated = None
+    if all("record_pit_90" in r for r in recs):
+        calibrated = sum(record_status(r, len(recs)) == "ok" for r in recs)
     return {"lpd": cv["total"]["lpd"], "lpd_se": cv["total"]["lpd_se"],
-            "records": {r["name"]: r["lpd"] for r in cv["records"]}}
+            "records": {r["name"]: r["lpd"] for r in recs}, "calibrated": calibrated}
 
 
 def crossval_difference(a: dict, b: dict) -> tuple[float, float]:
@@ -324,6 +338,11 @@ def _verdict(rows, pref: dict) -> str:
             f"Which model predicts the next experiment (leave-one-record-out, the criterion "
             f"for that question): {best_cv.label}, ahead of {runner_up.label} by {diff:.1f} "
             f"nats ({diff / se if se > 0 else math.inf:.1f} standard errors over records).")
+        cal = [r for r in rows if r.crossval.get("calibrated") is not None]
+        if cal:
+            words.append("Left-out bands consistent with calibrated ones: " + ", ".join(
+                f"{r.label} {r.crossval['calibrated']} of {len(r.crossval['records'])}"
+                for r in cal) + " records.")
     if len(set(pref.values())) == 1:
         words.append("All criteria agree.")
     else:
