@@ -311,7 +311,10 @@ def fit_extension_lsq(
 
     def to_theta(w):
         lin = w[..., :p_lin] * lin_scale
-        lin[..., log_mask] = np.exp(lin[..., log_mask])
+        # a long trial step can overflow a log parameter to inf (or a mass to 0): such
+        # points are not a model and get admissible_residuals' barrier, as in fit_lsq
+        with np.errstate(over="ignore", under="ignore"):
+            lin[..., log_mask] = np.exp(lin[..., log_mask])
         return np.concatenate([lin, ext.from_opt(rig, w[..., p_lin:] * ext_scale)], axis=-1)
 
     def fun(w):
