@@ -41,6 +41,8 @@ def studies(slow: bool) -> dict:
     out = {
         "AR(1), level per response size (main job)": base,
         "AR(1), one level": replace(base, layout=RecordLayout(per)),
+        "AR(1), level per response size, one gain for all records": replace(
+            base, layout=RecordLayout({"v0": "shared"}, noise_scale="response")),
         "AR(1), noise parameters per record": replace(
             base, layout=RecordLayout(per, noise_per_record=True, noise_scale="response")),
         "white, level per response size": replace(base, noise="white"),

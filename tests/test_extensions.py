@@ -8,6 +8,7 @@ import pytest
 from conftest import TABLE3, zoh_rtol
 from reference_effects import LUGRE_RTOL, NEW_REFERENCES
 from reference_sim import REFERENCES, simulate_linear_ref
+from reference_stop import simulate_stop_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
@@ -41,8 +42,9 @@ EFFECTS = {
     "lugre_friction": [0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005],
     "coulomb_directional": [0.1, 0.15, 0.08, 0.05, 0.2, 0.05, 0.15, 0.25, 0.2],
     "amplitude_gain": [0.03],
+    "end_stop": [0.02, 2000.0],
 }
-REFERENCES = {**REFERENCES, **NEW_REFERENCES}
+REFERENCES = {**REFERENCES, **NEW_REFERENCES, "end_stop": simulate_stop_ref}
 
 
 def _input(N=700):

@@ -19,6 +19,22 @@ def _indices(text: str) -> list[int]:
             f"takes record indices such as 0 or 0,1, got {text!r}") from None
 
 
+def _candidates(text: str) -> list[str]:
+    """``--candidates``: names, or ``+name,...`` to add to the default candidates."""
+    from ..discrepancy.diagnosis import DEFAULT_CANDIDATES
+    from ..discrepancy.effects import EXTENSIONS
+
+    extra = text.startswith("+")
+    names = [s.strip() for s in text.lstrip("+").split(",") if s.strip()]
+    unknown = [c for c in names if c not in EXTENSIONS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"takes catalogue names such as coulomb_friction,input_offset or +end_stop "
+            f"(added to the default ones), got {text!r}; known: {sorted(EXTENSIONS)}")
+    return list(DEFAULT_CANDIDATES) + [c for c in names if c not in DEFAULT_CANDIDATES] \
+        if extra else names
+
+
 def register(sub) -> None:
     p = sub.add_parser(
         "diagnose",
@@ -52,6 +68,10 @@ def register(sub) -> None:
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
                    help="largest number of effects forward selection puts in the model; 1 "
                    "stops after the first cause (default %(default)s)")
+    p.add_argument("--candidates", type=_candidates, default=None, metavar="NAME,...",
+                   help="the effects tried as causes: catalogue names, or +NAME,... to add "
+                   "to the default ones (e.g. +end_stop); default: "
+                   "discrepancy.diagnosis.DEFAULT_CANDIDATES")
     p.add_argument("--local-search", action="store_true",
                    help="forward selection fits stick-slip models from local starts only "
                    "(faster; by default also by differential evolution, whose fit the "
@@ -136,7 +156,7 @@ def run(args) -> int:
                  max_effects=args.max_effects, global_search=not args.local_search,
                  posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
-                 n_starts=args.starts, progress=not args.quiet)
+                 n_starts=args.starts, progress=not args.quiet, candidates=args.candidates)
     if args.plots:
         from ..discrepancy.diagnosis.plots import write_plots
 

@@ -20,6 +20,7 @@ name                          parameters (after the linear)    acts at
                               (N s/m), ``v_stribeck`` (m/s)
 ``coulomb_directional``       ``Fcp_i, Fcn_i, Fs_i`` (N)       each cart
 ``amplitude_gain``            ``kappa_per_V`` (1/V)            motor input
+``end_stop``                  ``x_stop`` (m), ``k_stop`` (N/m) travel of cart 1
 ============================  ===============================  =====================
 
 Effects combine: ``get_extension("coulomb_friction+input_offset")`` (or a list of names)
@@ -46,6 +47,7 @@ from .coulomb import CoulombFriction
 from .coulomb_directional import DirectionalCoulombFriction
 from .cubic import CubicStiffness
 from .deadband import DriveDeadband
+from .end_stop import EndStop
 from .fit import ExtensionFit, fit_extension_lsq
 from .input_delay import InputDelay
 from .input_offset import InputOffset
@@ -66,6 +68,7 @@ __all__ = [
     "CubicStiffness",
     "DirectionalCoulombFriction",
     "DriveDeadband",
+    "EndStop",
     "InputDelay",
     "InputOffset",
     "InputSaturation",
@@ -90,6 +93,7 @@ EXTENSIONS: dict[str, Extension] = {
         LuGreFriction(),
         DirectionalCoulombFriction(),
         AmplitudeGain(),
+        EndStop(),
     )
 }
 

@@ -19,8 +19,12 @@ is lost, an error of second order in ``dt / n_hold`` (on 3 V pulses at 5 ms with
 lag: 4.9 encoder counts for ``n_hold = 1``, 0.34 for the default 4; measured in
 ``tests/test_effects_combined_filters.py``).  Such a combination is not ``exact``.
 
-Not supported (``ModelError`` at construction): two plant-side effects together (each
-has its own compiled kernel; friction and backlash in one kernel is not written).
+A plant-side *force* (``plant_force``: the end stop of the driven cart) joins the one
+plant kernel that takes it (``end_stop.STOP_KERNELS``: stick-slip friction, cubic
+springs), or is the plant alone.
+
+Not supported (``ModelError`` at construction): two plant-side effects together otherwise
+(each has its own compiled kernel; friction and backlash in one kernel is not written).
 
 Examples
 --------
@@ -40,6 +44,7 @@ from ..._errors import ModelError
 from ...system import Rig
 from ._base import EffectLocation, Extension, ParamSpec
 from ._input import held_average, linear_lanes_run
+from .end_stop import STOP_KERNELS
 
 #: Input-side effects that are linear filters handled by the linear plant recursion.
 _LINEAR_FILTERS = {3: "tau", 4: "delay_s"}
@@ -106,10 +111,16 @@ class Combined(Extension):
         if len(set(names)) != len(names):
             raise ModelError(f"effect repeated in {names}; list each effect once")
         plant = [e for e in flat if e.side != "input"]
-        if len(plant) > 1:
+        forces = [e for e in plant if getattr(e, "plant_force", False)]
+        kernels = [e for e in plant if e not in forces]
+        if len(kernels) > 1 or len(forces) > 1:
             raise ModelError(
                 f"two plant-side effects {[e.name for e in plant]} in one model are not "
                 "supported (each has its own compiled kernel); keep one of them")
+        if forces and kernels and kernels[0].name not in STOP_KERNELS:
+            raise ModelError(
+                f"{forces[0].name} combines with {' or '.join(STOP_KERNELS)} only, not "
+                f"with {kernels[0].name} (its kernel takes no stop force); keep one of them")
         stages = [e.input_stage for e in flat if e.side == "input"]
         if any(s is None for s in stages) or len(set(stages)) != len(stages):
             raise ModelError(f"input-side effects {names} need distinct stages")
@@ -136,8 +147,17 @@ class Combined(Extension):
 
     @property
     def plant(self) -> Extension | None:
-        """The plant-side effect, or None for the linear plant."""
-        return next((e for e in self.effects if e.side != "input"), None)
+        """The plant-side effect whose kernel runs the model (a plant-side force alone
+        runs its own), or None for the linear plant."""
+        plant = [e for e in self.effects if e.side != "input"]
+        return next((e for e in plant if not getattr(e, "plant_force", False)),
+                    plant[0] if plant else None)
+
+    @property
+    def plant_force(self) -> Extension | None:
+        """A plant-side force that the plant kernel takes next to its own, or None."""
+        f = next((e for e in self.effects if getattr(e, "plant_force", False)), None)
+        return None if f is self.plant else f
 
     # ------------------------------------------------------------------ parameters
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
@@ -169,6 +189,8 @@ class Combined(Extension):
         inputs = sorted((e for e in self.effects if e.side == "input"),
                         key=lambda e: e.input_stage)
         plant = self.plant
+        force = self.plant_force
+        extra = {} if force is None else {"stop": force.stop_args(own[force.name])}
         kinds = [_kernel_stage(e) for e in inputs]
         if (plant is not None and getattr(plant, "fuses_input_stages", False)
                 and u.ndim == 1 and None not in kinds):
@@ -176,7 +198,11 @@ class Combined(Extension):
             # the numpy transforms below, without an (N, lanes) input block)
             stages = tuple((k, own[e.name][:, 0]) for k, e in zip(kinds, inputs, strict=True))
             return plant._simulate(rig, theta_lin, own[plant.name], u, dt, x0,
-                                   input_stages=stages)
+                                   input_stages=stages, **extra)
+        if extra and getattr(plant, "fuses_input_stages", False):
+            raise ModelError(f"{self.name}: {force.name} with {plant.name} takes the input "
+                             "stages offset, sharp dead band, saturation and amplitude gain "
+                             "only (its kernel needs one input for all lanes)")
         v = u
         filters: dict[str, np.ndarray] = {}
         for e in inputs:
@@ -189,11 +215,11 @@ class Combined(Extension):
         if plant is None:
             return linear_lanes_run(rig, theta_lin, v, dt, x0, **filters)
         if not filters:
-            return plant._simulate(rig, theta_lin, own[plant.name], v, dt, x0)
+            return plant._simulate(rig, theta_lin, own[plant.name], v, dt, x0, **extra)
         n = int(self.n_hold)
         h = dt / n
         w = held_average(np.repeat(v, n, axis=-1), h, theta_lin.shape[0], **filters)
-        return plant._simulate(rig, theta_lin, own[plant.name], w, h, x0)[:, ::n]
+        return plant._simulate(rig, theta_lin, own[plant.name], w, h, x0, **extra)[:, ::n]
 
     # ------------------------------------------------------------------ location
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

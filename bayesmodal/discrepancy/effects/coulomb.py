@@ -85,7 +85,7 @@ class CoulombFriction(Extension):
         fc, fs = theta_ext[..., :n], theta_ext[..., n:]
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all((fc >= 0) & (fs >= fc), axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=()):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
@@ -96,7 +96,7 @@ class CoulombFriction(Extension):
         return coulomb_run(
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
             theta_ext[:, :n], theta_ext[:, n:], u, int(self.n_sub), h, x0,
-            adaptive=self.adaptive, input_stages=input_stages,
+            adaptive=self.adaptive, input_stages=input_stages, stop=stop,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -64,7 +64,7 @@ class DirectionalCoulombFriction(CoulombFriction):
         ok = (fp >= 0) & (fn >= 0) & (fs >= fp) & (fs >= fn)
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all(ok, axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=()):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
@@ -77,6 +77,7 @@ class DirectionalCoulombFriction(CoulombFriction):
             np.ascontiguousarray(e[:, :n]), np.ascontiguousarray(e[:, 2 * n :]), u,
             int(self.n_sub), h, x0, adaptive=self.adaptive,
             Fc_backward=np.ascontiguousarray(e[:, n : 2 * n]), input_stages=input_stages,
+            stop=stop,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

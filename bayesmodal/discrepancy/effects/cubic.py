@@ -60,12 +60,12 @@ class CubicStiffness(Extension):
     def _valid_extension(self, rig, theta_lin, theta_ext):
         return np.all(np.isfinite(theta_ext), axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, stop=None):
         p = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, F0h, F1h = zoh(p.A, p.force_inputs, h, ramp=True)
         Bh = np.einsum("bij,bj->bi", F0h, p.b)  # the motor is a force on the carts
-        return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0)
+        return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0, stop=stop)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The spring with the largest relative cubic stiffness ``|k3_i| / k_i``."""

@@ -15,6 +15,7 @@ from ._codegen import (
     _sum,
     run_batched,
 )
+from .stop import checked_side, stop_input_lines
 
 #: Safeguarded Newton steps for the break-away time of the friction kernel (a held force
 #: reaching the static level, on its cubic Hermite interpolant in time).
@@ -73,13 +74,17 @@ def checked_stages(stages, per_lane: bool) -> tuple[str, ...]:
 
 
 def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
-                   packed_from: int | None) -> list[str]:
+                   packed_from: int | None, *, stop: int = 0, n: int = 0, X=None,
+                   XX=None, steps: tuple[str, str] = ("h", "h")) -> list[str]:
     """Kernel source applying ``stages`` to the shared input in every lane loop.
 
     The sample's raw input is read once (``u0``); each ``for b in range(...)`` loop starts
     with the lane's own transformed input ``uk`` from its parameter rows (``P``, or the
     packed copy ``PP`` in the loops after line ``packed_from``); where a loop does not use
-    ``uk`` the compiler drops the code.
+    ``uk`` the compiler drops the code.  With ``stop`` (+1 or -1) the end stop's force on
+    the driven cart is added to ``uk`` last (``kernels.stop.stop_input_lines``), from the
+    lane's state (``X``, or ``XX`` after ``packed_from``: ``n`` positions, then
+    velocities) and the loop's step (``steps``: before and after ``packed_from``).
     """
     out = []
     for i, line in enumerate(lines):
@@ -88,11 +93,16 @@ def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
             continue
         out.append(line)
         if line.strip().startswith("for b in range("):
-            rows = PP if packed_from is not None and i >= packed_from else P
+            late = packed_from is not None and i >= packed_from
+            rows = PP if late else P
             t = line[: len(line) - len(line.lstrip())] + "    "
             out.append(f"{t}uk = u0")
             for j, kind in enumerate(stages):
                 out += _stage_code(t, kind, rows(f"s{j}"))
+            if stop:
+                st = XX if late else X
+                out += stop_input_lines(t, st("x", 0), st("x", n), steps[int(late)], stop,
+                                        rows("xq"), rows("kq"))
     return out
 
 
@@ -331,7 +341,7 @@ def _coulomb_store(t, X, n) -> list[str]:
     return L
 
 
-def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False) -> list[str]:
+def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False, stop=False) -> list[str]:
     """Code of a step without event corrections that counts the lanes needing them.
 
     Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
@@ -340,7 +350,10 @@ def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False) -> list[str]:
     velocity of a sliding cart or the held force of a stuck one tested at the end, at the
     midpoint of its cubic Hermite interpolant and on the linear extrapolations from both
     ends (a velocity dipping through zero and back, or a held force peaking past ``Fs``
-    inside the step, which the end values alone would hide).
+    inside the step, which the end values alone would hide).  With ``stop`` a lane is
+    also flagged where its driven cart is in contact with the end stop or can reach it
+    within the step (``nq_``, set by ``kernels.stop.stop_input_lines``): the stop force
+    is held at its mid-step value, accurate in sub-steps.
     """
     C, w = range(n), X.width
     L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
@@ -365,6 +378,8 @@ def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False) -> list[str]:
               f"{t}n{i} = xs{i} if st{i} else n{i}",
               f"{t}n{v} = 0.0 if st{i} else n{v}"]
         flags.append(f"ev{i}")
+    if stop:
+        flags.append("nq_")
     L += [f"{t}e = {' | '.join(flags)}",
           f"{t}S[{X.size * w} + b] = 1.0 if e else 0.0",
           f"{t}ev += 1 if e else 0"]
@@ -397,7 +412,7 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
 
 @functools.lru_cache(maxsize=16)
 def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
-                   asymmetric: bool = False, stages: tuple[str, ...] = ()):
+                   asymmetric: bool = False, stages: tuple[str, ...] = (), stop: int = 0):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
@@ -405,9 +420,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     With ``per_lane`` the input is one column per lane (see ``_lane_inputs``); with
     ``asymmetric`` the kinetic level depends on the direction of sliding (parameter rows
     ``fc`` forwards, ``fn`` backwards); ``stages`` (of ``INPUT_STAGES``, shared input
-    only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``.
+    only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``;
+    ``stop`` (+1 or -1, shared input only): an end stop of that side on the driven cart,
+    rows ``xq`` (m) and ``kq`` (``k_stop / g_v``, V/m) (``kernels.stop``).
     """
     stages = checked_stages(stages, per_lane)
+    stop = checked_side(stop) if stop else 0
+    if stop and per_lane:
+        raise ValueError("the end stop needs a shared input; pass u of shape (N,)")
     asym = bool(asymmetric)
     w = width
     s = 2 * n
@@ -415,7 +435,9 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
               ("fd", s * n), ("rd", s * n), ("G", n * s), ("gb", n), ("mi", n), ("fc", n),
               ("fs", n)] + ([("fn", n)] if asym else [])
     p_rows += [(f"s{j}", 1) for j in range(len(stages))]
-    tag = f"{' asym' * asym}{''.join(' ' + k for k in stages)}"
+    p_rows += [("xq", 1), ("kq", 1)] if stop else []
+    tag = (f"{' asym' * asym}{''.join(' ' + k for k in stages)}"
+           + (f" stop{stop:+d}" if stop else ""))
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
@@ -433,8 +455,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         if per_lane:
             return _compile(_lane_inputs(L, w),
                             f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
-        if stages:
-            L = _staged_inputs(L, P, P, stages, None)
+        if stages or stop:
+            L = _staged_inputs(L, P, P, stages, None, stop=stop, n=n, X=X, XX=X)
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}{tag}>")
     # S: state at the start of the sample, and a last row with the lane's event flag (one
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
@@ -467,7 +489,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     L += [f"            if nq == {g}:", "                nrest += 1", "                continue",
           "            ev = 0",
           f"            for b in range(g0, g0 + {g}):"]
-    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym)
+    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym,
+                             bool(stop))
     L += ["            if ev > 0:",
           f"                for b in range(g0, g0 + {g}):",
           f"                    if S[{X.size * w} + b] != 0.0:",
@@ -506,14 +529,15 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         packed_from += 1
         return _compile(_lane_inputs(L, w, packed_from=packed_from),
                         f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
-    if stages:
+    if stages or stop:
         packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
-        L = _staged_inputs(L, P, PP, stages, packed_from)
+        L = _staged_inputs(L, P, PP, stages, packed_from, stop=stop, n=n, X=X, XX=XX,
+                           steps=("dt", "h"))
     return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{tag}>")
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
-                adaptive=True, Fc_backward=None, input_stages=()):
+                adaptive=True, Fc_backward=None, input_stages=(), stop=None):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
     A step: the friction force of each cart is decided at its start (stuck carts hold the
@@ -583,6 +607,11 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         Memoryless stages (``INPUT_STAGES``) applied in this order to the shared input
         ``u`` (N,) inside the kernel, each with its parameter per lane; the result is bit
         for bit that of the same stages applied in ``effects`` and a per-lane input.
+    stop : tuple (side, x_stop, k_stop), optional
+        An end stop on the driven cart (``kernels.stop``; shared input only): side +1 or
+        -1, ``x_stop`` (nb,) m, ``k_stop`` (nb,) N/m.  Its force is held over each step at
+        its predicted mid-step value, and lanes in or near contact take the sample in
+        sub-steps.
 
     Returns
     -------
@@ -604,4 +633,16 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         kernel = functools.partial(kernel, asymmetric=True)
     if kinds:
         kernel = functools.partial(kernel, stages=kinds)
+    if stop is not None:
+        side, xq, kq = stop
+        if u.ndim != 1:
+            raise ValueError("the end stop needs a shared input; pass u of shape (N,)")
+        drive = np.flatnonzero(np.any(gb != 0.0, axis=0))
+        if drive.tolist() != [0]:
+            raise ValueError("the end stop acts through the motor input: the motor must "
+                             f"drive cart 1 alone, it drives carts {(drive + 1).tolist()}")
+        # the stop's force as a voltage on the driven cart: k_stop / g_v (V/m)
+        params += [np.asarray(xq, float).reshape(-1, 1),
+                   (np.asarray(kq, float) / gb[:, 0]).reshape(-1, 1)]
+        kernel = functools.partial(kernel, stop=checked_side(side))
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h))

@@ -1,8 +1,11 @@
-"""Cubic (hardening or softening) springs: the batched kernel."""
+"""Cubic (hardening or softening) springs, and an end stop on the driven cart: the
+batched kernel of position-dependent spring forces."""
 
 from __future__ import annotations
 
 import functools
+
+import numpy as np
 
 from ._codegen import (
     _compile,
@@ -12,10 +15,11 @@ from ._codegen import (
     _Rows,
     run_batched,
 )
+from .stop import checked_side, stop_force_lines
 
 
-# cubic spring stiffness
-def _cubic_force_lines(t: str, n: int, src: str, dst: str) -> list[str]:
+# cubic spring stiffness (and the end stop)
+def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0) -> list[str]:
     # spring i joins cart i and i + 1 (the last one joins cart n - 1 to the frame); its
     # extension is d_i = x_{i+1} - x_i (or -x_{n-1}) and it pulls cart i with k3_i d_i^3
     # and cart i + 1 with -k3_i d_i^3
@@ -25,36 +29,44 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str) -> list[str]:
         lines += [f"{t}e{i} = {d}", f"{t}c{i} = k3_{i} * e{i} * e{i} * e{i}"]
     for i in range(n):
         lines.append(f"{t}{dst}{i} = c{i}" + (f" - c{i - 1}" if i > 0 else ""))
+    if stop:
+        lines += stop_force_lines(t, src, dst, stop, "xq", "kq")
     return lines
 
 
 @functools.lru_cache(maxsize=16)
-def cubic_kernel(n: int, width: int, per_lane: bool = False):
-    """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``."""
+def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0):
+    """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``;
+    ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``)."""
+    stop = checked_side(stop) if stop else 0
     s, w = 2 * n, width
     R, C = range(s), range(n)
-    P = _Rows("P", w, [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", n)])
+    rows = [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", n)]
+    P = _Rows("P", w, rows + ([("xq", 1), ("kq", 1)] if stop else []))
     X = _Rows("X", w, [("x", s)])
     L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = "                "
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     L += [f"{t}k3_{i} = {P('k3', i)}" for i in C]
-    L += _cubic_force_lines(t, n, "x", "f")
+    if stop:
+        L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
+    L += _cubic_force_lines(t, n, "x", "f", stop)
     for r in R:
         prods = ([(P('A', r * s + j), f"x{j}") for j in R]
                  + [(P('p', r * n + j), f"f{j}") for j in C])
         L.append(f"{t}y{r} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
-    L += _cubic_force_lines(t, n, "y", "g")
+    L += _cubic_force_lines(t, n, "y", "g", stop)
     for r in R:
         prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
         L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
+    tag = f" stop{stop:+d}" if stop else ""
     if per_lane:
-        return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane>")
-    return _compile(L, f"<bayesmodal cubic n={n} w={w}>")
+        return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane{tag}>")
+    return _compile(L, f"<bayesmodal cubic n={n} w={w}{tag}>")
 
 
-def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0):
+def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None):
     """Cubic spring forces ``k3_i d_i^3`` by the exponential Runge-Kutta scheme ETD2RK.
 
     Predictor with the force held over the sub-step (``F0h``), corrector with the force
@@ -72,11 +84,19 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0):
     u : ndarray, shape (N,)
     n_sub : int
     x0 : ndarray, shape (nb, s)
+    stop : tuple (side, x_stop, k_stop), optional
+        An end stop on cart 1 (``kernels.stop``): side +1 or -1, ``x_stop`` (nb,) m and
+        ``k_stop`` (nb,) N/m; its force enters with the spring forces.
 
     Returns
     -------
     ndarray, shape (nb, N, n)
     """
     n = k3.shape[1]
-    return run_batched(functools.partial(cubic_kernel, n), [Ah, Bh, F0h, F1h, k3], [x0], u,
-                       n, int(n_sub))
+    params = [Ah, Bh, F0h, F1h, k3]
+    kernel = functools.partial(cubic_kernel, n)
+    if stop is not None:
+        side, xq, kq = stop
+        params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
+        kernel = functools.partial(kernel, stop=checked_side(side))
+    return run_batched(kernel, params, [x0], u, n, int(n_sub))
