@@ -8,8 +8,8 @@ is solved exactly::
     mean of z over the step = z0 phi + z_ss (1 - phi),   phi = (1 - E) / (a h),
 
 so the stiff bristle relaxation (``a h`` up to thousands while sliding) is stable for every
-step.  The exponentials are evaluated by a branch-free polynomial scheme
-(``_one_minus_exp``) so that the lane loop vectorises.  The friction force
+step.  The exponentials are evaluated by branch-free range reduction and a series
+(``_exp``) so that the lane loop vectorises.  The friction force
 ``F = sigma0 z + sigma1 z'`` is held over the sub-step at its mean,
 ``sigma0 mean(z) + sigma1 (z(h) - z0) / h``, and the carts are advanced by the exact
 zero-order-hold step of the linear rig with that force as an input.  The velocity frozen
@@ -26,41 +26,12 @@ them.  Layouts and batching as in ``bayesmodal.discrepancy.kernels._codegen``.
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 
 from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, run_batched
+from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
-
-#: Arguments of ``e^{-x}`` are clipped at this value (``e^{-40} = 4e-18``, nil next to 1).
-_EXP_CLIP = 40.0
-#: Halvings of the argument before the series (``x / 2^8 <= 0.16``).
-_EXP_HALVINGS = 8
-#: Terms of the series of ``(1 - e^{-y}) / y`` (truncation ``y^9 / 10! < 2e-14``).
-_EXP_TERMS = 9
-
-
-def _one_minus_exp(t: str, x: str, om: str, q: str) -> list[str]:
-    """Code of ``om = 1 - e^{-x}`` and ``q = om / x`` for ``x >= 0``, without a library call.
-
-    numba (without SVML) does not vectorise ``math.exp``; this polynomial version does.
-    With ``y = x / 2^m`` the series ``q_y = sum_k (-y)^k / (k + 1)!`` and ``om_y = y q_y``
-    are doubled ``m`` times, ``om_{2y} = om_y (2 - om_y)`` and
-    ``q_{2y} = q_y (1 - om_y / 2)``: neither recurrence amplifies relative errors, there
-    is no division and no cancellation, so ``q -> 1`` smoothly as ``x -> 0``.  Relative
-    error ~1e-15; ``x`` is clipped at ``_EXP_CLIP`` (``q`` is then ``om / _EXP_CLIP``).
-    """
-    coef = [(-1.0) ** k / math.factorial(k + 1) for k in range(_EXP_TERMS)]
-    series = repr(coef[-1])
-    for c in reversed(coef[:-1]):
-        series = f"{c!r} + y * ({series})"
-    L = [f"{t}y = ({x} if {x} < {_EXP_CLIP!r} else {_EXP_CLIP!r}) * {2.0 ** -_EXP_HALVINGS!r}",
-         f"{t}{q} = {series}",
-         f"{t}{om} = y * {q}"]
-    for _ in range(_EXP_HALVINGS):
-        L += [f"{t}{q} = {q} * (1.0 - 0.5 * {om})", f"{t}{om} = {om} * (2.0 - {om})"]
-    return L
 
 
 def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
@@ -69,12 +40,11 @@ def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
     L = [f"{t}vv = {v}",
          f"{t}e = vv * {P('ivs')}",
          f"{t}e2 = e * e"]
-    L += _one_minus_exp(t, "e2", "os", "qs")  # Stribeck: e^{-(v/vs)^2} = 1 - os
-    L += [f"{t}g = fc{i} + (fs{i} - fc{i}) * (1.0 - os)",
+    L += exp_neg(t, "e2", "es", tag="s")  # Stribeck: e^{-(v/vs)^2}
+    L += [f"{t}g = fc{i} + (fs{i} - fc{i}) * es",
           f"{t}g = g if g > 1e-300 else 1e-300",
           f"{t}ah = s0 * abs(vv) * h / g"]
-    L += _one_minus_exp(t, "ah", "om", "ph")  # relaxation over the step: E = 1 - om
-    L += [f"{t}ph = ph if ah < {_EXP_CLIP!r} else om / ah"]  # q was of the clipped argument
+    L += one_minus_exp(t, "ah", "om", "ph", tag="r")  # relaxation: E = 1 - om, ph = om / ah
     L += [f"{t}ss = g / s0 if vv >= 0.0 else -g / s0",
           f"{t}z1{out} = z{i} * (1.0 - om) + ss * om",
           f"{t}F{out} = s0 * (z{i} * ph + ss * (1.0 - ph)) + s1 * (z1{out} - z{i}) * ih"]
