@@ -197,7 +197,8 @@ def _pack_input(u: np.ndarray, lanes: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(u[lanes].T).ravel()
 
 
-def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.ndarray:
+def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
+                max_width: int | None = None) -> np.ndarray:
     """Run ``kernel(P, X, u, *args, Y)`` over the batch in chunks of lanes.
 
     Parameters
@@ -213,6 +214,9 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.nda
         Outputs per sample.
     *args
         Extra scalar arguments passed to the kernel after ``u``.
+    max_width : int, optional
+        Widest kernel (a power of two; default ``MAX_WIDTH``), for kernels whose
+        parameter block is best kept small.
 
     Returns
     -------
@@ -221,6 +225,8 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args) -> np.nda
     """
     nb = params[0].shape[0]
     width = padded_width(nb)
+    if max_width is not None:
+        width = min(width, max_width)
     n_chunks = -(-nb // width)
     kernel = kernel_for_width(width) if u.ndim == 1 else kernel_for_width(width, per_lane=True)
     N = u.shape[-1]
@@ -251,6 +257,14 @@ def _head(signature: str, n_out: int, width: int, state: _Rows,
         f"        for b in range({width}):",
     ] + [f"            Y[yo + {i * width} + b] = {state('x', i)}" for i in range(n_out)]
 
+
+
+def interleave(blocks: list[list[str]]) -> list[str]:
+    """Lines of several independent code blocks taken in turn, one line of each."""
+    out = []
+    for j in range(max(map(len, blocks), default=0)):
+        out += [block[j] for block in blocks if j < len(block)]
+    return out
 
 
 def _sum(products) -> str:

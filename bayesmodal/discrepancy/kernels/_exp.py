@@ -49,17 +49,17 @@ def _reduced(t: str, x: str, tag: str) -> list[str]:
     """Code of ``k{tag}`` (rounded ``min(x, EXP_CLIP) / ln 2``), ``s{tag} = 2^-k``,
     ``r{tag}`` and ``q{tag} = Q(r)``; ``x >= 0``."""
     coef = [(-1.0) ** j / math.factorial(j + 1) for j in range(EXP_DEGREE + 1)]
-    series = repr(coef[-1])
-    for c in reversed(coef[:-1]):
-        series = f"fma(r{tag}, {series}, {c!r})"
+    # Horner's rule one step a line (``codegen.interleave`` can then alternate the steps
+    # of several arguments)
+    horner = [f"{t}q{tag} = fma(r{tag}, {coef[-1]!r}, {coef[-2]!r})"]
+    horner += [f"{t}q{tag} = fma(r{tag}, q{tag}, {c!r})" for c in reversed(coef[:-2])]
     return [
         f"{t}y{tag} = {x} if {x} < {EXP_CLIP!r} else {EXP_CLIP!r}",
         f"{t}k{tag} = (y{tag} * {LOG2E!r} + {ROUNDER!r}) - {ROUNDER!r}",
         f"{t}r{tag} = fma(k{tag}, {-LN2_HI!r}, y{tag})",
         f"{t}r{tag} = fma(k{tag}, {-LN2_LO!r}, r{tag})",
         f"{t}s{tag} = pow2_neg(k{tag})",
-        f"{t}q{tag} = {series}",
-    ]
+    ] + horner
 
 
 def exp_neg(t: str, x: str, out: str, tag: str = "_e") -> list[str]:

@@ -29,25 +29,41 @@ import functools
 
 import numpy as np
 
-from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, run_batched
+from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, interleave, run_batched
 from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
 
 
-def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
-    """Code of cart i's bristle state ``z1{out}`` at the sub-step end and held friction
-    force ``F{out}`` for the velocity ``v`` frozen over the sub-step."""
-    L = [f"{t}vv = {v}",
-         f"{t}e = vv * {P('ivs')}",
-         f"{t}e2 = e * e"]
-    L += exp_neg(t, "e2", "es", tag="s")  # Stribeck: e^{-(v/vs)^2}
-    L += [f"{t}g = fc{i} + (fs{i} - fc{i}) * es",
-          f"{t}g = g if g > 1e-300 else 1e-300",
-          f"{t}ah = s0 * abs(vv) * h / g"]
-    L += one_minus_exp(t, "ah", "om", "ph", tag="r")  # relaxation: E = 1 - om, ph = om / ah
-    L += [f"{t}ss = g / s0 if vv >= 0.0 else -g / s0",
-          f"{t}z1{out} = z{i} * (1.0 - om) + ss * om",
-          f"{t}F{out} = s0 * (z{i} * ph + ss * (1.0 - ph)) + s1 * (z1{out} - z{i}) * ih"]
+#: Widest LuGre kernel: 32 lanes keep the parameter block (about 100 rows of 32 float64,
+#: 25 KB) in the first-level data cache, where 64 lanes (50 KB) spill to the second level
+#: (docs/performance.md, 26 Nov 2026: 0.94-0.97 times the 64-lane time).
+LUGRE_MAX_WIDTH = 32
+
+
+def _bristles(t: str, n: int, P) -> list[str]:
+    """Code of every cart's bristle state ``z1c{i}`` at the sub-step end and held friction
+    force ``Fc{i}`` for the velocity ``vm{i}`` frozen over the sub-step.
+
+    The carts are taken together stage by stage (Stribeck level, relaxation, force), their
+    exponentials interleaved line by line: three independent chains side by side, and
+    each series coefficient read once for the three carts."""
+    C = range(n)
+    L = []
+    for i in C:
+        L += [f"{t}e{i} = vm{i} * {P('ivs')}", f"{t}e2{i} = e{i} * e{i}"]
+    # Stribeck: g = Fc + (Fs - Fc) e^{-(v/vs)^2}
+    L += interleave([exp_neg(t, f"e2{i}", f"es{i}", tag=f"_s{i}") for i in C])
+    for i in C:
+        L += [f"{t}g{i} = fc{i} + (fs{i} - fc{i}) * es{i}",
+              f"{t}g{i} = g{i} if g{i} > 1e-300 else 1e-300",
+              f"{t}ah{i} = s0 * abs(vm{i}) * h / g{i}"]
+    # relaxation over the step: E = 1 - om, ph = om / ah
+    L += interleave([one_minus_exp(t, f"ah{i}", f"om{i}", f"ph{i}", tag=f"_r{i}") for i in C])
+    for i in C:
+        L += [f"{t}ss{i} = g{i} / s0 if vm{i} >= 0.0 else -g{i} / s0",
+              f"{t}z1c{i} = z{i} * (1.0 - om{i}) + ss{i} * om{i}",
+              f"{t}Fc{i} = s0 * (z{i} * ph{i} + ss{i} * (1.0 - ph{i}))"
+              f" + s1 * (z1c{i} - z{i}) * ih"]
     return L
 
 
@@ -55,42 +71,46 @@ def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
 def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, ...] = ()):
     """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``); ``stages`` (of
     ``kernels.coulomb.INPUT_STAGES``, shared input only) are applied to the input in the
-    kernel, with parameter rows ``s0, s1, ...``."""
+    kernel, with parameter rows ``s0, s1, ...``.
+
+    Each lane's input of the sample (after the stages) is computed once, in the loop that
+    writes the outputs, and kept in the state row ``u`` for the sub-steps."""
     stages = checked_stages(stages, per_lane)
     s, w = 2 * n, width
     R, C = range(s), range(n)
-    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("G", n * s), ("gb", n),
-                       ("mi", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
+    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
+                       ("wf", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
               + [(f"s{j}", 1) for j in range(len(stages))])
-    X = _Rows("X", w, [("x", s), ("z", n), ("fr", n)])
+    X = _Rows("X", w, [("x", s), ("z", n), ("fr", n), ("u", 1)])
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    ih = 1.0 / h"]
+    L.append(f"            {X('u')} = uk")
+    if per_lane:
+        L = _lane_inputs(L, w)
+    elif stages:
+        L = _staged_inputs(L, P, None, stages, None)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = " " * 16
+    L += [f"{t}uk = {X('u')}"]
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     L += [f"{t}s0 = {P('sg0')}", f"{t}s1 = {P('sg1')}"]
     for i in C:
         L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}"]
     # the velocity at mid-step from the acceleration at the start (the friction force of
-    # the last sub-step standing in for the one at its end)
+    # the last sub-step standing in for the one at its end), v + (h / 2) a = W x +
+    # wb u - wf fr with the rows of ``lugre_run``
     for i in C:
-        net = _fma_sum(f"{P('gb', i)} * uk - {X('fr', i)}",
-                       [(P("G", i * s + j), f"x{j}") for j in R])
-        L += [f"{t}vm{i} = x{n + i} + 0.5 * h * {P('mi', i)} * ({net})"]
-    for i in C:
-        L += _bristle(t, i, f"vm{i}", f"c{i}", P)
+        init = f"fma({P('wb', i)}, uk, -({P('wf', i)} * {X('fr', i)}))"
+        L += [f"{t}vm{i} = {_fma_sum(init, [(P('W', i * s + j), f'x{j}') for j in R])}"]
+    L += _bristles(t, n, P)
     for r in R:
         prods = ([(P('A', r * s + j), f"x{j}") for j in R]
                  + [(P('fh', r * n + j), f"(-Fc{j})") for j in C])
         L.append(f"{t}{X('x', r)} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
     L += [f"{t}{X('z', i)} = z1c{i}" for i in C]
     L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
-    if per_lane:
-        return _compile(_lane_inputs(L, w), f"<bayesmodal lugre1 n={n} w={w} per-lane>")
-    if stages:
-        return _compile(_staged_inputs(L, P, None, stages, None),
-                        f"<bayesmodal lugre1 n={n} w={w}{''.join(' ' + k for k in stages)}>")
-    return _compile(L, f"<bayesmodal lugre1 n={n} w={w}>")
+    kind = " per-lane" if per_lane else "".join(" " + k for k in stages)
+    return _compile(L, f"<bayesmodal lugre2 n={n} w={w}{kind}>")
 
 
 def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0,
@@ -135,9 +155,13 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     """
     nb, s = x0.shape
     n = s // 2
-    params = [Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1,
+    # mid-step velocity v_i + (h / 2) (G_i x + gb_i u - fr_i) / m_i = W_i x + wb_i u - wf_i fr_i
+    wf = 0.5 * h * np.asarray(minv, dtype=float)
+    W = wf[:, :, None] * np.asarray(G, dtype=float)
+    W[:, np.arange(n), n + np.arange(n)] += 1.0
+    params = [Ah, Bh, Fh, W, wf * gb, wf, Fc, Fs, sigma0, sigma1,
               1.0 / np.asarray(v_stribeck, dtype=float)]
-    state = [x0, np.zeros((nb, n)), np.zeros((nb, n))]
+    state = [x0, np.zeros((nb, n)), np.zeros((nb, n)), np.zeros((nb, 1))]
     kinds = tuple(kind for kind, _ in input_stages)
     if kinds and u.ndim != 1:
         raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
@@ -145,4 +169,5 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     kernel = functools.partial(lugre_kernel, n)
     if kinds:
         kernel = functools.partial(kernel, stages=kinds)
-    return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
+    return run_batched(kernel, params, state, u, n, int(n_sub), float(h),
+                       max_width=LUGRE_MAX_WIDTH)
