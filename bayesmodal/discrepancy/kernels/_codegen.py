@@ -148,10 +148,15 @@ def _compile(lines: list[str], label: str):
 
 
 class _Rows:
-    """Named rows of a flat lane-innermost block; ``rows(name, i)`` is the code of element i."""
+    """Named rows of a flat lane-innermost block; ``rows(name, i)`` is the code of element i.
 
-    def __init__(self, array: str, width: int, fields: list[tuple[str, int]]):
-        self.array, self.width = array, width
+    With ``base`` (the name of a variable of the kernel) element i of lane ``b`` is at
+    ``base + row * width + b``: blocks of ``width`` lanes packed one after the other
+    (``_pack(..., block=width)``), ``base`` locating the block of lane ``b``."""
+
+    def __init__(self, array: str, width: int, fields: list[tuple[str, int]],
+                 base: str | None = None):
+        self.array, self.width, self.base = array, width, base
         self.offset: dict[str, int] = {}
         n = 0
         for name, count in fields:
@@ -160,11 +165,16 @@ class _Rows:
         self.size = n
 
     def __call__(self, name: str, i: int = 0) -> str:
-        return f"{self.array}[{(self.offset[name] + i) * self.width} + b]"
+        at = f"{(self.offset[name] + i) * self.width} + b"
+        return f"{self.array}[{at}]" if self.base is None else f"{self.array}[{self.base} + {at}]"
 
 
-def _pack(arrays, lanes: np.ndarray) -> np.ndarray:
-    """Rows of per-lane arrays (each (nb, ...)) as one flat (rows, width) block."""
+def _pack(arrays, lanes: np.ndarray, block: int | None = None) -> np.ndarray:
+    """Rows of per-lane arrays (each (nb, ...)) as one flat (rows, width) block, or with
+    ``block`` as consecutive (rows, block) blocks of ``block`` lanes each."""
+    if block is not None and block < lanes.size:
+        return np.concatenate([_pack(arrays, lanes[c : c + block])
+                               for c in range(0, lanes.size, block)])
     width = lanes.size
     cols = [np.asarray(a, dtype=float)[lanes].reshape(width, -1) for a in arrays]
     return np.ascontiguousarray(np.concatenate(cols, axis=1).T).ravel()
@@ -198,7 +208,7 @@ def _pack_input(u: np.ndarray, lanes: np.ndarray) -> np.ndarray:
 
 
 def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
-                max_width: int | None = None) -> np.ndarray:
+                lane_block: int | None = None) -> np.ndarray:
     """Run ``kernel(P, X, u, *args, Y)`` over the batch in chunks of lanes.
 
     Parameters
@@ -214,9 +224,10 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
         Outputs per sample.
     *args
         Extra scalar arguments passed to the kernel after ``u``.
-    max_width : int, optional
-        Widest kernel (a power of two; default ``MAX_WIDTH``), for kernels whose
-        parameter block is best kept small.
+    lane_block : int, optional
+        Pack the parameters and the state in blocks of this many lanes (a kernel that
+        takes its lanes block by block, ``_Rows`` with a ``base``); the input and the
+        output keep the chunk's full width.
 
     Returns
     -------
@@ -225,8 +236,6 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
     """
     nb = params[0].shape[0]
     width = padded_width(nb)
-    if max_width is not None:
-        width = min(width, max_width)
     n_chunks = -(-nb // width)
     kernel = kernel_for_width(width) if u.ndim == 1 else kernel_for_width(width, per_lane=True)
     N = u.shape[-1]
@@ -234,8 +243,8 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
-        kernel(_pack(params, lanes), _pack(state, lanes), _pack_input(u, lanes), *args,
-               Y[c].reshape(-1))
+        kernel(_pack(params, lanes, lane_block), _pack(state, lanes, lane_block),
+               _pack_input(u, lanes), *args, Y[c].reshape(-1))
     y = Y.transpose(0, 3, 1, 2)
     if n_chunks == 1:
         return y[0, :nb]

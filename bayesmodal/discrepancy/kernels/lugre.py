@@ -33,11 +33,12 @@ from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, interleave
 from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
 
-
-#: Widest LuGre kernel: 32 lanes keep the parameter block (about 100 rows of 32 float64,
-#: 25 KB) in the first-level data cache, where 64 lanes (50 KB) spill to the second level
-#: (docs/performance.md, 26 Nov 2026: 0.94-0.97 times the 64-lane time).
-LUGRE_MAX_WIDTH = 32
+#: Lanes the LuGre kernel takes through the whole record at a time, their parameters and
+#: state packed together: those of 32 lanes (about 100 rows, 25 KB) stay in the
+#: first-level data cache, those of 64 (50 KB) do not (docs/performance.md, 26 Nov 2026).
+#: The input and the output keep the kernel's full width, so that a batch of 64 sets is
+#: one chunk and its output a view, not a copy.
+LANE_BLOCK = 32
 
 
 def _bristles(t: str, n: int, P) -> list[str]:
@@ -78,10 +79,12 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     stages = checked_stages(stages, per_lane)
     s, w = 2 * n, width
     R, C = range(s), range(n)
-    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
-                       ("wf", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
-              + [(f"s{j}", 1) for j in range(len(stages))])
-    X = _Rows("X", w, [("x", s), ("z", n), ("fr", n), ("u", 1)])
+    blk = min(w, LANE_BLOCK)
+    base = (lambda name: None) if blk == w else (lambda name: name)
+    P = _Rows("P", blk, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
+                         ("wf", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
+              + [(f"s{j}", 1) for j in range(len(stages))], base("po"))
+    X = _Rows("X", blk, [("x", s), ("z", n), ("fr", n), ("u", 1)], base("xo"))
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    ih = 1.0 / h"]
     L.append(f"            {X('u')} = uk")
@@ -110,7 +113,24 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     L += [f"{t}{X('z', i)} = z1c{i}" for i in C]
     L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
     kind = " per-lane" if per_lane else "".join(" " + k for k in stages)
+    if blk < w:
+        L = _lane_blocks(L, w, blk, P.size, X.size)
     return _compile(L, f"<bayesmodal lugre2 n={n} w={w}{kind}>")
+
+
+def _lane_blocks(lines: list[str], width: int, block: int, p_rows: int,
+                 x_rows: int) -> list[str]:
+    """Kernel source taking the lanes in blocks of ``block``, each block through the whole
+    record: an outer loop over the blocks, every lane loop ``b`` over the lanes of its
+    block, the block's parameter and state rows (``_pack(..., block)``) at ``po + b`` and
+    ``xo + b``, its input and output at ``b`` in the full width."""
+    out = [lines[0], f"    for c0 in range(0, {width}, {block}):",
+           f"        po = (c0 // {block}) * {p_rows * block} - c0",
+           f"        xo = (c0 // {block}) * {x_rows * block} - c0"]
+    for line in lines[1:]:
+        line = line.replace(f"for b in range({width}):", f"for b in range(c0, c0 + {block}):")
+        out.append("    " + line)
+    return out
 
 
 def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0,
@@ -170,4 +190,4 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     if kinds:
         kernel = functools.partial(kernel, stages=kinds)
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h),
-                       max_width=LUGRE_MAX_WIDTH)
+                       lane_block=LANE_BLOCK)
