@@ -60,11 +60,15 @@ def _bristles(t: str, n: int, P) -> list[str]:
               f"{t}ah{i} = s0 * abs(vm{i}) * h / g{i}"]
     # relaxation over the step: E = 1 - om, ph = om / ah
     L += interleave([one_minus_exp(t, f"ah{i}", f"om{i}", f"ph{i}", tag=f"_r{i}") for i in C])
+    # with d = z0 - z_ss: z(h) = z_ss + d E and, as z(h) - z0 = -d (1 - E), the held force
+    # sigma0 (z_ss + d phi) - sigma1 d (1 - E) / h = sigma0 z_ss + d (sigma0 phi - sigma1
+    # (1 - E) / h)
     for i in C:
-        L += [f"{t}ss{i} = g{i} / s0 if vm{i} >= 0.0 else -g{i} / s0",
-              f"{t}z1c{i} = z{i} * (1.0 - om{i}) + ss{i} * om{i}",
-              f"{t}Fc{i} = s0 * (z{i} * ph{i} + ss{i} * (1.0 - ph{i}))"
-              f" + s1 * (z1c{i} - z{i}) * ih"]
+        L += [f"{t}sg{i} = g{i} if vm{i} >= 0.0 else -g{i}",  # sigma0 z_ss
+              f"{t}ss{i} = sg{i} / s0",
+              f"{t}d{i} = z{i} - ss{i}",
+              f"{t}z1c{i} = fma(d{i}, 1.0 - om{i}, ss{i})",
+              f"{t}Fc{i} = fma(d{i}, fma(-s1 * ih, om{i}, s0 * ph{i}), sg{i})"]
     return L
 
 
