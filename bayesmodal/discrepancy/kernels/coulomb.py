@@ -386,8 +386,11 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
     s = 2 * n
     L: list[str] = [f"{t}rest = True"]
     for i in range(n):
+        # positions only: a lane can be at rest only if every cart is stuck, and a stuck
+        # cart's velocity is a zero (the steps set it so), whose products would change
+        # the sums at most by the sign of a zero
         terms = [f"{P('gb', i)} * uk"] + [f"{P('G', i * s + j)} * {X('x', j)}"
-                                          for j in range(s)]
+                                          for j in range(n)]
         L += [f"{t}Fq = {' + '.join(terms)}",
               f"{t}mq = {' + '.join(f'abs({term})' for term in terms)}",
               f"{t}rest = rest & ({X('st', i)} != 0.0)"
