@@ -169,15 +169,44 @@ class _Rows:
         return f"{self.array}[{at}]" if self.base is None else f"{self.array}[{self.base} + {at}]"
 
 
+#: Byte alignment of the blocks the kernels read and write, the width of an AVX-512
+#: vector: a row of lanes that starts off it makes every vector load or store straddle
+#: two cache lines (numpy and numba align to 16 and 32 bytes).  Measured on the Coulomb
+#: kernel: 192-199 us per evaluation with aligned blocks, 205-213 with the alignment a
+#: process happened to get (docs/performance.md, 26 Nov 2026).
+ALIGN_BYTES = 64
+
+
+def aligned_empty(size: int, dtype=float) -> np.ndarray:
+    """A flat uninitialised array of ``size`` elements starting on ``ALIGN_BYTES``."""
+    itemsize = np.dtype(dtype).itemsize
+    buf = np.empty(size + ALIGN_BYTES // itemsize, dtype)
+    start = (-buf.ctypes.data % ALIGN_BYTES) // itemsize
+    return buf[start : start + size]
+
+
+def _aligned_lines(name: str, size: str, dtype: str = "np.float64") -> list[str]:
+    """Kernel source allocating the flat array ``name`` of ``size`` elements (code) on
+    ``ALIGN_BYTES`` (a view into a slightly larger allocation)."""
+    return [f"    {name}_buf = np.empty({size} + {ALIGN_BYTES // 8}, {dtype})",
+            f"    {name}_at = (-{name}_buf.ctypes.data % {ALIGN_BYTES}) // 8",
+            f"    {name} = {name}_buf[{name}_at : {name}_at + {size}]"]
+
+
 def _pack(arrays, lanes: np.ndarray, block: int | None = None) -> np.ndarray:
     """Rows of per-lane arrays (each (nb, ...)) as one flat (rows, width) block, or with
-    ``block`` as consecutive (rows, block) blocks of ``block`` lanes each."""
+    ``block`` as consecutive (rows, block) blocks of ``block`` lanes each; aligned."""
     if block is not None and block < lanes.size:
-        return np.concatenate([_pack(arrays, lanes[c : c + block])
-                               for c in range(0, lanes.size, block)])
+        parts = [_pack(arrays, lanes[c : c + block]) for c in range(0, lanes.size, block)]
+        out = aligned_empty(sum(p.size for p in parts))
+        np.concatenate(parts, out=out)
+        return out
     width = lanes.size
     cols = [np.asarray(a, dtype=float)[lanes].reshape(width, -1) for a in arrays]
-    return np.ascontiguousarray(np.concatenate(cols, axis=1).T).ravel()
+    block_t = np.concatenate(cols, axis=1)
+    out = aligned_empty(block_t.size)
+    out.reshape(block_t.shape[1], width)[...] = block_t.T
+    return out
 
 
 def _lane_inputs(lines: list[str], width: int, packed_from: int | None = None) -> list[str]:
@@ -204,7 +233,9 @@ def _pack_input(u: np.ndarray, lanes: np.ndarray) -> np.ndarray:
     lane-innermost ``(N, width)`` block."""
     if u.ndim == 1:
         return u
-    return np.ascontiguousarray(u[lanes].T).ravel()
+    out = aligned_empty(lanes.size * u.shape[-1])
+    out.reshape(u.shape[-1], lanes.size)[...] = u[lanes].T
+    return out
 
 
 def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
@@ -239,7 +270,7 @@ def run_batched(kernel_for_width, params, state, u, n_out: int, *args,
     n_chunks = -(-nb // width)
     kernel = kernel_for_width(width) if u.ndim == 1 else kernel_for_width(width, per_lane=True)
     N = u.shape[-1]
-    Y = np.empty((n_chunks, N, n_out, width))
+    Y = aligned_empty(n_chunks * N * n_out * width).reshape(n_chunks, N, n_out, width)
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane

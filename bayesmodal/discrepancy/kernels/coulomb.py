@@ -7,6 +7,7 @@ import functools
 import numpy as np
 
 from ._codegen import (
+    _aligned_lines,
     _compile,
     _fma_sum,
     _head,
@@ -444,9 +445,9 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     # packed (parameters PP, state XX) into groups of g and take the sample again there
     g = min(w, REFINE_GROUP)
     PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
-    L[1:1] = [f"    S = np.empty(X.shape[0] + {w})",
+    L[1:1] = [*_aligned_lines("S", f"X.shape[0] + {w}"),
               f"    rested = np.zeros({-(-w // g)}, np.bool_)",
-              f"    PP = np.empty({P.size * g})", f"    XX = np.empty({X.size * g})",
+              *_aligned_lines("PP", str(P.size * g)), *_aligned_lines("XX", str(X.size * g)),
               f"    idx = np.empty({w}, np.int64)",
               f"    slot = np.zeros({g}, np.int64)",
               "    dt = h * n_sub",
