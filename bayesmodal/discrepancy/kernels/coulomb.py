@@ -445,11 +445,20 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     # packed (parameters PP, state XX) into groups of g and take the sample again there
     g = min(w, REFINE_GROUP)
     PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
-    L[1:1] = [*_aligned_lines("S", f"X.shape[0] + {w}"),
+    # the rows sub-steps use (not those of the whole-sample step, Ad to rd), lane-major
+    n_a = P.offset["Ad"]
+    n_pl = n_a + P.size - P.offset["G"]
+    L[1:1] = [*_aligned_lines("PL", str(w * n_pl)),
+              # (not a lane loop ``b``, which gets the input code of every lane loop)
+              f"    for lane in range({w}):",
+              f"        for r in range({n_a}):",
+              f"            PL[lane * {n_pl} + r] = P[r * {w} + lane]",
+              f"        for r in range({P.offset['G']}, {P.size}):",
+              f"            PL[lane * {n_pl} + r - {P.offset['G'] - n_a}] = P[r * {w} + lane]",
+              *_aligned_lines("S", f"X.shape[0] + {w}"),
               f"    rested = np.zeros({-(-w // g)}, np.bool_)",
               *_aligned_lines("PP", str(P.size * g)), *_aligned_lines("XX", str(X.size * g)),
               f"    idx = np.empty({w}, np.int64)",
-              f"    slot = np.zeros({g}, np.int64)",
               "    dt = h * n_sub",
               # unused packed slots hold copies of lane 0 (valid numbers)
               f"    for j in range({g}):",
@@ -490,16 +499,15 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
           f"        for c0 in range(0, nf, {g}):",
           "            nref += 1",
           f"            m = min({g}, nf - c0)",
+          # the packed lanes' sub-step parameters, from their lane-major copy PL (a
+          # lane's rows in 14 cache lines instead of one line a row), and start states;
+          # unused slots keep valid numbers of an earlier lane
           "            for j in range(m):",
           "                bj = idx[c0 + j]",
-          # a slot keeps its lane's parameters until another lane is packed there (the
-          # rows of the whole-sample step, Ad to rd, are not used in sub-steps)
-          "                if slot[j] != bj:",
-          "                    slot[j] = bj",
-          f"                    for r in range({P.offset['Ad']}):",
-          f"                        PP[r * {g} + j] = P[r * {w} + bj]",
-          f"                    for r in range({P.offset['G']}, {P.size}):",
-          f"                        PP[r * {g} + j] = P[r * {w} + bj]",
+          f"                for r in range({n_a}):",
+          f"                    PP[r * {g} + j] = PL[bj * {n_pl} + r]",
+          f"                for r in range({P.offset['G']}, {P.size}):",
+          f"                    PP[r * {g} + j] = PL[bj * {n_pl} + r - {P.offset['G'] - n_a}]",
           f"                for r in range({X.size}):",
           f"                    XX[r * {g} + j] = S[r * {w} + bj]",
           "            for sub in range(n_sub):",
