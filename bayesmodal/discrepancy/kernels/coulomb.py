@@ -216,102 +216,109 @@ def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
 
 def _coulomb_events(t, P, n, asym=False) -> list[str]:
     """Code locating and correcting the events inside a step (see ``coulomb_run``)."""
+    return [line for i in range(n) for line in _coulomb_event(t, P, n, i, asym)]
+
+
+def _coulomb_event(t, P, n, i, asym=False) -> list[str]:
+    """Code locating and correcting cart i's events inside a step (``_coulomb_events``).
+
+    It reads the step's prediction (``_coulomb_predict``) and cart i's own state, and
+    writes only cart i's: the carts' corrections are independent within a step."""
     L: list[str] = []
-    for i in range(n):
-        v = n + i
-        r0, r1 = (_sum(r) for r in _force_rates(P, n, i))
-        L += [f"{t}Fe = Fe{i}",
-              # stuck: did the net force on the held cart reach Fs inside the step?
-              # (on its cubic Hermite interpolant in time, Newton from the chord)
-              f"{t}Fh = {_held_force(P, n, i, 'Fe', f'xs{i}')}",
-              f"{t}aE = abs(Fh)",
-              f"{t}slip = st{i} & (aE >= fs{i})",
-              f"{t}db = math.copysign(1.0, Fh)",
-              f"{t}ab = (fs{i} - aF{i}) / (aE - aF{i})",
-              f"{t}ab = ab if slip & (aE > aF{i}) else 0.0",
-              f"{t}ab = (0.0 if ab < 0.0 else (1.0 if ab > 1.0 else ab))",
-              f"{t}q0 = db * F{i}",
-              f"{t}q1 = db * Fh",
-              f"{t}k0 = db * h * ({r0})",
-              f"{t}k1 = db * h * ({r1})",
-              # q(s) = q0 + s (k0 + s (c2 + s c3)), the Hermite cubic in power form
-              f"{t}c2 = 3.0 * (q1 - q0) - 2.0 * k0 - k1",
-              f"{t}c3 = 2.0 * (q0 - q1) + k0 + k1",
-              f"{t}qs = q0 - fs{i}"]
-        L += _rising_cubic_root(t, "ab", ("qs", "k0", "c2", "c3"))
-        L += [f"{t}ab = ab if slip else 0.0",
-              # velocity and displacement gained from the break-away to the end of the
-              # step under the net force q(s) less the kinetic level: integrals of
-              # (q - Fc) and (1 - s)(q - Fc) over [ab, 1] (antiderivatives J1 and J2)
-              f"{t}p0 = q0 - {_kinetic(i, 'db', asym)}",
-              f"{t}j1 = ab * (p0 + ab * (0.5 * k0 + ab * ({1 / 3!r} * c2 + 0.25 * ab * c3)))",
-              f"{t}j2 = ab * ab * (0.5 * p0 + ab * ({1 / 3!r} * k0 + ab * (0.25 * c2"
-              f" + 0.2 * ab * c3)))",
-              f"{t}i0 = p0 + 0.5 * k0 + {1 / 3!r} * c2 + 0.25 * c3 - j1",
-              f"{t}i1 = 0.5 * p0 + {1 / 3!r} * k0 + 0.25 * c2 + 0.2 * c3 - j2",
-              f"{t}dvb = db * mi{i} * h * i0",
-              f"{t}dxb = db * mi{i} * h * h * (i0 - i1)",
-              # sliding: a velocity reversal inside the step, located on the cubic Hermite
-              # interpolant of the velocity (end values and accelerations)
-              f"{t}v0 = x{v}",
-              f"{t}v1 = n{v}",
-              f"{t}rev = (not st{i}) & (d{i} * v1 < 0.0)",
-              f"{t}a = v0 / (v0 - v1)",
-              f"{t}a = a if v0 != v1 else 0.0",
-              f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))",
-              f"{t}m0 = (F{i} + f{i}) * mi{i} * h",
-              f"{t}m1 = (Fe + f{i}) * mi{i} * h",
-              # v(s) = v0 + s (m0 + s (e2 + s e3))
-              f"{t}e2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1",
-              f"{t}e3 = 2.0 * (v0 - v1) + m0 + m1"]
-        for _ in range(REVERSAL_NEWTON):
-            L += [f"{t}g = v0 + a * (m0 + a * (e2 + a * e3))",
-                  f"{t}dg = m0 + a * (2.0 * e2 + 3.0 * a * e3)",
-                  f"{t}an = a - g / dg",
-                  f"{t}a = an if dg != 0.0 else a",
-                  f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))"]
-        L += [f"{t}tau = (1.0 - a) * h",
-              # stick if the net force at the crossing is below Fs, else slide back
-              f"{t}stick = rev & (abs(F{i} + a * (Fe - F{i})) < fs{i})",
-              f"{t}flip = rev != stick",
-              # the friction after the crossing, fc(-d) d, instead of -fc(d) d
-              f"{t}dv = {_reversal_levels(i, asym)} * d{i} * mi{i} * tau",
-              f"{t}dv = dv if flip else 0.0",
-              # distance travelled after the crossing: integral of the interpolant
-              f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
-              f" - a * (v0 + a * (0.5 * m0 + a * ({1 / 3!r} * e2 + 0.25 * a * e3))))",
-              f"{t}pa = n{i} - after",
-              f"{t}pb = n{i} + 0.5 * dv * tau",
-              f"{t}p = pa if stick else pb",
-              # stuck at the crossing, but the held net force reaches Fs again before
-              # the end of the step: break away there (linear in time from the crossing)
-              f"{t}Fk = {_held_force(P, n, i, 'Fe', 'p')}",
-              f"{t}aK = abs(Fk)",
-              f"{t}brk = stick & (aK >= fs{i})",
-              f"{t}dk = math.copysign(1.0, Fk)",
-              f"{t}qx = dk * (F{i} + a * (Fe - F{i}))",
-              f"{t}ak = a + (1.0 - a) * (fs{i} - qx) / (aK - qx)",
-              f"{t}ak = ak if brk & (aK > qx) else 1.0",
-              f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
-              f"{t}tk = (1.0 - ak) * h",
-              f"{t}dvk = dk * (0.5 * (aK + fs{i}) - {_kinetic(i, 'dk', asym)}) * mi{i} * tk",
-              f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
-              f" - 0.5 * {_kinetic(i, 'dk', asym)})",
-              f"{t}pk = p + dxk",
-              f"{t}p = pk if brk else p",
-              f"{t}xb = xs{i} + dxb",
-              f"{t}xh = xb if slip else xs{i}",
-              f"{t}n{i} = xh if st{i} else p",
-              f"{t}vh = dvb if slip else 0.0",
-              f"{t}vk = dvk if brk else 0.0",
-              f"{t}vf = v1 + dv",
-              f"{t}vs = vk if stick else vf",
-              f"{t}n{v} = vh if st{i} else vs",
-              f"{t}xs{i} = p if stick else xs{i}",
-              f"{t}dr = -d{i} if flip else d{i}",
-              f"{t}dr = dk if brk else dr",
-              f"{t}d{i} = db if slip else dr",
-              f"{t}st{i} = (st{i} != slip) | (stick != brk)"]
+    v = n + i
+    r0, r1 = (_sum(r) for r in _force_rates(P, n, i))
+    L += [f"{t}Fe = Fe{i}",
+          # stuck: did the net force on the held cart reach Fs inside the step?
+          # (on its cubic Hermite interpolant in time, Newton from the chord)
+          f"{t}Fh = {_held_force(P, n, i, 'Fe', f'xs{i}')}",
+          f"{t}aE = abs(Fh)",
+          f"{t}slip = st{i} & (aE >= fs{i})",
+          f"{t}db = math.copysign(1.0, Fh)",
+          f"{t}ab = (fs{i} - aF{i}) / (aE - aF{i})",
+          f"{t}ab = ab if slip & (aE > aF{i}) else 0.0",
+          f"{t}ab = (0.0 if ab < 0.0 else (1.0 if ab > 1.0 else ab))",
+          f"{t}q0 = db * F{i}",
+          f"{t}q1 = db * Fh",
+          f"{t}k0 = db * h * ({r0})",
+          f"{t}k1 = db * h * ({r1})",
+          # q(s) = q0 + s (k0 + s (c2 + s c3)), the Hermite cubic in power form
+          f"{t}c2 = 3.0 * (q1 - q0) - 2.0 * k0 - k1",
+          f"{t}c3 = 2.0 * (q0 - q1) + k0 + k1",
+          f"{t}qs = q0 - fs{i}"]
+    L += _rising_cubic_root(t, "ab", ("qs", "k0", "c2", "c3"))
+    L += [f"{t}ab = ab if slip else 0.0",
+          # velocity and displacement gained from the break-away to the end of the
+          # step under the net force q(s) less the kinetic level: integrals of
+          # (q - Fc) and (1 - s)(q - Fc) over [ab, 1] (antiderivatives J1 and J2)
+          f"{t}p0 = q0 - {_kinetic(i, 'db', asym)}",
+          f"{t}j1 = ab * (p0 + ab * (0.5 * k0 + ab * ({1 / 3!r} * c2 + 0.25 * ab * c3)))",
+          f"{t}j2 = ab * ab * (0.5 * p0 + ab * ({1 / 3!r} * k0 + ab * (0.25 * c2"
+          f" + 0.2 * ab * c3)))",
+          f"{t}i0 = p0 + 0.5 * k0 + {1 / 3!r} * c2 + 0.25 * c3 - j1",
+          f"{t}i1 = 0.5 * p0 + {1 / 3!r} * k0 + 0.25 * c2 + 0.2 * c3 - j2",
+          f"{t}dvb = db * mi{i} * h * i0",
+          f"{t}dxb = db * mi{i} * h * h * (i0 - i1)",
+          # sliding: a velocity reversal inside the step, located on the cubic Hermite
+          # interpolant of the velocity (end values and accelerations)
+          f"{t}v0 = x{v}",
+          f"{t}v1 = n{v}",
+          f"{t}rev = (not st{i}) & (d{i} * v1 < 0.0)",
+          f"{t}a = v0 / (v0 - v1)",
+          f"{t}a = a if v0 != v1 else 0.0",
+          f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))",
+          f"{t}m0 = (F{i} + f{i}) * mi{i} * h",
+          f"{t}m1 = (Fe + f{i}) * mi{i} * h",
+          # v(s) = v0 + s (m0 + s (e2 + s e3))
+          f"{t}e2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1",
+          f"{t}e3 = 2.0 * (v0 - v1) + m0 + m1"]
+    for _ in range(REVERSAL_NEWTON):
+        L += [f"{t}g = v0 + a * (m0 + a * (e2 + a * e3))",
+              f"{t}dg = m0 + a * (2.0 * e2 + 3.0 * a * e3)",
+              f"{t}an = a - g / dg",
+              f"{t}a = an if dg != 0.0 else a",
+              f"{t}a = (0.0 if a < 0.0 else (1.0 if a > 1.0 else a))"]
+    L += [f"{t}tau = (1.0 - a) * h",
+          # stick if the net force at the crossing is below Fs, else slide back
+          f"{t}stick = rev & (abs(F{i} + a * (Fe - F{i})) < fs{i})",
+          f"{t}flip = rev != stick",
+          # the friction after the crossing, fc(-d) d, instead of -fc(d) d
+          f"{t}dv = {_reversal_levels(i, asym)} * d{i} * mi{i} * tau",
+          f"{t}dv = dv if flip else 0.0",
+          # distance travelled after the crossing: integral of the interpolant
+          f"{t}after = h * (v0 + 0.5 * m0 + {1 / 3!r} * e2 + 0.25 * e3"
+          f" - a * (v0 + a * (0.5 * m0 + a * ({1 / 3!r} * e2 + 0.25 * a * e3))))",
+          f"{t}pa = n{i} - after",
+          f"{t}pb = n{i} + 0.5 * dv * tau",
+          f"{t}p = pa if stick else pb",
+          # stuck at the crossing, but the held net force reaches Fs again before
+          # the end of the step: break away there (linear in time from the crossing)
+          f"{t}Fk = {_held_force(P, n, i, 'Fe', 'p')}",
+          f"{t}aK = abs(Fk)",
+          f"{t}brk = stick & (aK >= fs{i})",
+          f"{t}dk = math.copysign(1.0, Fk)",
+          f"{t}qx = dk * (F{i} + a * (Fe - F{i}))",
+          f"{t}ak = a + (1.0 - a) * (fs{i} - qx) / (aK - qx)",
+          f"{t}ak = ak if brk & (aK > qx) else 1.0",
+          f"{t}ak = (a if ak < a else (1.0 if ak > 1.0 else ak))",
+          f"{t}tk = (1.0 - ak) * h",
+          f"{t}dvk = dk * (0.5 * (aK + fs{i}) - {_kinetic(i, 'dk', asym)}) * mi{i} * tk",
+          f"{t}dxk = dk * mi{i} * tk * tk * ({1 / 6!r} * aK + {1 / 3!r} * fs{i}"
+          f" - 0.5 * {_kinetic(i, 'dk', asym)})",
+          f"{t}pk = p + dxk",
+          f"{t}p = pk if brk else p",
+          f"{t}xb = xs{i} + dxb",
+          f"{t}xh = xb if slip else xs{i}",
+          f"{t}n{i} = xh if st{i} else p",
+          f"{t}vh = dvb if slip else 0.0",
+          f"{t}vk = dvk if brk else 0.0",
+          f"{t}vf = v1 + dv",
+          f"{t}vs = vk if stick else vf",
+          f"{t}n{v} = vh if st{i} else vs",
+          f"{t}xs{i} = p if stick else xs{i}",
+          f"{t}dr = -d{i} if flip else d{i}",
+          f"{t}dr = dk if brk else dr",
+          f"{t}d{i} = db if slip else dr",
+          f"{t}st{i} = (st{i} != slip) | (stick != brk)"]
     return L
 
 
@@ -399,6 +406,70 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
     return L + [f"{t}nq += 1 if rest else 0"]
 
 
+#: Scratch rows of a packed sub-step (``_split_substep``): what the event code of a cart
+#: reads from the prediction (start velocities, predicted end state, forces, rates).
+_SCRATCH = ("xv", "nx", "F", "aF", "f", "Fe", "A0", "A1", "V1")
+
+
+def _scratch_rows(n: int) -> list[tuple[str, int]]:
+    return [(name, 2 * n if name == "nx" else n) for name in _SCRATCH]
+
+
+def _split_substep(t, PP, XX, SC, n, g, asym=False) -> list[str]:
+    """Code of an event-corrected sub-step of a packed group of ``g`` lanes, each cart's
+    event code only where a lane of the group has an event of that cart.
+
+    A first lane loop predicts the step (``_coulomb_predict``), keeps what the event code
+    reads in the scratch rows ``SC``, counts per cart the lanes whose cart slipped (stuck,
+    held force at ``Fs`` by the end) or reversed (sliding, velocity of the other sign at
+    the end), and stores the state with every cart put back as the event code leaves a
+    cart without either: a stuck cart at ``xs`` with velocity 0, a sliding one where it
+    is (``+ 0.0``, as the event code adds its zero corrections).  Then, for each cart
+    with an event in some lane, a lane loop runs that cart's event code
+    (``_coulomb_event``) from the scratch rows and stores the cart's state.  The carts'
+    corrections are independent within a step, so for a finite state this is the
+    one-loop step bit for bit; in a packed sub-step of the rig-like input 0.9 carts of
+    three have an event in some lane of the group on average (docs/performance.md)."""
+    s = 2 * n
+    R, C = range(s), range(n)
+    tl = t + "    "
+    L = [f"{t}nev{i} = 0" for i in C] + [f"{t}for b in range({g}):"]
+    L += _coulomb_load(tl, PP, XX, n, asym)
+    L += _coulomb_predict(tl, PP, n, ("A", "bh", "fh", "rh"), asym)
+    L += [f"{tl}{SC('xv', i)} = x{n + i}" for i in C]
+    L += [f"{tl}{SC('nx', r)} = n{r}" for r in R]
+    for name in ("F", "aF", "f", "Fe"):
+        L += [f"{tl}{SC(name, i)} = {name}{i}" for i in C]
+    for name in ("A0", "A1", "V1"):
+        L += [f"{tl}{SC(name, i)} = {name}_{i}" for i in C]
+    for i in C:
+        v = n + i
+        L += [f"{tl}Fh = {_held_force(PP, n, i, f'Fe{i}', f'xs{i}')}",
+              f"{tl}e = (st{i} & (abs(Fh) >= fs{i})) | ((not st{i}) & (d{i} * n{v} < 0.0))",
+              f"{tl}nev{i} += 1 if e else 0",
+              f"{tl}n{i} = xs{i} if st{i} else n{i} + 0.0",
+              f"{tl}n{v} = 0.0 if st{i} else n{v} + 0.0"]
+    L += _coulomb_store(tl, XX, n)
+    tb = tl + "    "
+    for i in C:
+        v = n + i
+        L += [f"{t}if nev{i} > 0:", f"{tl}for b in range({g}):"]
+        L += [f"{tb}x{n + j} = {SC('xv', j)}" for j in C]
+        L += [f"{tb}n{i} = {SC('nx', i)}", f"{tb}n{v} = {SC('nx', v)}"]
+        L += [f"{tb}{name}{i} = {SC(name, i)}" for name in ("F", "aF", "f", "Fe")]
+        L += [f"{tb}{name}_{j} = {SC(name, j)}" for name in ("A0", "A1", "V1") for j in C]
+        L += [f"{tb}st{i} = {XX('st', i)} != 0.0", f"{tb}d{i} = {XX('d', i)}",
+              f"{tb}xs{i} = {XX('xs', i)}", f"{tb}fc{i} = {PP('fc', i)}",
+              f"{tb}fs{i} = {PP('fs', i)}", f"{tb}mi{i} = {PP('mi', i)}"]
+        if asym:
+            L += [f"{tb}fp{i} = fc{i}", f"{tb}fn{i} = {PP('fn', i)}"]
+        L += _coulomb_event(tb, PP, n, i, asym)
+        L += [f"{tb}{XX('x', i)} = n{i}", f"{tb}{XX('x', v)} = n{v}",
+              f"{tb}{XX('st', i)} = 1.0 if st{i} else 0.0", f"{tb}{XX('d', i)} = d{i}",
+              f"{tb}{XX('xs', i)} = xs{i}"]
+    return L
+
+
 @functools.lru_cache(maxsize=16)
 def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
                    asymmetric: bool = False, stages: tuple[str, ...] = ()):
@@ -444,7 +515,10 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     # array less for the vectoriser to check for aliasing).  Lanes with an event are
     # packed (parameters PP, state XX) into groups of g and take the sample again there
     g = min(w, REFINE_GROUP)
-    PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows)
+    # the packed state XX also holds the sub-steps' scratch rows (one array less for the
+    # vectoriser to check for aliasing: with a separate one, the first loop of a sub-step
+    # ran one lane at a time)
+    PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows + _scratch_rows(n))
     # the rows sub-steps use (not those of the whole-sample step, Ad to rd), lane-major
     n_a = P.offset["Ad"]
     n_pl = n_a + P.size - P.offset["G"]
@@ -457,7 +531,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
               f"            PL[lane * {n_pl} + r - {P.offset['G'] - n_a}] = P[r * {w} + lane]",
               *_aligned_lines("S", f"X.shape[0] + {w}"),
               f"    rested = np.zeros({-(-w // g)}, np.bool_)",
-              *_aligned_lines("PP", str(P.size * g)), *_aligned_lines("XX", str(X.size * g)),
+              *_aligned_lines("PP", str(P.size * g)), *_aligned_lines("XX", str(XX.size * g)),
               f"    idx = np.empty({w}, np.int64)",
               "    dt = h * n_sub",
               # unused packed slots hold copies of lane 0 (valid numbers)
@@ -510,9 +584,8 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
           f"                    PP[r * {g} + j] = PL[bj * {n_pl} + r - {P.offset['G'] - n_a}]",
           f"                for r in range({X.size}):",
           f"                    XX[r * {g} + j] = S[r * {w} + bj]",
-          "            for sub in range(n_sub):",
-          f"                for b in range({g}):"]
-    L += corrected(" " * 20, PP, XX)
+          "            for sub in range(n_sub):"]
+    L += _split_substep(" " * 16, PP, XX, XX, n, g, asym)
     L += ["            for j in range(m):",
           "                bj = idx[c0 + j]",
           f"                for r in range({X.size}):",
