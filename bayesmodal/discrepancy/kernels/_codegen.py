@@ -23,7 +23,11 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from ..._kernels import MAX_WIDTH  # noqa: F401  (the package exports it from here)
+from ..._kernels import (
+    ALIGN_BYTES,
+    MAX_WIDTH,  # noqa: F401  (the package exports it from here)
+    aligned_empty,
+)
 from ..._kernels import padded_width as _linear_width
 
 _JIT = {"nogil": True, "boundscheck": False, "error_model": "numpy"}
@@ -167,22 +171,6 @@ class _Rows:
     def __call__(self, name: str, i: int = 0) -> str:
         at = f"{(self.offset[name] + i) * self.width} + b"
         return f"{self.array}[{at}]" if self.base is None else f"{self.array}[{self.base} + {at}]"
-
-
-#: Byte alignment of the blocks the kernels read and write, the width of an AVX-512
-#: vector: a row of lanes that starts off it makes every vector load or store straddle
-#: two cache lines (numpy and numba align to 16 and 32 bytes).  Measured on the Coulomb
-#: kernel: 192-199 us per evaluation with aligned blocks, 205-213 with the alignment a
-#: process happened to get (docs/performance.md, 26 Nov 2026).
-ALIGN_BYTES = 64
-
-
-def aligned_empty(size: int, dtype=float) -> np.ndarray:
-    """A flat uninitialised array of ``size`` elements starting on ``ALIGN_BYTES``."""
-    itemsize = np.dtype(dtype).itemsize
-    buf = np.empty(size + ALIGN_BYTES // itemsize, dtype)
-    start = (-buf.ctypes.data % ALIGN_BYTES) // itemsize
-    return buf[start : start + size]
 
 
 def _aligned_lines(name: str, size: str, dtype: str = "np.float64") -> list[str]:
