@@ -11,19 +11,20 @@ and ``r = x - k ln 2``, so that ``|r| <= ln(2) / 2`` and::
     1 - e^{-x} = (1 - s) + s r Q(r).
 
 ``k`` is rounded by adding and subtracting ``1.5 2^52`` (round to nearest in the default
-mode, exact), ``r`` takes ``k ln 2`` in two parts (``LN2_HI`` + ``LN2_LO``, each product
-fused into its subtraction) so that it is accurate to its last bit, and ``s`` is built
-from its exponent bits (``_codegen.pow2_neg``).  ``Q`` is the polynomial of degree 10 of
-least relative error on ``|r| <= ln(2) / 2`` (``Q_COEFFS``; 1.8e-17, where the Taylor
-series needs degree 12 for the same), evaluated by Horner's rule with fused
-multiply-adds.  For ``k = 0`` (``x < ln(2) / 2``) ``1 - e^{-x} = x Q(x)`` has no
-cancellation and ``(1 - e^{-x}) / x = Q(x)`` needs no division and is 1 at ``x = 0``
-(the constant coefficient rounds to 1); for ``k >= 1`` the sum ``(1 - s) + s r Q`` is at
-least 0.29 and the quotient is taken by division.  Measured against 80-bit ``np.expm1``
-over ``[1e-12, 40]`` (``tests/test_kernel_exp.py``): relative errors at most 1.3e-16
+mode, exact; the product ``x / ln 2`` fused into the addition), ``r`` takes ``k ln 2``
+in two parts (``LN2_HI`` + ``LN2_LO``, each product fused into its subtraction) so that
+it is accurate to its last bit, and ``s`` is built from its exponent bits
+(``_codegen.pow2_neg``).  ``Q`` is the polynomial of degree 10 of least relative error
+on ``|r| <= ln(2) / 2`` (``Q_COEFFS``; 1.8e-17, where the Taylor series needs degree 12
+for the same), evaluated by Horner's rule with fused multiply-adds.  For ``k = 0``
+(``x < ln(2) / 2``) ``1 - e^{-x} = x Q(x)`` has no cancellation and
+``(1 - e^{-x}) / x = Q(x)`` needs no division and is 1 at ``x = 0`` (the constant
+coefficient rounds to 1); for ``k >= 1`` the sum ``(1 - s) + s r Q`` is at least 0.29
+and the quotient is taken by division.  Measured against 80-bit ``np.expm1`` over
+``[1e-12, 40]`` (``tests/test_kernel_exp.py``): relative errors at most 1.3e-16
 (``e^{-x}``, as numpy's own ``exp``), 1.7e-16 (``1 - e^{-x}``) and 2.1e-16 (the
-quotient).  The pieces join at the ``k`` boundaries to within that
-error, so the results are continuous in ``x`` to rounding.
+quotient).  The pieces join at the ``k`` boundaries to within that error, so the results
+are continuous in ``x`` to rounding.
 
 Every operation is IEEE-rounded (fused multiply-adds written as ``fma``), so the scalar
 and the vectorised code give the same bits (a batch equals its single-lane runs).
@@ -119,7 +120,7 @@ def _reduced(t: str, x: str, tag: str) -> list[str]:
     horner += [f"{t}q{tag} = fma(r{tag}, q{tag}, {c!r})" for c in reversed(coef[:-2])]
     return [
         f"{t}y{tag} = {x} if {x} < {EXP_CLIP!r} else {EXP_CLIP!r}",
-        f"{t}k{tag} = (y{tag} * {LOG2E!r} + {ROUNDER!r}) - {ROUNDER!r}",
+        f"{t}k{tag} = fma(y{tag}, {LOG2E!r}, {ROUNDER!r}) - {ROUNDER!r}",
         f"{t}r{tag} = fma(k{tag}, {-LN2_HI!r}, y{tag})",
         f"{t}r{tag} = fma(k{tag}, {-LN2_LO!r}, r{tag})",
         f"{t}s{tag} = pow2_neg(k{tag})",
