@@ -64,7 +64,7 @@ def _bristles(t: str, n: int, P) -> list[str]:
     # sigma0 (z_ss + d phi) - sigma1 d (1 - E) / h = sigma0 z_ss + d (sigma0 phi - sigma1
     # (1 - E) / h)
     for i in C:
-        L += [f"{t}sg{i} = g{i} if vm{i} >= 0.0 else -g{i}",  # sigma0 z_ss
+        L += [f"{t}sg{i} = math.copysign(g{i}, vm{i})",  # sigma0 z_ss
               f"{t}ss{i} = sg{i} / s0",
               f"{t}d{i} = z{i} - ss{i}",
               f"{t}z1c{i} = fma(d{i}, 1.0 - om{i}, ss{i})",
