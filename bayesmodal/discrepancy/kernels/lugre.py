@@ -55,7 +55,7 @@ def _bristles(t: str, n: int, P) -> list[str]:
     # Stribeck: g = Fc + (Fs - Fc) e^{-(v/vs)^2}
     L += interleave([exp_neg(t, f"e2{i}", f"es{i}", tag=f"_s{i}") for i in C])
     for i in C:
-        L += [f"{t}g{i} = fc{i} + (fs{i} - fc{i}) * es{i}",
+        L += [f"{t}g{i} = fma(fx{i}, es{i}, fc{i})",  # Fc + (Fs - Fc) e^{-(v/vs)^2}
               f"{t}g{i} = g{i} if g{i} > 1e-300 else 1e-300",
               f"{t}ah{i} = s0 * abs(vm{i}) * h / g{i}"]
     # relaxation over the step: E = 1 - om, ph = om / ah
@@ -86,7 +86,7 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     blk = min(w, LANE_BLOCK)
     base = (lambda name: None) if blk == w else (lambda name: name)
     P = _Rows("P", blk, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
-                         ("wf", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
+                         ("wf", n), ("fc", n), ("fx", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
               + [(f"s{j}", 1) for j in range(len(stages))], base("po"))
     X = _Rows("X", blk, [("x", s), ("z", n), ("fr", n), ("u", 1)], base("xo"))
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
@@ -102,7 +102,7 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     L += [f"{t}s0 = {P('sg0')}", f"{t}s1 = {P('sg1')}"]
     for i in C:
-        L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}"]
+        L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fx{i} = {P('fx', i)}"]
     # the velocity at mid-step from the acceleration at the start (the friction force of
     # the last sub-step standing in for the one at its end), v + (h / 2) a = W x +
     # wb u - wf fr with the rows of ``lugre_run``
@@ -183,7 +183,7 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     wf = 0.5 * h * np.asarray(minv, dtype=float)
     W = wf[:, :, None] * np.asarray(G, dtype=float)
     W[:, np.arange(n), n + np.arange(n)] += 1.0
-    params = [Ah, Bh, Fh, W, wf * gb, wf, Fc, Fs, sigma0, sigma1,
+    params = [Ah, Bh, Fh, W, wf * gb, wf, Fc, np.asarray(Fs) - np.asarray(Fc), sigma0, sigma1,
               1.0 / np.asarray(v_stribeck, dtype=float)]
     state = [x0, np.zeros((nb, n)), np.zeros((nb, n)), np.zeros((nb, 1))]
     kinds = tuple(kind for kind, _ in input_stages)
