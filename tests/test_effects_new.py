@@ -161,6 +161,51 @@ def test_lugre_without_friction_levels_is_linear_for_any_bristles():
     np.testing.assert_allclose(y, y_lin, rtol=0, atol=rtol * np.max(np.abs(y_lin)))
 
 
+def test_lugre_lane_blocks_equal_single_runs():
+    """Above 32 sets the LuGre kernel takes its lanes in blocks of 32 with their parameters
+    and state packed block by block (``kernels.lugre.LANE_BLOCK``): every set of a batch
+    of 40 (a 64-lane kernel, the second block padded) gives its single run bit for bit,
+    through the shared input, the fused input stages and a per-lane input."""
+    from bayesmodal.discrepancy.kernels.lugre import LANE_BLOCK, lugre_run
+
+    u = _input()
+    rng = np.random.default_rng(11)
+    nb = 40
+    assert LANE_BLOCK < nb
+    lin = TABLE3 * (1 + 0.03 * rng.standard_normal((nb, 9)))
+    lin[:, 7:] = np.abs(lin[:, 7:])
+    own = LUGRE * (1 + 0.2 * rng.random((nb, 9)))
+    own[:, 3:6] += own[:, :3]  # Fs >= Fc
+    stages = np.c_[rng.uniform(-0.3, 0.3, nb), rng.uniform(0.0, 0.4, nb)]
+    ext = LuGreFriction()
+    both = get_extension(["lugre_friction", "input_offset", "drive_deadband"])
+    y = ext.simulate(RIG, np.c_[lin, own], u, DT)
+    y_staged = both.simulate(RIG, np.c_[lin, own, stages], u, DT)
+    for j in range(nb):
+        np.testing.assert_array_equal(y[j], ext.simulate(RIG, np.r_[lin[j], own[j]], u, DT))
+        np.testing.assert_array_equal(
+            y_staged[j], both.simulate(RIG, np.r_[lin[j], own[j], stages[j]], u, DT))
+    # a per-lane input (one row per set) through the kernel driver, the rig's matrices as
+    # LuGreFriction._simulate builds them
+    from bayesmodal.discrepancy.effects._linear import linear_parts
+    from bayesmodal.discrepancy.kernels import zoh
+
+    parts = linear_parts(RIG, lin)
+    h = DT / ext.n_sub
+    Ah, Fh = zoh(parts.A, parts.force_inputs, h)
+    Bh = np.einsum("bij,bj->bi", Fh, parts.b)
+    rows = [Ah, Bh, Fh, parts.net_force, parts.b, parts.inv_mass, own[:, :3], own[:, 3:6],
+            own[:, 6], own[:, 7], own[:, 8]]
+    U = np.outer(1 + rng.random(nb), u)
+    x0 = np.zeros((nb, 6))
+    yk = lugre_run(*rows, U, ext.n_sub, h, x0)
+    assert np.max(np.abs(yk)) > 1e-3  # the carts move
+    for j in range(nb):
+        one = lugre_run(*[r[j : j + 1] for r in rows], U[j : j + 1], ext.n_sub, h,
+                        x0[j : j + 1])
+        np.testing.assert_array_equal(yk[j], one[0])
+
+
 def test_lugre_validation_and_location():
     ext = LuGreFriction()
     bad = np.r_[TABLE3, LUGRE]

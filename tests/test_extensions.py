@@ -354,3 +354,33 @@ def test_friction_on_measured_impulses(impulses, steps):
                                                       res.linear.theta, steps.v_volt, steps.dt))
     held = fit_percent(steps.y_m, ext.simulate(RIG, res.theta, steps.v_volt, steps.dt))
     assert np.mean(held) > np.mean(held_lin)
+
+
+def test_kernel_blocks_are_aligned_to_a_vector():
+    """Parameter, state, per-lane input and output blocks start on ALIGN_BYTES (an
+    AVX-512 vector), whatever numpy's allocator gives: unaligned rows make every vector
+    load straddle two cache lines."""
+    from bayesmodal.discrepancy.kernels._codegen import (
+        ALIGN_BYTES,
+        _pack,
+        _pack_input,
+        aligned_empty,
+    )
+
+    rng = np.random.default_rng(3)
+    for size in (1, 7, 100, 1001):
+        a = aligned_empty(size)
+        assert a.size == size and a.ctypes.data % ALIGN_BYTES == 0
+    arrays = [rng.random((40, 6, 6)), rng.random((40, 3))]
+    lanes = np.arange(32)
+    for block in (None, 16):
+        P = _pack(arrays, lanes, block)
+        assert P.ctypes.data % ALIGN_BYTES == 0
+    np.testing.assert_array_equal(  # the layout: rows of lanes, lanes innermost
+        _pack(arrays, lanes).reshape(39, 32), np.concatenate(
+            [a[lanes].reshape(32, -1) for a in arrays], axis=1).T)
+    U = _pack_input(rng.random((40, 50)), lanes)
+    assert U.ctypes.data % ALIGN_BYTES == 0
+    y = EXTENSIONS["coulomb_friction"].simulate(
+        RIG, np.tile(np.r_[TABLE3, EFFECTS["coulomb_friction"]], (20, 1)), _input(50), DT)
+    assert y.ctypes.data % ALIGN_BYTES == 0  # a view whose first element starts the buffer

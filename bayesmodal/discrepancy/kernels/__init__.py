@@ -26,10 +26,11 @@ repeated valid lane, splits it into chunks of at most ``MAX_WIDTH`` lanes, and r
 ``(nb, N, n_out)`` view of the output buffer (no copy).
 
 One module per kernel: ``linear_input`` (delay, saturation, motor lag, offsets),
-``coulomb`` (stick-slip friction), ``lugre`` (smooth friction), ``cubic`` (cubic springs),
-``backlash`` (drive gap with impacts), ``expm`` (batched exponentials and exact
-zero-order holds), ``stop`` (the code of the driven cart's end stop, which the cubic and
-friction kernels take); ``_codegen`` holds the code generation they share.
+``coulomb`` (stick-slip friction; the code of its steps in ``_coulomb_steps``), ``lugre``
+(smooth friction), ``cubic`` (cubic springs), ``backlash`` (drive gap with impacts),
+``expm`` (batched exponentials and exact zero-order holds), ``stop`` (the code of the
+driven cart's end stop, which the cubic and friction kernels take); ``_codegen`` holds
+the code generation they share, ``_exp`` the vectorisable exponentials.
 """
 
 from ._codegen import MAX_WIDTH, padded_width, run_batched

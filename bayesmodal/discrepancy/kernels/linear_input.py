@@ -12,6 +12,7 @@ from ._codegen import (
     _pack,
     _pack_input,
     _Rows,
+    aligned_empty,
     padded_width,
 )
 
@@ -98,7 +99,7 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     width = padded_width(nb)
     n_chunks = -(-nb // width)
     kernel = linear_input_kernel(s, n_out, width, shifted, clipped, per_lane)
-    Y = np.empty((n_chunks, N, n_out, width))
+    Y = aligned_empty(n_chunks * N * n_out * width).reshape(n_chunks, N, n_out, width)
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)

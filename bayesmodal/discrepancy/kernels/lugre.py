@@ -8,8 +8,8 @@ is solved exactly::
     mean of z over the step = z0 phi + z_ss (1 - phi),   phi = (1 - E) / (a h),
 
 so the stiff bristle relaxation (``a h`` up to thousands while sliding) is stable for every
-step.  The exponentials are evaluated by a branch-free polynomial scheme
-(``_one_minus_exp``) so that the lane loop vectorises.  The friction force
+step.  The exponentials are evaluated by branch-free range reduction and a series
+(``_exp``) so that the lane loop vectorises.  The friction force
 ``F = sigma0 z + sigma1 z'`` is held over the sub-step at its mean,
 ``sigma0 mean(z) + sigma1 (z(h) - z0) / h``, and the carts are advanced by the exact
 zero-order-hold step of the linear rig with that force as an input.  The velocity frozen
@@ -26,58 +26,49 @@ them.  Layouts and batching as in ``bayesmodal.discrepancy.kernels._codegen``.
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 
-from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, run_batched
+from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, interleave, run_batched
+from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
 
-#: Arguments of ``e^{-x}`` are clipped at this value (``e^{-40} = 4e-18``, nil next to 1).
-_EXP_CLIP = 40.0
-#: Halvings of the argument before the series (``x / 2^8 <= 0.16``).
-_EXP_HALVINGS = 8
-#: Terms of the series of ``(1 - e^{-y}) / y`` (truncation ``y^9 / 10! < 2e-14``).
-_EXP_TERMS = 9
+#: Lanes the LuGre kernel takes through the whole record at a time, their parameters and
+#: state packed together: those of 32 lanes (about 100 rows, 25 KB) stay in the
+#: first-level data cache, those of 64 (50 KB) do not (docs/performance.md, 26 Nov 2026).
+#: The input and the output keep the kernel's full width, so that a batch of 64 sets is
+#: one chunk and its output a view, not a copy.
+LANE_BLOCK = 32
 
 
-def _one_minus_exp(t: str, x: str, om: str, q: str) -> list[str]:
-    """Code of ``om = 1 - e^{-x}`` and ``q = om / x`` for ``x >= 0``, without a library call.
+def _bristles(t: str, n: int, P) -> list[str]:
+    """Code of every cart's bristle state ``z1c{i}`` at the sub-step end and held friction
+    force ``Fc{i}`` for the velocity ``vm{i}`` frozen over the sub-step.
 
-    numba (without SVML) does not vectorise ``math.exp``; this polynomial version does.
-    With ``y = x / 2^m`` the series ``q_y = sum_k (-y)^k / (k + 1)!`` and ``om_y = y q_y``
-    are doubled ``m`` times, ``om_{2y} = om_y (2 - om_y)`` and
-    ``q_{2y} = q_y (1 - om_y / 2)``: neither recurrence amplifies relative errors, there
-    is no division and no cancellation, so ``q -> 1`` smoothly as ``x -> 0``.  Relative
-    error ~1e-15; ``x`` is clipped at ``_EXP_CLIP`` (``q`` is then ``om / _EXP_CLIP``).
-    """
-    coef = [(-1.0) ** k / math.factorial(k + 1) for k in range(_EXP_TERMS)]
-    series = repr(coef[-1])
-    for c in reversed(coef[:-1]):
-        series = f"{c!r} + y * ({series})"
-    L = [f"{t}y = ({x} if {x} < {_EXP_CLIP!r} else {_EXP_CLIP!r}) * {2.0 ** -_EXP_HALVINGS!r}",
-         f"{t}{q} = {series}",
-         f"{t}{om} = y * {q}"]
-    for _ in range(_EXP_HALVINGS):
-        L += [f"{t}{q} = {q} * (1.0 - 0.5 * {om})", f"{t}{om} = {om} * (2.0 - {om})"]
-    return L
-
-
-def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
-    """Code of cart i's bristle state ``z1{out}`` at the sub-step end and held friction
-    force ``F{out}`` for the velocity ``v`` frozen over the sub-step."""
-    L = [f"{t}vv = {v}",
-         f"{t}e = vv * {P('ivs')}",
-         f"{t}e2 = e * e"]
-    L += _one_minus_exp(t, "e2", "os", "qs")  # Stribeck: e^{-(v/vs)^2} = 1 - os
-    L += [f"{t}g = fc{i} + (fs{i} - fc{i}) * (1.0 - os)",
-          f"{t}g = g if g > 1e-300 else 1e-300",
-          f"{t}ah = s0 * abs(vv) * h / g"]
-    L += _one_minus_exp(t, "ah", "om", "ph")  # relaxation over the step: E = 1 - om
-    L += [f"{t}ph = ph if ah < {_EXP_CLIP!r} else om / ah"]  # q was of the clipped argument
-    L += [f"{t}ss = g / s0 if vv >= 0.0 else -g / s0",
-          f"{t}z1{out} = z{i} * (1.0 - om) + ss * om",
-          f"{t}F{out} = s0 * (z{i} * ph + ss * (1.0 - ph)) + s1 * (z1{out} - z{i}) * ih"]
+    The carts are taken together stage by stage (Stribeck level, relaxation, force), their
+    exponentials interleaved line by line: three independent chains side by side, and
+    each series coefficient read once for the three carts."""
+    C = range(n)
+    L = []
+    for i in C:
+        L += [f"{t}e{i} = vm{i} * {P('ivs')}", f"{t}e2{i} = e{i} * e{i}"]
+    # Stribeck: g = Fc + (Fs - Fc) e^{-(v/vs)^2}
+    L += interleave([exp_neg(t, f"e2{i}", f"es{i}", tag=f"_s{i}") for i in C])
+    for i in C:
+        L += [f"{t}g{i} = fma(fx{i}, es{i}, fc{i})",  # Fc + (Fs - Fc) e^{-(v/vs)^2}
+              f"{t}g{i} = g{i} if g{i} > 1e-300 else 1e-300",
+              f"{t}ah{i} = s0 * abs(vm{i}) * h / g{i}"]
+    # relaxation over the step: E = 1 - om, ph = om / ah
+    L += interleave([one_minus_exp(t, f"ah{i}", f"om{i}", f"ph{i}", tag=f"_r{i}") for i in C])
+    # with d = z0 - z_ss: z(h) = z_ss + d E and, as z(h) - z0 = -d (1 - E), the held force
+    # sigma0 (z_ss + d phi) - sigma1 d (1 - E) / h = sigma0 z_ss + d (sigma0 phi - sigma1
+    # (1 - E) / h)
+    for i in C:
+        L += [f"{t}sg{i} = math.copysign(g{i}, vm{i})",  # sigma0 z_ss
+              f"{t}ss{i} = sg{i} / s0",
+              f"{t}d{i} = z{i} - ss{i}",
+              f"{t}z1c{i} = fma(d{i}, 1.0 - om{i}, ss{i})",
+              f"{t}Fc{i} = fma(d{i}, fma(-s1 * ih, om{i}, s0 * ph{i}), sg{i})"]
     return L
 
 
@@ -85,42 +76,65 @@ def _bristle(t: str, i: int, v: str, out: str, P) -> list[str]:
 def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, ...] = ()):
     """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``); ``stages`` (of
     ``kernels.coulomb.INPUT_STAGES``, shared input only) are applied to the input in the
-    kernel, with parameter rows ``s0, s1, ...``."""
+    kernel, with parameter rows ``s0, s1, ...``.
+
+    Each lane's input of the sample (after the stages) is computed once, in the loop that
+    writes the outputs, and kept in the state row ``u`` for the sub-steps."""
     stages = checked_stages(stages, per_lane)
     s, w = 2 * n, width
     R, C = range(s), range(n)
-    P = _Rows("P", w, [("A", s * s), ("bh", s), ("fh", s * n), ("G", n * s), ("gb", n),
-                       ("mi", n), ("fc", n), ("fs", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
-              + [(f"s{j}", 1) for j in range(len(stages))])
-    X = _Rows("X", w, [("x", s), ("z", n), ("fr", n)])
+    blk = min(w, LANE_BLOCK)
+    base = (lambda name: None) if blk == w else (lambda name: name)
+    P = _Rows("P", blk, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
+                         ("wf", n), ("fc", n), ("fx", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
+              + [(f"s{j}", 1) for j in range(len(stages))], base("po"))
+    X = _Rows("X", blk, [("x", s), ("z", n), ("fr", n), ("u", 1)], base("xo"))
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    ih = 1.0 / h"]
+    L.append(f"            {X('u')} = uk")
+    if per_lane:
+        L = _lane_inputs(L, w)
+    elif stages:
+        L = _staged_inputs(L, P, None, stages, None)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = " " * 16
+    L += [f"{t}uk = {X('u')}"]
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
     L += [f"{t}s0 = {P('sg0')}", f"{t}s1 = {P('sg1')}"]
     for i in C:
-        L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fs{i} = {P('fs', i)}"]
+        L += [f"{t}z{i} = {X('z', i)}", f"{t}fc{i} = {P('fc', i)}", f"{t}fx{i} = {P('fx', i)}"]
     # the velocity at mid-step from the acceleration at the start (the friction force of
-    # the last sub-step standing in for the one at its end)
+    # the last sub-step standing in for the one at its end), v + (h / 2) a = W x +
+    # wb u - wf fr with the rows of ``lugre_run``
     for i in C:
-        net = _fma_sum(f"{P('gb', i)} * uk - {X('fr', i)}",
-                       [(P("G", i * s + j), f"x{j}") for j in R])
-        L += [f"{t}vm{i} = x{n + i} + 0.5 * h * {P('mi', i)} * ({net})"]
-    for i in C:
-        L += _bristle(t, i, f"vm{i}", f"c{i}", P)
+        init = f"fma({P('wb', i)}, uk, -({P('wf', i)} * {X('fr', i)}))"
+        L += [f"{t}vm{i} = {_fma_sum(init, [(P('W', i * s + j), f'x{j}') for j in R])}"]
+    L += _bristles(t, n, P)
     for r in R:
         prods = ([(P('A', r * s + j), f"x{j}") for j in R]
                  + [(P('fh', r * n + j), f"(-Fc{j})") for j in C])
         L.append(f"{t}{X('x', r)} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
     L += [f"{t}{X('z', i)} = z1c{i}" for i in C]
     L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
-    if per_lane:
-        return _compile(_lane_inputs(L, w), f"<bayesmodal lugre1 n={n} w={w} per-lane>")
-    if stages:
-        return _compile(_staged_inputs(L, P, None, stages, None),
-                        f"<bayesmodal lugre1 n={n} w={w}{''.join(' ' + k for k in stages)}>")
-    return _compile(L, f"<bayesmodal lugre1 n={n} w={w}>")
+    kind = " per-lane" if per_lane else "".join(" " + k for k in stages)
+    if blk < w:
+        L = _lane_blocks(L, w, blk, P.size, X.size)
+    return _compile(L, f"<bayesmodal lugre2 n={n} w={w}{kind}>")
+
+
+def _lane_blocks(lines: list[str], width: int, block: int, p_rows: int,
+                 x_rows: int) -> list[str]:
+    """Kernel source taking the lanes in blocks of ``block``, each block through the whole
+    record: an outer loop over the blocks, every lane loop ``b`` over the lanes of its
+    block, the block's parameter and state rows (``_pack(..., block)``) at ``po + b`` and
+    ``xo + b``, its input and output at ``b`` in the full width."""
+    out = [lines[0], f"    for c0 in range(0, {width}, {block}):",
+           f"        po = (c0 // {block}) * {p_rows * block} - c0",
+           f"        xo = (c0 // {block}) * {x_rows * block} - c0"]
+    for line in lines[1:]:
+        line = line.replace(f"for b in range({width}):", f"for b in range(c0, c0 + {block}):")
+        out.append("    " + line)
+    return out
 
 
 def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0,
@@ -165,9 +179,13 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     """
     nb, s = x0.shape
     n = s // 2
-    params = [Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1,
+    # mid-step velocity v_i + (h / 2) (G_i x + gb_i u - fr_i) / m_i = W_i x + wb_i u - wf_i fr_i
+    wf = 0.5 * h * np.asarray(minv, dtype=float)
+    W = wf[:, :, None] * np.asarray(G, dtype=float)
+    W[:, np.arange(n), n + np.arange(n)] += 1.0
+    params = [Ah, Bh, Fh, W, wf * gb, wf, Fc, np.asarray(Fs) - np.asarray(Fc), sigma0, sigma1,
               1.0 / np.asarray(v_stribeck, dtype=float)]
-    state = [x0, np.zeros((nb, n)), np.zeros((nb, n))]
+    state = [x0, np.zeros((nb, n)), np.zeros((nb, n)), np.zeros((nb, 1))]
     kinds = tuple(kind for kind, _ in input_stages)
     if kinds and u.ndim != 1:
         raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
@@ -175,4 +193,5 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     kernel = functools.partial(lugre_kernel, n)
     if kinds:
         kernel = functools.partial(kernel, stages=kinds)
-    return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
+    return run_batched(kernel, params, state, u, n, int(n_sub), float(h),
+                       lane_block=LANE_BLOCK)
