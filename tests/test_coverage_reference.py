@@ -101,6 +101,9 @@ def test_pit_splits_ties_and_summary_counts_records_outside():
     # P(at least 2 of 4 outside | each with probability 0.1)
     assert cal["p_value"] == pytest.approx(1 - 0.9**4 - 4 * 0.1 * 0.9**3)
     assert cal["window_probability_all"] == pytest.approx(0.5 * 0.2 * 0.4 * 0.3)
+    cal = calibration_summary([0.5] * 3, band_factor_pits=[0.99, 0.5, 0.01])
+    assert (cal["n_outside"], cal["n_band_factor_above"], cal["n_band_factor_below"]) == \
+        (0, 1, 1)
 
 
 def test_reference_needs_enough_draws_and_names_the_fix():

@@ -5,8 +5,8 @@ kernel's own step-doubling error estimate; null, batch and combination rules."""
 import numpy as np
 import pytest
 from conftest import TABLE3, zoh_rtol
-from reference_stop import simulate_coulomb_stop_ref, simulate_stop_ref
 from reference_sim import RTOL
+from reference_stop import simulate_coulomb_stop_ref, simulate_stop_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT

@@ -256,7 +256,8 @@ def reference_fields(ref: CoverageReference, coverage: dict[float, np.ndarray],
 
 
 def calibration_summary(record_pits: list[float], level: float = 0.9,
-                        window_probabilities: list[float] | None = None) -> dict:
+                        window_probabilities: list[float] | None = None,
+                        band_factor_pits: list[float] | None = None) -> dict:
     """Are several records' coverages consistent with calibrated bands?
 
     Parameters
@@ -268,6 +269,10 @@ def calibration_summary(record_pits: list[float], level: float = 0.9,
         A record is *outside* when its PIT falls outside the central ``level`` range.
     window_probabilities : list of float, optional
         :meth:`CoverageReference.window_probability` per record.
+    band_factor_pits : list of float, optional
+        :meth:`CoverageReference.record_band_factor_pit` per record: counted apart
+        (``n_band_factor_below``, ``..._above``), since a band can cover a typical share
+        of a record and miss the rest far outside.
 
     Returns
     -------
@@ -291,6 +296,11 @@ def calibration_summary(record_pits: list[float], level: float = 0.9,
            "n_below": below, "n_above": above, "n_outside": k,
            "p_value": float(stats.binom.sf(k - 1, u.size, 1 - level)) if u.size else
            float("nan")}
+    if band_factor_pits is not None:
+        f = np.asarray(band_factor_pits, dtype=float)
+        out["record_band_factor_pit_90"] = f.tolist()
+        out["n_band_factor_below"] = int(np.sum(f < a))
+        out["n_band_factor_above"] = int(np.sum(f > 1 - a))
     if window_probabilities is not None:
         out["window"] = list(COVERAGE_WINDOW_90)
         out["window_probability"] = [float(p) for p in window_probabilities]

@@ -173,10 +173,12 @@ class CrossvalResult:
         refs = [f.scores.reference for f in self.folds]
         if any(r is None for r in refs):
             return None
+        pairs = list(zip(refs, self.folds, strict=True))
         return calibration_summary(
-            [r.record_pit(f.scores.coverage_90) for r, f in zip(refs, self.folds,
-                                                                 strict=True)],
-            window_probabilities=[r.window_probability() for r in refs])
+            [r.record_pit(f.scores.coverage_90) for r, f in pairs],
+            window_probabilities=[r.window_probability() for r in refs],
+            band_factor_pits=[r.record_band_factor_pit(f.scores.band_factor_90)
+                              for r, f in pairs])
 
     def to_dict(self) -> dict:
         total = {"lpd": self.total_lpd, "lpd_se": self.total_lpd_se,
@@ -215,11 +217,13 @@ class CrossvalResult:
         if cal is not None:
             rows.append("(calibrated): the central 90 % of what a calibrated band shows on "
                         "such a record (the predictive draws scored against the others)")
-            rows.append(f"records outside that range: {cal['n_outside']} of "
-                        f"{cal['n_records']} (below {cal['n_below']}, above "
+            rows.append(f"records whose coverage is outside that range: {cal['n_outside']} "
+                        f"of {cal['n_records']} (below {cal['n_below']}, above "
                         f"{cal['n_above']}; p = {cal['p_value']:.2f} if calibrated); "
-                        "calibrated bands would meet a fixed 80-95 % window on every "
-                        f"record and cart with probability {cal['window_probability_all']:.2f}")
+                        f"whose x90 is: {cal['n_band_factor_above']} above (misses further "
+                        f"out), {cal['n_band_factor_below']} below")
+            rows.append("calibrated bands would meet a fixed 80-95 % window on every "
+                        f"record and cart with probability {cal['window_probability_all']:.3f}")
         return "\n".join(rows)
 
 
