@@ -14,7 +14,7 @@ cases), then ``x_stop, k_stop``.
 from __future__ import annotations
 
 import numpy as np
-from reference_effects import input_chain_ref
+from reference_effects import LUGRE_ATOL, LUGRE_RTOL, input_chain_ref
 from reference_sim import (
     ATOL,
     MAX_STEP_FRACTION,
@@ -133,3 +133,56 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
 def simulate_stop_ref(springs, theta, u, dt, *, side=1):
     """The linear rig with the end stop of cart 1 (no friction)."""
     return simulate_coulomb_stop_ref(springs, theta, u, dt, side=side, friction=False)
+
+
+def simulate_lugre_stop_ref(springs, theta, u, dt, *, side=1):
+    """LuGre friction on every cart (bristles relaxed at the start) and the end stop of
+    cart 1: Radau (stiff bristles) with a restart at every contact and release.
+
+    ``z_i' = v_i - sigma0 |v_i| z_i / g_i(v_i)``, ``g_i(v) = Fc_i + (Fs_i - Fc_i)
+    exp(-(v / vs)^2)``, friction ``-(sigma0 z_i + sigma1 z_i')`` on cart i.  Parameters
+    after the linear ones: ``Fc_i, Fs_i, sigma0, sigma1, v_stribeck, x_stop, k_stop``.
+    """
+    p = n_linear(springs)
+    M, C, K, b = rig_matrices(springs, theta[:p])
+    n = M.shape[0]
+    minv = 1.0 / np.diag(M)
+    fc, fs = np.asarray(theta[p : p + n], float), np.asarray(theta[p + n : p + 2 * n], float)
+    s0, s1, vs = (float(theta[p + 2 * n + j]) for j in range(3))
+    x_stop, k_stop = float(theta[p + 2 * n + 3]), float(theta[p + 2 * n + 4])
+
+    def rhs(t, z, v):
+        x, xd, zb = z[:n], z[n : 2 * n], z[2 * n :]
+        g = fc + (fs - fc) * np.exp(-((xd / vs) ** 2))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            relax = np.where(g > 0, s0 * np.abs(xd) * zb / g, 0.0)
+        zdot = xd - relax
+        force = b * v - K @ x - C @ xd - (s0 * zb + s1 * zdot)
+        force[0] += _stop_force(x[0], side, x_stop, k_stop)
+        return np.r_[xd, minv * force, zdot]
+
+    inside = [False]
+
+    def contact(t, z, *_):
+        return side * z[0] - x_stop
+
+    t_s = np.arange(len(u)) * dt
+    Y = np.empty((len(u), n))
+    z = np.zeros(3 * n)
+    Y[0] = z[:n]
+    for t0, t1, val in input_segments(u, dt):
+        t = t0
+        while t < t1:
+            contact.terminal = True
+            contact.direction = -1.0 if inside[0] else 1.0
+            sol = solve_ivp(rhs, (t, t1), z, method="Radau", args=(val,), events=[contact],
+                            dense_output=True, rtol=LUGRE_RTOL, atol=LUGRE_ATOL)
+            assert sol.success, sol.message
+            take = (t_s > t) & (t_s <= sol.t[-1])
+            if take.any():
+                Y[take] = sol.sol(t_s[take])[:n].T
+            z = sol.y[:, -1].copy()
+            if sol.status == 1:
+                inside[0] = not inside[0]
+            t = sol.t[-1]
+    return Y

@@ -129,8 +129,8 @@ def test_the_stop_on_the_negative_side_mirrors_the_positive_one():
 
 def test_combination_rules_and_location():
     with pytest.raises(ModelError, match="end_stop combines with coulomb_friction or "
-                                         "coulomb_directional or cubic_stiffness only, "
-                                         "not with backlash"):
+                                         "coulomb_directional or lugre_friction or "
+                                         "cubic_stiffness only, not with backlash"):
         get_extension("backlash+end_stop")
     with pytest.raises(ModelError, match="two plant-side effects"):
         get_extension("coulomb_friction+lugre_friction+end_stop")
@@ -162,3 +162,32 @@ def test_diagnose_takes_the_stop_as_an_extra_candidate():
     assert _candidates("coulomb_friction,end_stop") == ["coulomb_friction", "end_stop"]
     with pytest.raises(argparse.ArgumentTypeError, match="known: .*'end_stop'"):
         _candidates("+end_stops")
+
+
+@pytest.mark.slow  # a stiff Radau reference
+def test_stop_with_lugre_friction_matches_the_stiff_reference():
+    """LuGre friction and the stop in one kernel (the stop's force held over each sub-step
+    at its mid-step value with the friction force): within 1.5 times the step-doubling
+    estimate of the reference; ``k_stop = 0`` is LuGre alone bit for bit."""
+    from reference_effects import LUGRE_RTOL
+    from reference_stop import simulate_lugre_stop_ref
+
+    from bayesmodal.discrepancy.effects import LuGreFriction
+
+    lugre = np.array([0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005])
+    theta = np.r_[TABLE3, lugre, STOP]
+    u = _input()
+    y_ref = simulate_lugre_stop_ref(RIG.springs_n_m, theta, u, DT)
+    k = LuGreFriction().n_sub
+    y, y2 = (Combined((LuGreFriction(n_sub=m), EndStop())).simulate(RIG, theta, u, DT)
+             for m in (k, 2 * k))
+    estimate = 4.0 / 3.0 * np.max(np.abs(y - y2))
+    err = np.max(np.abs(y - y_ref))
+    assert err <= 1.5 * estimate + 1e3 * LUGRE_RTOL * np.max(np.abs(y_ref)), (
+        err / COUNT, estimate / COUNT)
+    y_lugre = LuGreFriction().simulate(RIG, theta[:-2], u, DT)
+    assert np.max(np.abs(y_ref - y_lugre)) > 500 * COUNT  # the stop matters
+    off = theta.copy()
+    off[-1] = 0.0
+    np.testing.assert_array_equal(get_extension("lugre_friction+end_stop").simulate(
+        RIG, off, u, DT), y_lugre)

@@ -9,15 +9,16 @@ on the measured records the 3 V pulses carry cart 1 to 27-29 mm, the steps and s
 below 25 mm.
 
 ``k_stop = 0`` gives the linear model (``x_stop`` then does nothing).  The stop combines
-with the plant kernels that take a stop force (``STOP_KERNELS``: stick-slip friction,
-cubic springs), e.g. ``get_extension("coulomb_friction+end_stop")``.
+with the plant kernels that take a stop force (``STOP_KERNELS``: stick-slip and LuGre
+friction, cubic springs), e.g. ``get_extension("coulomb_friction+end_stop")``.
 
 Numerics: alone (and with cubic springs), the force enters the exact zero-order hold of
 the linear rig by the second-order exponential Runge-Kutta scheme of the cubic springs
 (``kernels.cubic_run``, ``n_sub`` sub-steps); with stick-slip friction it is held over
 each step at its mid-step value and a lane in or near contact takes the sample in the
-friction kernel's sub-steps (``kernels.stop``).  The kink of the force at the contact's
-onset makes the error there first order in the sub-step.
+friction kernel's sub-steps (``kernels.stop``); with LuGre friction it is held over
+each sub-step at its mid-step value with the friction force.  The kink of the force at
+the contact's onset makes the error there first order in the sub-step.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ from ._base import EffectLocation, Extension, ParamSpec
 from ._linear import linear_parts
 
 #: Plant-side effects whose kernels take the end stop's force next to their own.
-STOP_KERNELS = ("coulomb_friction", "coulomb_directional", "cubic_stiffness")
+STOP_KERNELS = ("coulomb_friction", "coulomb_directional", "lugre_friction",
+                "cubic_stiffness")
 
 
 @dataclass(frozen=True)

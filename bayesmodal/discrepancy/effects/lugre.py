@@ -96,7 +96,7 @@ class LuGreFriction(Extension):
         return (np.all(np.isfinite(theta_ext), axis=-1)
                 & np.all((fc >= 0) & (fs >= fc), axis=-1) & (s0 > 0) & (s1 >= 0) & (vs > 0))
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=()):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
@@ -105,7 +105,8 @@ class LuGreFriction(Extension):
         e = theta_ext
         return lugre_run(Ah, Bh, Fh, parts.net_force, parts.b, parts.inv_mass, e[:, :n],
                          e[:, n : 2 * n], e[:, 2 * n], e[:, 2 * n + 1], e[:, 2 * n + 2], u,
-                         int(self.n_sub), h, x0, input_stages=input_stages)
+                         int(self.n_sub), h, x0, input_stages=input_stages,
+                         stop=stop)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The cart with the largest static level ``Fs_i``."""

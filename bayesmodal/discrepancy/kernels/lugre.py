@@ -32,6 +32,7 @@ import numpy as np
 from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, interleave, run_batched
 from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
+from .stop import checked_side, stop_force_lines
 
 #: Lanes the LuGre kernel takes through the whole record at a time, their parameters and
 #: state packed together: those of 32 lanes (about 100 rows, 25 KB) stay in the
@@ -73,21 +74,27 @@ def _bristles(t: str, n: int, P) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
-def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, ...] = ()):
+def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, ...] = (),
+                 stop: int = 0):
     """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``); ``stages`` (of
     ``kernels.coulomb.INPUT_STAGES``, shared input only) are applied to the input in the
-    kernel, with parameter rows ``s0, s1, ...``.
+    kernel, with parameter rows ``s0, s1, ...``; ``stop`` (+1 or -1): the end stop of that
+    side on cart 1 (rows ``xq``, m, and ``kq``, N/m; ``kernels.stop``), its force held
+    over each sub-step at its mid-step value and kept in cart 1's ``fr`` row for the next
+    sub-step's mid-step velocity.
 
     Each lane's input of the sample (after the stages) is computed once, in the loop that
     writes the outputs, and kept in the state row ``u`` for the sub-steps."""
     stages = checked_stages(stages, per_lane)
+    stop = checked_side(stop) if stop else 0
     s, w = 2 * n, width
     R, C = range(s), range(n)
     blk = min(w, LANE_BLOCK)
     base = (lambda name: None) if blk == w else (lambda name: name)
     P = _Rows("P", blk, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
                          ("wf", n), ("fc", n), ("fx", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
-              + [(f"s{j}", 1) for j in range(len(stages))], base("po"))
+              + [(f"s{j}", 1) for j in range(len(stages))]
+              + ([("xq", 1), ("kq", 1)] if stop else []), base("po"))
     X = _Rows("X", blk, [("x", s), ("z", n), ("fr", n), ("u", 1)], base("xo"))
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     L[1:1] = ["    ih = 1.0 / h"]
@@ -110,13 +117,20 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
         init = f"fma({P('wb', i)}, uk, -({P('wf', i)} * {X('fr', i)}))"
         L += [f"{t}vm{i} = {_fma_sum(init, [(P('W', i * s + j), f'x{j}') for j in R])}"]
     L += _bristles(t, n, P)
+    if stop:
+        # cart 1 at mid-step, x + (h / 4) (v + vm) (second order), and the stop's force
+        # there; it joins cart 1's friction force as the force held over the sub-step
+        L += [f"{t}xm0 = x0 + 0.25 * h * (x{n} + vm0)"]
+        L += stop_force_lines(t, "xm", "Fq", stop, P("xq"), P("kq"))[:2]
+        L += [f"{t}Fc0 = Fc0 + {stop:+d}.0 * {P('kq')} * pq"]
     for r in R:
         prods = ([(P('A', r * s + j), f"x{j}") for j in R]
                  + [(P('fh', r * n + j), f"(-Fc{j})") for j in C])
         L.append(f"{t}{X('x', r)} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
     L += [f"{t}{X('z', i)} = z1c{i}" for i in C]
     L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
-    kind = " per-lane" if per_lane else "".join(" " + k for k in stages)
+    kind = (" per-lane" if per_lane else "".join(" " + k for k in stages)) + (
+        f" stop{stop:+d}" if stop else "")
     if blk < w:
         L = _lane_blocks(L, w, blk, P.size, X.size)
     return _compile(L, f"<bayesmodal lugre2 n={n} w={w}{kind}>")
@@ -138,7 +152,7 @@ def _lane_blocks(lines: list[str], width: int, block: int, p_rows: int,
 
 
 def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0,
-              input_stages=()):
+              input_stages=(), stop=None):
     """LuGre friction on every cart (see ``extensions.lugre``), bristles relaxed at start.
 
     Parameters
@@ -171,6 +185,9 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
         shared input ``u`` (N,) inside the kernel, each with its parameter per lane: bit
         for bit the same stages applied in ``effects`` to a per-lane input, without the
         ``(N, lanes)`` input block.
+    stop : tuple (side, x_stop, k_stop), optional
+        An end stop on cart 1 (``kernels.stop``): side +1 or -1, ``x_stop`` (nb,) m (signed
+        by the side), ``k_stop`` (nb,) N/m.
 
     Returns
     -------
@@ -193,5 +210,9 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     kernel = functools.partial(lugre_kernel, n)
     if kinds:
         kernel = functools.partial(kernel, stages=kinds)
+    if stop is not None:
+        side, xq, kq = stop
+        params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
+        kernel = functools.partial(kernel, stop=checked_side(side))
     return run_batched(kernel, params, state, u, n, int(n_sub), float(h),
                        lane_block=LANE_BLOCK)
