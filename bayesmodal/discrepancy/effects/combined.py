@@ -199,7 +199,7 @@ class Combined(Extension):
             stages = tuple((k, own[e.name][:, 0]) for k, e in zip(kinds, inputs, strict=True))
             return plant._simulate(rig, theta_lin, own[plant.name], u, dt, x0,
                                    input_stages=stages, **extra)
-        if extra and getattr(plant, "fuses_input_stages", False):
+        if extra and getattr(plant, "stop_needs_shared_input", False):
             raise ModelError(f"{self.name}: {force.name} with {plant.name} takes the input "
                              "stages offset, sharp dead band, saturation and amplitude gain "
                              "only (its kernel needs one input for all lanes)")

@@ -64,6 +64,9 @@ class CoulombFriction(Extension):
     #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the
     #: kernel, ``kernels.coulomb.INPUT_STAGES``; used by ``Combined``)
     fuses_input_stages = True
+    #: the end stop's force enters this kernel as a voltage on the driven cart, so a
+    #: combination with it needs one input for all lanes (``Combined``)
+    stop_needs_shared_input = True
     validity_rule = "linear part admissible, 0 <= Fc_i <= Fs_i, finite"
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
