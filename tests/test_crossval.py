@@ -137,7 +137,8 @@ def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
         assert np.isfinite(r["lpd"])
     cal = d["total"]["calibration"]
     assert cal["n_records"] == len(recs) and len(cal["record_pit_90"]) == len(recs)
-    assert "(calibrated)" in res.table() and "records outside that range" in res.table()
+    assert "(calibrated)" in res.table() and "records whose coverage is outside" in res.table() \
+        and "whose x90 is" in res.table()
     assert d["total"]["lpd"] == pytest.approx(sum(r["lpd"] for r in d["records"]))
     assert set(d["own_lsq"]) == {e.name for e in recs}
     assert (tmp_path / "forest.png").is_file()
