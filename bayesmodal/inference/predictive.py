@@ -259,9 +259,10 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
 
 def score_samples(name: str, y: np.ndarray, y_pred: np.ndarray, loglik: np.ndarray
                   ) -> PredictiveScores:
-    """Scores of predictive samples ``y_pred`` (S, N, n_out) against ``y`` (N, n_out),
-    with the coverage reference of the ensemble (:func:`~.coverage_reference.
-    coverage_reference`) when it has at least ``MIN_REFERENCE_DRAWS`` members."""
+    """Scores of predictive samples ``y_pred`` (S, N, n_out) against ``y`` (N, n_out).
+
+    With at least ``MIN_REFERENCE_DRAWS`` draws the scores carry the ensemble's coverage
+    reference (:func:`~bayesmodal.inference.coverage_reference.coverage_reference`)."""
     q = np.quantile(y_pred, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
     sd = np.std(y, axis=0)
     cov50 = np.mean((y >= q[1]) & (y <= q[3]), axis=0)

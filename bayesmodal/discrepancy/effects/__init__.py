@@ -20,7 +20,8 @@ name                          parameters (after the linear)    acts at
                               (N s/m), ``v_stribeck`` (m/s)
 ``coulomb_directional``       ``Fcp_i, Fcn_i, Fs_i`` (N)       each cart
 ``amplitude_gain``            ``kappa_per_V`` (1/V)            motor input
-``end_stop``                  ``x_stop`` (m), ``k_stop`` (N/m) travel of cart 1
+``end_stop``                  ``x_stop`` (m), ``k_stop``       travel of cart 1
+                              (N/m)
 ============================  ===============================  =====================
 
 Effects combine: ``get_extension("coulomb_friction+input_offset")`` (or a list of names)
