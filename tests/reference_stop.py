@@ -33,6 +33,17 @@ def _stop_force(x1: float, side: int, x_stop: float, k_stop: float) -> float:
     return -side * k_stop * pen if pen > 0 else 0.0
 
 
+def _segment(rhs, t: float, t1: float, z, val: float, Y, t_s, **options):
+    """Integrate ``rhs`` from ``t`` towards ``t1`` (up to a terminal event) and write the
+    positions at the sample times it passed into ``Y``; the solver's result."""
+    sol = solve_ivp(rhs, (t, t1), z, args=(val,), dense_output=True, **options)
+    assert sol.success, sol.message
+    take = (t_s > t) & (t_s <= sol.t[-1])
+    if take.any():
+        Y[take] = sol.sol(t_s[take])[: Y.shape[1]].T
+    return sol
+
+
 def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
                               v_offset=0.0, v_dead=0.0):
     """Stick-slip friction on every cart (``friction``) and the end stop of cart 1,
@@ -101,13 +112,8 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
         t = t0
         release(z, val)
         while t < t1:
-            sol = solve_ivp(rhs, (t, t1), z, method="DOP853", args=(val,), events=events(val),
-                            dense_output=True, rtol=RTOL, atol=ATOL,
-                            max_step=MAX_STEP_FRACTION * dt)
-            assert sol.success, sol.message
-            take = (t_s > t) & (t_s <= sol.t[-1])
-            if take.any():
-                Y[take] = sol.sol(t_s[take])[:n].T
+            sol = _segment(rhs, t, t1, z, val, Y, t_s, method="DOP853", events=events(val),
+                           rtol=RTOL, atol=ATOL, max_step=MAX_STEP_FRACTION * dt)
             z = sol.y[:, -1].copy()
             if sol.status == 1:
                 hit = [j for j, te in enumerate(sol.t_events) if len(te)]
@@ -175,12 +181,8 @@ def simulate_lugre_stop_ref(springs, theta, u, dt, *, side=1):
         while t < t1:
             contact.terminal = True
             contact.direction = -1.0 if inside[0] else 1.0
-            sol = solve_ivp(rhs, (t, t1), z, method="Radau", args=(val,), events=[contact],
-                            dense_output=True, rtol=LUGRE_RTOL, atol=LUGRE_ATOL)
-            assert sol.success, sol.message
-            take = (t_s > t) & (t_s <= sol.t[-1])
-            if take.any():
-                Y[take] = sol.sol(t_s[take])[:n].T
+            sol = _segment(rhs, t, t1, z, val, Y, t_s, method="Radau", events=[contact],
+                           rtol=LUGRE_RTOL, atol=LUGRE_ATOL)
             z = sol.y[:, -1].copy()
             if sol.status == 1:
                 inside[0] = not inside[0]

@@ -32,7 +32,7 @@ import numpy as np
 from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, interleave, run_batched
 from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
-from .stop import checked_side, stop_force_lines
+from .stop import checked_side, stop_depth_lines
 
 #: Lanes the LuGre kernel takes through the whole record at a time, their parameters and
 #: state packed together: those of 32 lanes (about 100 rows, 25 KB) stay in the
@@ -121,7 +121,7 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
         # cart 1 at mid-step, x + (h / 4) (v + vm) (second order), and the stop's force
         # there; it joins cart 1's friction force as the force held over the sub-step
         L += [f"{t}xm0 = x0 + 0.25 * h * (x{n} + vm0)"]
-        L += stop_force_lines(t, "xm", "Fq", stop, P("xq"), P("kq"))[:2]
+        L += stop_depth_lines(t, "xm0", stop, P("xq"))
         L += [f"{t}Fc0 = Fc0 + {stop:+d}.0 * {P('kq')} * pq"]
     for r in R:
         prods = ([(P('A', r * s + j), f"x{j}") for j in R]
