@@ -114,8 +114,9 @@ def test_kernel_width_vectorises_batches_above_four_sets():
     for nb in range(1, 3 * MAX_WIDTH):
         w = padded_width(nb)
         assert w & (w - 1) == 0 and w <= MAX_WIDTH  # a power of two, at most MAX_WIDTH
-        assert w >= min(nb, MAX_WIDTH)  # the batch fits in chunks of w lanes
+        assert w >= min(nb, MAX_WIDTH) or w == 1  # chunks of w lanes, or one set a chunk
         assert (w >= MIN_VECTOR_WIDTH) == (nb > SCALAR_MAX)
+        assert (w == 1) == (nb <= SCALAR_MAX)  # small batches: the one-lane kernel
         assert w < 2 * max(min(nb, MAX_WIDTH), MIN_VECTOR_WIDTH)  # never wider than needed
 
 

@@ -74,16 +74,22 @@ def _fma_sum(init: str, products) -> str:
 #: that the loop runs one lane at a time, and a 16-lane kernel is faster for 5 to 8 sets
 #: (on 8 sets, per call: LuGre 3.8x, Coulomb 1.9x, backlash as fast; docs/performance.md).
 MIN_VECTOR_WIDTH = 16
-#: Batches of at most this many sets keep their own (scalar) width: padding 3-4 sets to
-#: 16 lanes costs the Coulomb kernel more than it gains.
+#: Batches of at most this many sets run one set at a time in the one-lane kernel:
+#: padding 3-4 sets to 16 lanes costs the Coulomb kernel more than it gains, and a 2- or
+#: 4-lane kernel is not vectorised either, so it only adds compiled variants (20 of the
+#: default suite's 114 kernels, 15-25 s each for Coulomb) for a speed within the noise of
+#: the one-lane kernel's (rig-like input, 2-4 sets: Coulomb 0.8-0.9x the time, LuGre
+#: 0.8-1.1x, backlash 0.9-1.2x, cubic 1.2-1.5x of a kernel of 0.7-1.1 ms).
 SCALAR_MAX = 4
 
 
 def padded_width(nb: int) -> int:
-    """Kernel width for a batch of ``nb`` parameter sets: a power of two, at most
-    ``MAX_WIDTH``, at least ``MIN_VECTOR_WIDTH`` above ``SCALAR_MAX`` sets."""
-    w = _linear_width(nb)
-    return max(w, MIN_VECTOR_WIDTH) if nb > SCALAR_MAX else w
+    """Kernel width for a batch of ``nb`` parameter sets: 1 for at most ``SCALAR_MAX``
+    sets (one chunk each), else a power of two from ``MIN_VECTOR_WIDTH`` to
+    ``MAX_WIDTH``."""
+    if nb <= SCALAR_MAX:
+        return 1
+    return max(_linear_width(nb), MIN_VECTOR_WIDTH)
 
 
 def _kernel_dir() -> Path | None:

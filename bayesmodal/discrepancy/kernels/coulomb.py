@@ -41,6 +41,29 @@ REFINE_GROUP = 16
 INPUT_STAGES = ("offset", "deadband", "saturation", "gain")
 
 
+#: The parameter of each stage that leaves the input unchanged, bit for bit: ``v + 0``,
+#: ``sign(v) max(|v| - 0, 0)``, ``clip(v, -inf, inf)`` and ``v (1 + 0 |v|)`` are ``v``.
+IDENTITY_STAGES = {"offset": 0.0, "deadband": 0.0, "saturation": np.inf, "gain": 0.0}
+
+
+def every_stage(input_stages, nb: int) -> tuple:
+    """``input_stages`` completed to all of ``INPUT_STAGES``, the missing ones at their
+    identity (``IDENTITY_STAGES``), when they are given in that order.
+
+    One compiled friction kernel then serves every combination of memoryless input
+    effects (a kernel with all four stages compiles in 15 s, about as long as one with a
+    single stage), at the cost of a few operations per lane and sample; stages given in
+    another order are kept as they are.
+    """
+    kinds = [kind for kind, _ in input_stages]
+    order = [INPUT_STAGES.index(k) for k in kinds if k in INPUT_STAGES]
+    if len(order) != len(kinds) or order != sorted(set(order)):
+        return tuple(input_stages)
+    given = dict(input_stages)
+    return tuple((k, given[k] if k in given else np.full(nb, IDENTITY_STAGES[k]))
+                 for k in INPUT_STAGES)
+
+
 def _stage_code(t: str, kind: str, p: str) -> list[str]:
     """Code applying one input stage with lane parameter ``p`` to ``uk``."""
     if kind == "offset":
@@ -321,6 +344,8 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         Memoryless stages (``INPUT_STAGES``) applied in this order to the shared input
         ``u`` (N,) inside the kernel, each with its parameter per lane; the result is bit
         for bit that of the same stages applied in ``effects`` and a per-lane input.
+        Stages given in ``INPUT_STAGES`` order (and any run with ``stop``) use the one
+        kernel with all four, the others at their identity (``every_stage``).
     stop : tuple (side, x_stop, k_stop), optional
         An end stop on the driven cart (``kernels.stop``; shared input only): side +1 or
         -1, ``x_stop`` (nb,) m, ``k_stop`` (nb,) N/m.  Its force is held over each step at
@@ -338,6 +363,9 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     params = [Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs]
     if Fc_backward is not None:
         params.append(Fc_backward)
+    if (input_stages or stop is not None) and u.ndim == 1:
+        # one kernel for every combination of input stages (and for the end stop)
+        input_stages = every_stage(input_stages, Fc.shape[0])
     kinds = tuple(kind for kind, _ in input_stages)
     if kinds and u.ndim != 1:
         raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
