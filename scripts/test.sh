@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
 # Install bayesmodal with its test extras and run the tests.  Without arguments: the
-# default suite (every test not marked slow, under 15 minutes on a 2-core machine); with
-# arguments: pytest with those (e.g. -m slow for the long statistical and fault tests).
+# default suite (every test not marked slow, one worker per core, under 15 minutes on a
+# 2-core machine); with arguments: pytest with those (e.g. -m slow for the long
+# statistical and fault tests).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/_venv.sh
 ensure_venv "[test]"
 if [ $# -eq 0 ]; then
-    set -- -m "not slow"
+    # one pytest worker per core (pytest-xdist), each test file on one worker so that its
+    # module fixtures are built once; BAYESMODAL_TEST_WORKERS=0 runs in this process
+    set -- -m "not slow" -n "${BAYESMODAL_TEST_WORKERS:-auto}" --dist loadfile
 fi
 "$VENV/bin/python" -m pytest -q "$@"
