@@ -11,7 +11,8 @@ from ._common import add_data_args, add_rig_argument, load_args, load_rig, print
 
 
 def _indices(text: str) -> list[int]:
-    """``--train`` indices, ``"0"`` or ``"0,1"`` (one argument, so DATA may follow it)."""
+    """``--train`` or ``--split-at-rest`` indices, ``"0"`` or ``"0,1"`` (one argument, so
+    DATA may follow it)."""
     try:
         return [int(s) for s in text.split(",")]
     except ValueError:
@@ -65,6 +66,12 @@ def register(sub) -> None:
                    help="index (or comma-separated indices) of the training experiments "
                    "among DATA; with two or more, each forward step is judged by its "
                    "leave-one-record-out gain (default %(default)s: the first)")
+    p.add_argument("--split-at-rest", type=_indices, default=None, metavar="K[,K...]",
+                   help="cut these records of DATA where the drive starts again after a "
+                   "rest of 1 s (no drive, carts still), each part a record (of the "
+                   "training set if its record is): lets the parts of one record predict "
+                   "each other, e.g. an effect only its large pulses reach "
+                   "(bayesmodal.segments; default: no record is cut)")
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
                    help="largest number of effects forward selection puts in the model; 1 "
                    "stops after the first cause (default %(default)s)")
@@ -151,8 +158,12 @@ def _report(d) -> str:
 def run(args) -> int:
     from ..discrepancy.diagnosis import diagnose
 
-    exps = load_args(args)
-    d = diagnose(exps, rig=load_rig(args), train=args.train, n_null=args.null,
+    exps, train = load_args(args), args.train
+    if args.split_at_rest:
+        from ..segments import split_records
+
+        exps, train = split_records(exps, args.split_at_rest, train)
+    d = diagnose(exps, rig=load_rig(args), train=train, n_null=args.null,
                  max_effects=args.max_effects, global_search=not args.local_search,
                  posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
