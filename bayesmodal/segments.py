@@ -93,11 +93,13 @@ def split_at_rest(experiment: Experiment, *, min_rest_s: float = 1.0,
     N = experiment.t_s.size
     v = experiment.v_volt
     cuts: list[int] = []
+    last = 0  # where the part being closed starts
     for a, b in zip(starts, stops, strict=True):
         # the last sample of a long rest that the drive ends, if the part it closes was
         # driven (a rest before the first drive, or a cart creeping a count, cuts nothing)
-        if b - a >= n_min and b < N and v[b] != 0.0 and np.any(v[(cuts or [0])[-1]:b]):
-            cuts.append(int(b) - 1)
+        if b - a >= n_min and b < N and v[b] != 0.0 and np.any(v[last:b]):
+            last = int(b) - 1
+            cuts.append(last)
     if not cuts:
         return (experiment,)
     bounds = [0, *cuts, N]

@@ -166,6 +166,20 @@ def test_bad_inputs_are_refused_with_the_fix():
         loro_lsq([e], OFFSET, RIG)
 
 
+def _docs_script(name: str):
+    """The docs script ``docs/<name>.py`` as a module (docs/ on the path while it loads,
+    for the scripts that import docs/_measured.py)."""
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    spec = importlib.util.spec_from_file_location(name, docs / f"{name}.py")
+    script = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(docs))
+    try:
+        spec.loader.exec_module(script)
+    finally:
+        sys.path.remove(str(docs))
+    return script
+
+
 @pytest.mark.slow
 def test_documented_table_is_what_its_estimates_give():
     """docs/figures/discrepancy_table.json (docs/discrepancy.md section 6): every fit it
@@ -173,10 +187,7 @@ def test_documented_table_is_what_its_estimates_give():
     root = Path(__file__).resolve().parents[1]
     table = json.loads((root / "docs" / "figures" / "discrepancy_table.json").read_text())
     recs = [measured(f"{n}.mat") for n in table["records"]]
-    spec = importlib.util.spec_from_file_location(
-        "make_discrepancy_table", root / "docs" / "make_discrepancy_table.py")
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = _docs_script("make_discrepancy_table")
     steps = {s[0]: s[1] for s in script.STEPS}
     for label in table["steps"]:
         ext = None if steps[label] is None else get_extension(steps[label])
@@ -202,14 +213,7 @@ def test_documented_cart3_check_is_what_its_estimates_give():
     check = json.loads((root / "docs" / "figures" / "impulses_cart3_check.json").read_text())
     table = json.loads((root / "docs" / "figures" / "discrepancy_table.json").read_text())
     recs = [measured(f"{n}.mat") for n in table["records"]]
-    spec = importlib.util.spec_from_file_location(
-        "make_impulses_cart3_check", root / "docs" / "make_impulses_cart3_check.py")
-    script = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(root / "docs"))  # the script imports docs/_measured.py
-    try:
-        spec.loader.exec_module(script)
-    finally:
-        sys.path.remove(str(root / "docs"))
+    script = _docs_script("make_impulses_cart3_check")
     rows = {**{k: (f"{script.BASE}+{script.EXTRA[k][0]}", v) for k, v in check["extra"].items()},
             **{k: (script.BASE, v) for k, v in check["per_record"].items()}}
     assert set(rows) == set(script.EXTRA) | set(script.PER_RECORD)
