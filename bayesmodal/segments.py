@@ -148,8 +148,9 @@ def split_records(experiments: Sequence[Experiment], which: Sequence[int],
     n = len(experiments)
     bad = [k for k in list(which) + list(train) if not 0 <= k < n]
     if bad:
-        raise ConfigError(f"record index {bad[0]} is out of range: there are {n} records "
-                          f"(indices 0 to {n - 1})")
+        count = ("there is 1 record (index 0)" if n == 1
+                 else f"there are {n} records (indices 0 to {n - 1})")
+        raise ConfigError(f"record index {bad[0]} is out of range: {count}")
     out: list[Experiment] = []
     new_train: list[int] = []
     for k, e in enumerate(experiments):
