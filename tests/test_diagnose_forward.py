@@ -160,6 +160,13 @@ def test_train_takes_indices_in_one_argument_so_data_may_follow(capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "record indices such as 0 or 0,1" in err[0]
+    assert build_parser().parse_args(["diagnose", "a.mat"]).weights == "none"
+    assert build_parser().parse_args(["diagnose", "--weights", "spread", "a.mat"]).weights \
+        == "spread"
+    with pytest.raises(SystemExit) as stop:
+        main(["diagnose", "--weights", "equal", "a.mat"])
+    assert stop.value.code == 2
+    assert "invalid choice: 'equal'" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -606,3 +613,24 @@ def test_two_training_records_name_a_hidden_offset_and_nothing_on_null_data():
             per = len({t.name for t in d.tests})
             assert len(text.splitlines()) == len(d.tests) + len(heads) == 2 * per + 2
     assert found == {"input_offset": ["input_offset"], None: []}, found
+
+
+def test_records_weighed_by_spread_name_the_hidden_offset_and_nothing_on_null_data():
+    """``weights="spread"`` (each record as much as the others in every least-squares fit
+    of the workflow: candidates, global search, leave-one-record-out refits, null refits)
+    keeps the several-record decision of the unweighted workflow on the same data: the
+    hidden offset is named, two records without an effect give ``none`` (negative
+    control), and the JSON says how the records were weighed."""
+    found = {}
+    for case, seed in (("input_offset", 0), (None, 1)):
+        d = diagnose(_two_records(case, seed), train=[0, 1], posterior=False, n_null=N_NULL,
+                     rng=seed, max_effects=2, weights="spread",
+                     candidates=("input_offset", "drive_deadband", "motor_lag"))
+        found[case] = [c.cause for c in d.causes]
+        assert d.as_dict()["weights"] == "spread"
+    assert found == {"input_offset": ["input_offset"], None: []}, found
+
+
+def test_an_unknown_weighting_is_one_line_naming_the_choices():
+    with pytest.raises(ConfigError, match=r"weights must be None or one of \('spread',\)"):
+        diagnose(_two_records(None, 1), train=[0, 1], posterior=False, weights="equal")

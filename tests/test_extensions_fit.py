@@ -94,6 +94,87 @@ def test_experiment_weights_scale_each_records_share_of_the_cost(record):
             fit_extension_lsq([record, other], ext, RIG, weights=bad, **opts)
 
 
+def _scaled(e, c, name):
+    """The record ``e`` with its positions times ``c`` (a record of ``c`` times the spread
+    for the weighting; not a response of the rig)."""
+    from bayesmodal.data import Experiment
+
+    return Experiment(e.t_s, e.v_volt, c * e.y_m, name=name)
+
+
+def test_spread_weights_are_the_inverse_spreads_times_their_mean(record):
+    """Closed form: a record whose positions are ``c`` times another's has ``c**2`` times
+    its spread, so weight ``1/c**2`` of the other's; the weights times the spreads
+    average to the mean spread, and one record weighs 1 exactly (the unweighted cost).
+    A record that does not move is an error naming the record, not a division by zero."""
+    from bayesmodal._errors import ConfigError, DataError
+    from bayesmodal.data import Experiment
+    from bayesmodal.discrepancy.effects.fit import experiment_weights, record_weights
+
+    big = _scaled(record, 3.0, "big")
+    w = record_weights([record, big])
+    eps = np.finfo(float).eps * record.n_samples * record.n_outputs
+    assert w[0] / w[1] == pytest.approx(9.0, rel=eps)
+    spread = np.array([np.sum((e.y_m - e.y_m.mean(axis=0)) ** 2) for e in (record, big)])
+    assert np.mean(w * spread) == pytest.approx(np.mean(spread), rel=eps)
+    np.testing.assert_array_equal(record_weights([record]), [1.0])
+    np.testing.assert_array_equal(experiment_weights("spread", [record, big]), w)
+    flat = Experiment(record.t_s, record.v_volt, np.zeros_like(record.y_m), name="still")
+    with pytest.raises(DataError, match="still: the positions do not move"):
+        record_weights([record, flat])
+    with pytest.raises(ConfigError, match="unknown weighting 'equal'"):
+        experiment_weights("equal", [record, big])
+
+
+def test_spread_weighted_cost_sums_each_records_pooled_misfit(record):
+    """The ``"spread"`` cost is ``mean S / 2 * sum_r (1 - f_r)**2`` with ``f_r`` each
+    record's pooled fraction explained (``1 - |y_r - yhat_r| / |y_r - mean y_r|`` over all
+    its outputs): a record three times as large counts as much as the small one, where
+    the unweighted cost (the control) is dominated by it, at a batch of parameter sets."""
+    from bayesmodal.discrepancy.effects.fit import extension_cost
+
+    ext = EXTENSIONS["coulomb_friction"]
+    lin = fit_lsq(record, LinearModel(RIG, "free"))
+    grid = ext.start_grid(RIG)
+    cand = np.concatenate([np.repeat(lin.theta[None], len(grid), 0), grid], axis=1)
+    cand = cand[ext.valid(RIG, cand)][:6]
+    big = _scaled(record, 3.0, "big")
+    exps = [record, big]
+    cost = extension_cost(ext, RIG, cand, exps, weights="spread")
+    spread = np.array([np.sum((e.y_m - e.y_m.mean(axis=0)) ** 2) for e in exps])
+    misfit = np.zeros(len(cand))
+    ssr = []
+    for e, s in zip(exps, spread, strict=True):
+        r = e.y_m[None] - ext.simulate(RIG, cand, e.v_volt, e.dt)
+        ssr.append(np.sum(r**2, axis=(1, 2)))
+        explained = 1.0 - np.sqrt(ssr[-1] / s)
+        misfit += (1.0 - explained) ** 2
+    rtol = 2 * record.n_samples * record.n_outputs * np.finfo(float).eps
+    np.testing.assert_allclose(cost, 0.5 * np.mean(spread) * misfit, rtol=rtol)
+    # the control: unweighted, the scaled record carries most of the cost (it is fitted
+    # by the same parameters three times as badly in metres: nine times the cost)
+    plain = extension_cost(ext, RIG, cand, exps)
+    np.testing.assert_allclose(plain, 0.5 * (ssr[0] + ssr[1]), rtol=rtol)
+    assert np.all(ssr[1] > 4 * ssr[0])
+
+
+def test_one_record_weighted_by_spread_fits_bit_for_bit_as_unweighted(record):
+    """Negative control: with one record the ``"spread"`` weight is exactly 1, so the fit
+    (and the global search) are those of the unweighted cost, bit for bit."""
+    from bayesmodal.discrepancy.effects.global_fit import fit_extension_global
+
+    ext = EXTENSIONS["coulomb_friction"]
+    lin = fit_lsq(record, LinearModel(RIG, "free"))
+    a = fit_extension_lsq(record, ext, RIG, linear=lin, max_nfev=5)
+    b = fit_extension_lsq(record, ext, RIG, linear=lin, max_nfev=5, weights="spread")
+    np.testing.assert_array_equal(a.theta, b.theta)
+    assert a.cost == b.cost
+    opts = {"linear": lin, "rng": 3, "generations": 3, "popsize": 4, "max_nfev": 3}
+    ga = fit_extension_global(record, ext, RIG, **opts)
+    gb = fit_extension_global(record, ext, RIG, weights="spread", **opts)
+    np.testing.assert_array_equal(ga.theta, gb.theta)
+
+
 
 def test_inadmissible_parameter_sets_get_a_barrier_not_an_error(record):
     """Backlash needs ``m_p < m1``, a rule the optimiser's box cannot state: a trial

@@ -83,6 +83,10 @@ def register(sub) -> None:
                    help="forward selection fits stick-slip models from local starts only "
                    "(faster; by default also by differential evolution, whose fit the "
                    "local starts miss on friction behind an input effect)")
+    p.add_argument("--weights", choices=("none", "spread"), default="none",
+                   help="how the least-squares fits weigh several training records: "
+                   "'none' sums their squared residuals (the largest record dominates), "
+                   "'spread' weighs each record as much as the others (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
@@ -167,7 +171,8 @@ def run(args) -> int:
                  max_effects=args.max_effects, global_search=not args.local_search,
                  posterior=not args.no_posterior,
                  rng=args.seed, posterior_options={"n_steps": args.steps},
-                 n_starts=args.starts, progress=not args.quiet, candidates=args.candidates)
+                 n_starts=args.starts, progress=not args.quiet, candidates=args.candidates,
+                 weights=None if args.weights == "none" else args.weights)
     if args.plots:
         from ..discrepancy.diagnosis.plots import write_plots
 

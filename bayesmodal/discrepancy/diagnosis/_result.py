@@ -186,6 +186,9 @@ class Diagnosis:
         ``cause``/``location``.  Empty for ``"none"``.
     effects : tuple of str
         The effects of the final model (a refinement replaces what it refines).
+    weights : str
+        How the least-squares fits weighed the training records: ``"none"`` (the sum of
+        squared residuals) or ``"spread"`` (``effects.fit.record_weights``).
     """
 
     discrepancy: bool
@@ -211,6 +214,7 @@ class Diagnosis:
     notes: tuple[str, ...] = ()
     causes: tuple = ()
     effects: tuple[str, ...] = ()
+    weights: str = "none"
     detail: Mapping[str, Any] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -242,6 +246,7 @@ class Diagnosis:
             "n_null": self.n_null,
             "alpha": self.alpha,
             "rule": self.rule,
+            "weights": self.weights,
             "notes": list(self.notes),
             "forward_steps": self._forward_steps(),
         })

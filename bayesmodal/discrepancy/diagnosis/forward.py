@@ -82,7 +82,7 @@ from ...metrics import fit_percent
 from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
 from ..effects import EXTENSIONS, ExtensionFit, fit_extension_lsq, get_extension
-from ..effects.fit import extension_fit_at, extension_residuals
+from ..effects.fit import extension_fit_at, extension_residuals, root_weights
 from ..effects.global_fit import fit_extension_global, is_stick_slip
 from .null import NullCalibration, calibrate_null, fit_noise, run_diagnostics
 from .scoring import Criterion, criterion_for, held_out_significant
@@ -203,23 +203,24 @@ def _shapes(exps) -> list[tuple[int, int]]:
     return [(e.n_samples, e.n_outputs) for e in exps]
 
 
-def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int) -> np.ndarray:
+def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int, weights=None
+           ) -> np.ndarray:
     """Parameters refitted on ``exps`` from ``theta`` (the linear model when ``ext`` is
-    None); the start when the fit fails."""
+    None, unweighted); the start when the fit fails."""
     try:
         with np.errstate(all="ignore"):
             if ext is None:
                 return fit_lsq(exps, LinearModel(rig, "free"), theta0=theta,
                                max_nfev=max_nfev).theta
             return fit_extension_lsq(exps, ext, rig, theta0=theta, linear=linear,
-                                     max_nfev=max_nfev).theta
+                                     max_nfev=max_nfev, weights=weights).theta
     except _FIT_ERRORS:
         return np.asarray(theta, float)
 
 
 def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext, new_theta,
               linear: LSQResult, max_nfev: int = 20,
-              criterion: Criterion | None = None) -> dict:
+              criterion: Criterion | None = None, weights=None) -> dict:
     """Leave-one-record-out gain of ``new_ext`` over ``cur_ext`` (None: the linear model).
 
     For every record, both models are refitted by least squares on the other records
@@ -227,7 +228,8 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
     is the sum over records of the held-out score (``criterion``, default that of the
     records, ``criterion_for``: for two or more records the AR(1) log density and the
     output error, each output's noise profiled on each prediction's residual), new minus
-    current; :func:`scoring.held_out_significant` tests it.
+    current; :func:`scoring.held_out_significant` tests it.  ``weights`` (None or
+    ``"spread"``): the refits' weighting of their records (``fit_extension_lsq``).
 
     Returns
     -------
@@ -247,8 +249,8 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
     per, per_oe, pts, fp_new, fp_cur = [], [], [], [], []
     for r in range(len(exps)):
         others = [e for i, e in enumerate(exps) if i != r]
-        th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev)
-        th_n = _refit(new_ext, rig, new_theta, others, linear, max_nfev)
+        th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev, weights)
+        th_n = _refit(new_ext, rig, new_theta, others, linear, max_nfev, weights)
         y_n = _simulate(new_ext, rig, th_n, [exps[r]])
         y_c = _simulate(cur_ext, rig, th_c, [exps[r]])
         d = _lpd([exps[r]], y_n, crit) - _lpd([exps[r]], y_c, crit)
@@ -285,11 +287,11 @@ def _grid(cand, rig, cur_names, cur_par, theta_lin, exps) -> np.ndarray:
     return grid
 
 
-def _starts(new, rig, cur_names, cur_theta, added, theta_lin, exps, n_starts):
+def _starts(new, rig, cur_names, cur_theta, added, theta_lin, exps, n_starts, weights=None):
     """The ``n_starts`` cheapest full vectors of ``new`` (the current fit with the start
     grids of the ``added`` effects, every combination of their rows) and the cheapest
-    cost.  An effect of the current model that ``new`` lacks (refined or exchanged) drops
-    out with its parameters."""
+    cost (weighted by ``weights``, ``fit_extension_lsq``'s).  An effect of the current
+    model that ``new`` lacks (refined or exchanged) drops out with its parameters."""
     p = theta_lin.size
     cur = get_extension(list(cur_names))
     cur_par = dict(zip(cur.extension_names(rig), cur_theta[p:], strict=True))
@@ -304,22 +306,27 @@ def _starts(new, rig, cur_names, cur_theta, added, theta_lin, exps, n_starts):
     cands = np.array(rows)
     cands = cands[new.valid(rig, cands) & np.all(np.isfinite(cands), axis=1)]
     with np.errstate(all="ignore"):
-        cost = np.sum(extension_residuals(new, rig, cands, exps) ** 2, axis=1)
+        r = extension_residuals(new, rig, cands, exps)
+        if weights is not None:
+            r = r * root_weights(weights, exps)
+        cost = np.sum(r**2, axis=1)
     cost = np.where(np.isfinite(cost), cost, np.inf)
     order = np.argsort(cost, kind="stable")
     return cands[order[: max(int(n_starts), 1)]], float(cost[order[0]])
 
 
-def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None
+def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None, weights=None
               ) -> ExtensionFit | None:
     """The best local fit from ``starts`` and, for a stick-slip model when ``search``
-    (a seed) is given, of the global search (``fit_extension_global``)."""
+    (a seed) is given, of the global search (``fit_extension_global``); both weigh the
+    records by ``weights`` (``fit_extension_lsq``)."""
     fits = []
     if search is not None and is_stick_slip(new):
         fits.append(lambda: fit_extension_global(exps, new, rig, linear=linear, rng=search,
-                                                 max_nfev=max_nfev))
+                                                 max_nfev=max_nfev, weights=weights))
     fits += [lambda th0=th0: fit_extension_lsq(exps, new, rig, theta0=th0, linear=linear,
-                                               max_nfev=max_nfev) for th0 in starts]
+                                               max_nfev=max_nfev, weights=weights)
+             for th0 in starts]
     best = None
     for fit in fits:
         try:
@@ -332,10 +339,11 @@ def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None
     return best
 
 
-def _global_if_better(new, rig, f, exps, linear, max_nfev, search) -> ExtensionFit | None:
+def _global_if_better(new, rig, f, exps, linear, max_nfev, search, weights=None
+                      ) -> ExtensionFit | None:
     """The global search's fit of ``new`` when it costs less than ``f`` (or ``f`` is
     None), else None."""
-    fg = _fit_from(new, rig, [], exps, linear, max_nfev, search)
+    fg = _fit_from(new, rig, [], exps, linear, max_nfev, search, weights)
     return fg if fg is not None and (f is None or fg.cost < f.cost) else None
 
 
@@ -456,14 +464,15 @@ def _input_pairs(names, candidates, rejected) -> list:
     return out
 
 
-def _better_by_score(simple, rig, start, f, exps, linear) -> ExtensionFit | None:
+def _better_by_score(simple, rig, start, f, exps, linear, weights=None
+                     ) -> ExtensionFit | None:
     """The refit ``f`` of the simpler model or its start (no refit), whichever has the
     higher score (the records' criterion), the score its test uses: a least-squares refit can lower
     the cost and the score together, and an effect at its no-effect value (a lag of
     ``tau`` = 0) must then be removed at the point where the two models coincide."""
     try:
         with np.errstate(all="ignore"):
-            at = extension_fit_at(exps, simple, rig, start, linear=linear)
+            at = extension_fit_at(exps, simple, rig, start, linear=linear, weights=weights)
     except _FIT_ERRORS:
         return f
     if f is None:
@@ -473,7 +482,7 @@ def _better_by_score(simple, rig, start, f, exps, linear) -> ExtensionFit | None
     return at if score[0] > score[1] else f
 
 
-def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None):
+def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None, weights=None):
     """Backward check after each acceptance: a refinement whose extra parameters, or an
     effect whose parameters, no longer gain significantly in the current model is
     replaced by what it refines, or removed (e.g. directional friction levels that an
@@ -505,13 +514,15 @@ def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None):
             except ModelError:
                 continue
             f = _better_by_score(simple, rig, start,
-                                 _fit_from(simple, rig, [start], exps, linear, max_nfev),
-                                 exps, linear)
+                                 _fit_from(simple, rig, [start], exps, linear, max_nfev,
+                                           weights=weights),
+                                 exps, linear, weights)
             keeps = f is None or _lr_keeps(cur, fit, simple, f, rig, exps, level)
             if keeps and simpler is not None and search is not None and is_stick_slip(simple):
                 # before keeping a refinement, make sure the model it refines was fitted
                 # to its optimum, not to a terrace near the refinement's
-                fg = _global_if_better(simple, rig, f, exps, linear, max_nfev, search)
+                fg = _global_if_better(simple, rig, f, exps, linear, max_nfev, search,
+                                       weights)
                 if fg is not None:
                     f = fg
                     keeps = _lr_keeps(cur, fit, simple, f, rig, exps, level)
@@ -525,7 +536,7 @@ def _simplify(names, fit, rig, exps, linear, level, max_nfev, search=None):
 
 
 def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
-              max_fits, n_starts, max_nfev, loro_nfev, search, progress) -> list:
+              max_fits, n_starts, max_nfev, loro_nfev, search, progress, weights) -> list:
     """Fit and test the ``options`` of one forward step (rows of :func:`_options`) against
     the current model ``ext`` at ``fit`` (module docstring, steps 2-3); one dict per
     fitted candidate."""
@@ -536,7 +547,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
     for added_, dropped, new_names, new in options:
         try:
             starts, cost0 = _starts(new, rig, names, fit.theta, added_, fit.theta[:p],
-                                    exps, n_starts)
+                                    exps, n_starts, weights)
         except (ModelError, DataError, ValueError):
             continue
         screened.append((cost0, added_, dropped, new_names, new, starts))
@@ -547,7 +558,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
         c = "+".join(added_) + (f" for {dropped}" if dropped and len(added_) > 1 else "")
         announce(f"diagnose: forward step {len(names) + 1}: fitting {new.name}",
                  enabled=progress)
-        f = _fit_from(new, rig, starts, exps, linear, max_nfev)
+        f = _fit_from(new, rig, starts, exps, linear, max_nfev, weights=weights)
         if f is None:
             continue
         k = len(new.specs(rig)) - len(ext.specs(rig))
@@ -563,7 +574,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
             # out for friction, and a later step had to put it back
             announce(f"diagnose: forward step {len(names) + 1}: global search of "
                      f"{new.name}", enabled=progress)
-            fg = _global_if_better(new, rig, f, exps, linear, max_nfev, search)
+            fg = _global_if_better(new, rig, f, exps, linear, max_nfev, search, weights)
             if fg is not None:
                 f = fg
                 if dropped is None:
@@ -571,7 +582,8 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
                 g, lr, pv, bic, sig = _in_sample(new, f, rig, exps, ref_pw, k, level)
         ho = None
         if sig and len(exps) >= 2:
-            ho = loro_gain(exps, rig, ext, ref_theta, new, f.theta, linear, loro_nfev)
+            ho = loro_gain(exps, rig, ext, ref_theta, new, f.theta, linear, loro_nfev,
+                           weights=weights)
             sig = sig and held_out_significant(ho, level)
         rows.append({"cause": c, "added": added_, "dropped": dropped, "names": new_names,
                      "fit": f, "delta_lpd": g, "lr": lr, "n_params": k, "p_value": pv,
@@ -602,6 +614,7 @@ def forward_select(
     refit_nfev: int = 10,
     global_search: bool = True,
     progress: bool = False,
+    weights: str | None = None,
 ) -> ForwardResult:
     """Add effects to ``first`` one at a time (module docstring).
 
@@ -643,6 +656,9 @@ def forward_select(
         directional levels.  The lower cost is kept: local fits stop on the terraces of
         the stick-slip cost.  About 20 s per search whatever the records' size.
     progress : bool
+    weights : {None, "spread"}
+        How the least-squares fits (and their null refits) weigh the records
+        (``fit_extension_lsq``); the scores do not depend on it.
 
     Returns
     -------
@@ -667,7 +683,7 @@ def forward_select(
         announce(f"diagnose: recalibrating the null on {ext.name}", enabled=progress)
         cal = calibrate_null(exps, model, fit.theta[:p], noise=noise, n_null=n_null,
                              alpha=alpha, rng=rng, names=RESIDUAL_BASED,
-                             refit_nfev=refit_nfev, extension_fit=fit)
+                             refit_nfev=refit_nfev, extension_fit=fit, weights=weights)
         tests, t_max = _residual_tests(cal, exps, model, fit, quantum_m, outcomes)
         if t_max <= cal.threshold:
             stop = f"the residuals of {ext.name} pass (T = {t_max:.1f} <= {cal.threshold:.1f})"
@@ -684,7 +700,7 @@ def forward_select(
         step = dict(names=names, ext=ext, fit=fit, rig=rig, exps=exps, linear=linear,
                     cur_pw=cur_pw, max_fits=max_fits, n_starts=n_starts,
                     max_nfev=max_nfev, loro_nfev=loro_nfev, search=search,
-                    progress=progress)
+                    progress=progress, weights=weights)
         rows = _evaluate(options, level, **step)
         if pairs and not any(r["significant"] for r in rows):
             # a second look: input-side effects in pairs (_input_pairs), the family of
@@ -707,7 +723,7 @@ def forward_select(
         before = set(names)  # the model's effects before this step
         names, fit = best["names"], best["fit"]
         names, fit, changes = _simplify(names, fit, rig, exps, linear, alpha, max_nfev,
-                                        search)
+                                        search, weights)
         # an added refinement simplified to the effect it refines (not in the model
         # before this step) is found under that name: seed 20016 of the friction + offset
         # pair case found directional levels, simplified them to equal ones, and had

@@ -253,6 +253,7 @@ def calibrate_null(
     refit_nfev: int = 20,
     progress: bool = False,
     extension_fit=None,
+    weights=None,
 ) -> NullCalibration:
     """Simulate the fitted linear model with its noise, refit, run the diagnostics.
 
@@ -288,6 +289,9 @@ def calibrate_null(
         Progress over the null data sets on stderr (``bayesmodal._progress``).
     extension_fit : ExtensionFit, optional
         The extended model to calibrate on (default: the linear model at ``theta``).
+    weights : {None, "spread"}
+        The extended model's refits weigh the null records so (``fit_extension_lsq``),
+        as its fit weighed the data.
 
     Returns
     -------
@@ -337,7 +341,8 @@ def calibrate_null(
                     from ..effects import fit_extension_lsq
 
                     fit = fit_extension_lsq(null_exps, ef.extension, ef.rig, theta0=theta,
-                                            linear=ef.linear, max_nfev=refit_nfev)
+                                            linear=ef.linear, max_nfev=refit_nfev,
+                                            weights=weights)
         except ModelError:
             # the refit ran off to an impossible point (e.g. a damper to infinity): keep
             # the generating parameters for this null set rather than drop it

@@ -18,7 +18,7 @@ from ...data import Experiment
 from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
 from ..effects import Extension
-from ..effects.fit import extension_residuals
+from ..effects.fit import extension_residuals, root_weights
 
 __all__ = ["best_start", "best_starts", "extra_starts"]
 
@@ -89,8 +89,9 @@ def floor_dampers(rig: Rig, theta_lin: np.ndarray, floor: float = DAMPER_FLOOR) 
 
 
 def best_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
-                experiments: Sequence[Experiment], n: int = 1) -> np.ndarray:
-    """The ``n`` full parameter vectors (linear fit + extension start) of least cost.
+                experiments: Sequence[Experiment], n: int = 1, weights=None) -> np.ndarray:
+    """The ``n`` full parameter vectors (linear fit + extension start) of least cost
+    (the records weighed by ``weights``, ``fit_extension_lsq``'s).
 
     A linear fit that compensates a missing effect often drives some dampers to zero;
     the least-squares fit optimises the absolute dampers on a log scale, where a damper at
@@ -117,6 +118,8 @@ def best_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
     # infinite "no effect" values are valid for the simulator but not as a start
     cands = cands[ext.valid(rig, cands)]
     r = extension_residuals(ext, rig, cands, experiments)
+    if weights is not None:
+        r = r * root_weights(weights, experiments)
     with np.errstate(all="ignore"):
         cost = np.sum(r**2, axis=1)
     cost = np.where(np.isfinite(cost), cost, np.inf)  # softening springs can diverge

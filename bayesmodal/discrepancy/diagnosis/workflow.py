@@ -40,6 +40,7 @@ from ...metrics import fit_percent
 from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
 from ..effects import EXTENSIONS, Extension, fit_extension_lsq, get_extension
+from ..effects.fit import WEIGHTINGS
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
 from .forward import REFINES, RESIDUAL_BASED, Cause, forward_select, loro_gain
 from .null import (
@@ -174,6 +175,7 @@ def diagnose(
     max_effects: int = 3,
     global_search: bool = True,
     progress: bool = False,
+    weights: str | None = None,
 ) -> Diagnosis:
     """Diagnose the linear model's misfit, name the cause and measure the gain.
 
@@ -228,6 +230,16 @@ def diagnose(
     progress : bool
         Progress lines on stderr: each stage as it starts, and progress over the null
         data sets, the candidate fits and the sampler steps (``bayesmodal._progress``).
+    weights : {None, "spread"}
+        How the extended models' least-squares fits weigh several training records:
+        None, the plain sum of squared residuals (a record counts in proportion to its
+        spread: on the ECP records a point of fit on the steps, whose positions are held
+        away from rest for seconds, weighs 4-5 times one on a pulse of the impulses and
+        5-7 times one on a sweep), or ``"spread"``, each record as much as the others
+        (``effects.fit.record_weights``; the cost of ``fit_records_lsq``, per record
+        instead of per record and cart).  The linear fit, the start and the null's
+        base, stays unweighted; the scores (AR(1) log density, output error) do not
+        depend on it.  One record: the same either way.
 
     Returns
     -------
@@ -270,6 +282,8 @@ def diagnose(
     if unknown or not cands:
         raise ConfigError(f"unknown candidate extension(s) {unknown}; known: "
                           f"{sorted(EXTENSIONS)}")
+    if weights is not None and weights not in WEIGHTINGS:
+        raise ConfigError(f"weights must be None or one of {WEIGHTINGS}, got {weights!r}")
     rng = np.random.default_rng(rng)
     train_exps = [exps[i] for i in tr]
     held_exps = [exps[i] for i in held]
@@ -324,7 +338,7 @@ def diagnose(
     base = dict(
         statistic=t_max, threshold=cal.threshold, p_value=p_mc, tests=tuple(tests),
         experiments=tuple(e.name for e in exps), train=tr, n_null=cal.n_null,
-        alpha=float(alpha), rule=cal.rule)
+        alpha=float(alpha), rule=cal.rule, weights=weights or "none")
 
     if not discrepancy:
         ranking = tuple(CandidateScore(
@@ -368,10 +382,12 @@ def diagnose(
         try:
             with np.errstate(all="ignore"):
                 ef = None
-                for theta0 in best_starts(ext, rig, linear.theta, train_exps, n_starts):
+                for theta0 in best_starts(ext, rig, linear.theta, train_exps, n_starts,
+                                          weights):
                     inactive = c == "input_saturation" and theta0[-1] >= peak_volt
                     f = fit_extension_lsq(train_exps, ext, rig, theta0=theta0, linear=linear,
-                                          max_nfev=1 if inactive else max_nfev)
+                                          max_nfev=1 if inactive else max_nfev,
+                                          weights=weights)
                     if ef is None or f.cost < ef.cost:
                         ef = f
         except (ModelError, DataError, ValueError, FloatingPointError,
@@ -386,7 +402,8 @@ def diagnose(
         held_out = None
         if sig and len(train_exps) >= 2:
             # several records: the leave-one-record-out gain must be significant too
-            held_out = loro_gain(train_exps, rig, None, linear.theta, ext, ef.theta, linear)
+            held_out = loro_gain(train_exps, rig, None, linear.theta, ext, ef.theta, linear,
+                                 weights=weights)
             sig = held_out_significant(held_out, level)
         lin_theta = ef.theta[: model.n_params]
         d_after = [run_diagnostics(e, model, lin_theta, quantum_m=q, y_pred=y)
@@ -448,7 +465,8 @@ def diagnose(
             train_exps, rig, c, ef, cands, linear=linear, quantum_m=q, n_null=n_null,
             alpha=alpha, rng=rng, outcomes=_outcomes, location=_location,
             max_effects=int(max_effects), max_fits=max_fits, n_starts=n_starts,
-            max_nfev=max_nfev, global_search=bool(global_search), progress=progress)
+            max_nfev=max_nfev, global_search=bool(global_search), progress=progress,
+            weights=weights)
         causes = _final_causes(causes + fwd.added, fwd, rig, model)
         for eff, simpler in fwd.simplified:
             notes.append(f"{eff} {'simplified to ' + simpler if simpler else 'removed'} "

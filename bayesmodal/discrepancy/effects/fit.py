@@ -39,7 +39,8 @@ from ...system import Rig
 from ._base import Extension
 
 __all__ = ["ExtensionFit", "fit_extension_lsq", "extension_fit_at", "extension_residuals",
-           "extension_cost"]
+           "extension_cost", "record_weights", "experiment_weights", "root_weights",
+           "WEIGHTINGS"]
 
 
 @dataclass(frozen=True)
@@ -138,7 +139,7 @@ def admissible_residuals(
 
 def extension_cost(
     extension: Extension, rig: Rig, theta: np.ndarray, experiments: Sequence[Experiment],
-    weights: Sequence[float] | None = None,
+    weights: Sequence[float] | str | None = None,
 ) -> np.ndarray:
     """The cost ``fit_extension_lsq`` minimises: half the weighted sum of squared residuals.
 
@@ -148,8 +149,9 @@ def extension_cost(
     rig : Rig
     theta : ndarray, shape (nb, n_params)
     experiments : sequence of Experiment
-    weights : sequence of float, optional
-        One non-negative weight per experiment (default all 1).
+    weights : sequence of float or "spread", optional
+        One non-negative weight per experiment (default all 1), or ``"spread"``
+        (:func:`record_weights`).
 
     Returns
     -------
@@ -157,7 +159,7 @@ def extension_cost(
         ``0.5 * sum_e w_e * sum_k |y_e,k - yhat_e,k(theta)|^2``.
     """
     experiments = _as_list(experiments)
-    w = _experiment_weights(weights, experiments)
+    w = experiment_weights(weights, experiments)
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     total = np.zeros(theta.shape[0])
     for we, e in zip(w, experiments, strict=True):
@@ -166,11 +168,84 @@ def extension_cost(
     return total
 
 
-def _experiment_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray:
-    """The weight of each experiment in the cost (all 1 for None).  Raises ConfigError
-    for unusable weights."""
+#: Named weightings of several records in a least-squares cost (``weights=``); see
+#: :func:`record_weights`.
+WEIGHTINGS = ("spread",)
+
+
+def record_weights(experiments: Experiment | Sequence[Experiment]) -> np.ndarray:
+    """The ``"spread"`` weighting: each record weighs as much as the others in the cost.
+
+    A record's weight is the inverse of its spread, the sum over its outputs and samples
+    of the squared deviation of the measured positions from their means, times the mean
+    spread of the records: ``w_r = mean_q S_q / S_r`` with ``S_r = sum_j |y_rj - mean
+    y_rj|^2``.  The weighted cost is then a sum over records of ``(1 - fit_r / 100)^2``
+    (the pooled fit percentage of each record, times the mean spread), where the
+    unweighted cost weighs each record's ``(1 - fit_r / 100)^2`` by its spread ``S_r``:
+    on the ECP records the steps (held away from rest for seconds) have 4-5 times the
+    spread of a pulse of the impulses and 5-7 times that of a sweep.  One record gets
+    weight 1 exactly (the unweighted cost).
+
+    Parameters
+    ----------
+    experiments : Experiment or sequence of Experiment
+
+    Returns
+    -------
+    ndarray, shape (n_records,)
+        Positive weights with mean spread ``sum_r w_r S_r / n = mean S``.
+
+    Raises
+    ------
+    DataError
+        For a record whose positions do not move (spread 0).
+    """
+    experiments = _as_list(experiments)
+    spread = np.array([float(np.sum((e.y_m - e.y_m.mean(axis=0)) ** 2)) for e in experiments])
+    flat = [e.name for e, s in zip(experiments, spread, strict=True) if not s > 0.0]
+    if flat:
+        raise DataError(f"{flat[0]}: the positions do not move, so the record has no "
+                        "spread to weigh it by; leave it out or pass weights=None")
+    if len(experiments) == 1:
+        return np.ones(1)
+    return float(np.mean(spread)) / spread
+
+
+def root_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray | None:
+    """Square roots of the records' weights, one per stacked residual (the layout of
+    :func:`extension_residuals`: each record's samples times outputs in turn); None for
+    ``weights`` None (unweighted)."""
+    if weights is None:
+        return None
+    return np.repeat(np.sqrt(experiment_weights(weights, experiments)),
+                     [e.n_samples * e.n_outputs for e in experiments])
+
+
+def experiment_weights(weights, experiments: Sequence[Experiment]) -> np.ndarray:
+    """The weight of each experiment in a least-squares cost.
+
+    Parameters
+    ----------
+    weights : None, "spread" or sequence of float
+        None: all 1; ``"spread"``: :func:`record_weights`; else one per experiment.
+    experiments : sequence of Experiment
+
+    Returns
+    -------
+    ndarray, shape (n_experiments,)
+
+    Raises
+    ------
+    ConfigError
+        For an unknown weighting or unusable numbers.
+    """
     if weights is None:
         return np.ones(len(experiments))
+    if isinstance(weights, str):
+        if weights not in WEIGHTINGS:
+            raise ConfigError(f"weights: unknown weighting {weights!r}; use one of "
+                              f"{WEIGHTINGS} or one number per experiment")
+        return record_weights(experiments)
     w = np.asarray(weights, dtype=float)
     if w.shape != (len(experiments),):
         raise ConfigError(f"weights: need one per experiment ({len(experiments)}), got "
@@ -201,7 +276,7 @@ def fit_extension_lsq(
     max_nfev: int = 200,
     n_starts: int = 1,
     damper_scales: Sequence[float] = (1.0,),
-    weights: Sequence[float] | None = None,
+    weights: Sequence[float] | str | None = None,
 ) -> ExtensionFit:
     """Least-squares fit of an extended model.
 
@@ -230,11 +305,12 @@ def fit_extension_lsq(
         Factors applied to the linear fit's dampers in the start candidates (each grid
         point is tried with each factor); ``(1.0,)`` keeps the linear dampers, ``(1.0,
         0.3, 0.1)`` lets friction take over part of the viscous damping from the start.
-    weights : sequence of float, optional
+    weights : sequence of float or "spread", optional
         Weight of each experiment's squared residuals in the cost (default all 1), e.g.
         ``(1.0, 0.1)`` to trace how far a second record can pull the fit before the first
-        one's fit degrades.  Non-negative, finite, not all zero; the grid ranking and the
-        returned ``cost`` use them too.
+        one's fit degrades, or ``"spread"`` (:func:`record_weights`: every record weighs
+        as much as the others).  Non-negative, finite, not all zero; the grid ranking
+        and the returned ``cost`` use them too.
 
     Returns
     -------
@@ -262,10 +338,8 @@ def fit_extension_lsq(
     for e in experiments:
         if e.n_outputs != rig.n_carts:
             raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")
-    w_exp = _experiment_weights(weights, experiments)
-    # square roots of the weights, one per stacked residual (extension_residuals' layout)
-    root_w = None if weights is None else np.repeat(
-        np.sqrt(w_exp), [e.n_samples * e.n_outputs for e in experiments])
+    w_exp = experiment_weights(weights, experiments)
+    root_w = root_weights(weights, experiments)
     if linear is None:
         linear = fit_lsq(experiments, model)
     elif linear.model.damping != "free" or linear.model.n_carts != rig.n_carts:
@@ -380,12 +454,14 @@ def _summary(experiments, ext, rig, theta, w_exp, linear, theta_start, success, 
 
 
 def extension_fit_at(experiments: Experiment | Sequence[Experiment], ext: Extension,
-                     rig: Rig, theta: np.ndarray, *, linear: LSQResult) -> ExtensionFit:
+                     rig: Rig, theta: np.ndarray, *, linear: LSQResult,
+                     weights: Sequence[float] | str | None = None) -> ExtensionFit:
     """The :class:`ExtensionFit` summary of ``ext`` at ``theta``, without fitting.
 
     For a point found otherwise (a nested model's value at a larger model's optimum),
     summarised like a fit: fit percentages, cost and RMS residual at ``theta``;
-    ``n_evaluations`` 0 and ``theta_start`` the point itself.
+    ``n_evaluations`` 0 and ``theta_start`` the point itself; ``weights`` as in
+    :func:`fit_extension_lsq` (the cost's).
 
     Raises
     ------
@@ -394,5 +470,5 @@ def extension_fit_at(experiments: Experiment | Sequence[Experiment], ext: Extens
     """
     experiments = _as_list(experiments)
     theta = ext.check(rig, np.asarray(theta, float))
-    return _summary(experiments, ext, rig, theta, np.ones(len(experiments)), linear,
-                    theta.copy(), True, "evaluated at a given point, not fitted", 0)
+    return _summary(experiments, ext, rig, theta, experiment_weights(weights, experiments),
+                    linear, theta.copy(), True, "evaluated at a given point, not fitted", 0)

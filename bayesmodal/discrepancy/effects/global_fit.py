@@ -40,7 +40,13 @@ from ...data import Experiment
 from ...fit import LSQResult, fit_lsq
 from ...system import Rig
 from ._base import Extension
-from .fit import ExtensionFit, extension_residuals, fit_extension_lsq
+from .fit import (
+    ExtensionFit,
+    experiment_weights,
+    extension_residuals,
+    fit_extension_lsq,
+    root_weights,
+)
 
 __all__ = ["fit_extension_global", "is_stick_slip", "MASS_BOX", "DAMPER_BOX"]
 
@@ -129,6 +135,7 @@ def fit_extension_global(
     rng=None,
     max_nfev: int = 200,
     max_samples: int = 4000,
+    weights: Sequence[float] | str | None = None,
 ) -> ExtensionFit:
     """Differential evolution over the model's box, then the least-squares polish.
 
@@ -151,6 +158,9 @@ def fit_extension_global(
     max_samples : int
         Samples the evolution sees, shared equally by the records (the first ones of
         each; the polish fits all): it bounds the search's cost whatever the data's size.
+    weights : sequence of float or "spread", optional
+        Weight of each record in the cost (``fit_extension_lsq``), decided on the whole
+        records and kept for the searched samples.
 
     Returns
     -------
@@ -173,6 +183,9 @@ def fit_extension_global(
     box = search_box(ext, rig, linear.theta)
     seed = np.random.default_rng(rng)
     search = _head(exps, max_samples)
+    # the records' weights from the whole records, as numbers the searched heads keep
+    w = None if weights is None else experiment_weights(weights, exps)
+    root_w = root_weights(w, search)
 
     def cost(x: np.ndarray) -> np.ndarray:  # x: (n_params, S), SciPy's vectorised layout
         theta = _clip_to_null(ext, rig, np.ascontiguousarray(x.T))
@@ -180,8 +193,8 @@ def fit_extension_global(
         ok = ext.valid(rig, theta)
         if np.any(ok):
             with np.errstate(all="ignore"):
-                out[ok] = np.sum(extension_residuals(ext, rig, theta[ok], search) ** 2,
-                                 axis=1)
+                r = extension_residuals(ext, rig, theta[ok], search)
+                out[ok] = np.sum((r if root_w is None else r * root_w) ** 2, axis=1)
         # inadmissible or diverging members: worse than every admissible one but finite
         # (SciPy's convergence test squares the population's energies)
         fin = np.isfinite(out)
@@ -197,7 +210,7 @@ def fit_extension_global(
         improved = False
         for start in pruned_starts(ext, rig, centre):
             f = fit_extension_lsq(search, ext, rig, theta0=ext.check(rig, start),
-                                  linear=linear, max_nfev=max_nfev)
+                                  linear=linear, max_nfev=max_nfev, weights=w)
             if best is None or f.cost < best.cost:
                 best, improved = f, True
         if not improved:
@@ -206,7 +219,7 @@ def fit_extension_global(
     if all(a is b for a, b in zip(search, exps, strict=True)):
         return best
     return fit_extension_lsq(exps, ext, rig, theta0=best.theta, linear=linear,
-                             max_nfev=max_nfev)
+                             max_nfev=max_nfev, weights=w)
 
 
 def _cart_blocks(ext: Extension, rig: Rig) -> list[np.ndarray]:
