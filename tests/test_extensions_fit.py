@@ -175,7 +175,6 @@ def test_one_record_weighted_by_spread_fits_bit_for_bit_as_unweighted(record):
     np.testing.assert_array_equal(ga.theta, gb.theta)
 
 
-
 def test_inadmissible_parameter_sets_get_a_barrier_not_an_error(record):
     """Backlash needs ``m_p < m1``, a rule the optimiser's box cannot state: a trial
     point beyond it gets residuals far above any admissible row's, and admissible rows

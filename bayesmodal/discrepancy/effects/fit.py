@@ -339,7 +339,8 @@ def fit_extension_lsq(
         if e.n_outputs != rig.n_carts:
             raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")
     w_exp = experiment_weights(weights, experiments)
-    root_w = root_weights(weights, experiments)
+    # the weights once (a named weighting reads every record), as numbers from here on
+    root_w = root_weights(None if weights is None else w_exp, experiments)
     if linear is None:
         linear = fit_lsq(experiments, model)
     elif linear.model.damping != "free" or linear.model.n_carts != rig.n_carts:
