@@ -56,9 +56,6 @@ def test_lsq_json_reproduces_table3_and_table5(lsq_free_json):
 
 
 def test_lsq_json_has_modal_summary(lsq_free_json):
-    modal = pytest.importorskip("bayesmodal.modal")
-    if not hasattr(modal, "modal_summary"):
-        pytest.skip("bayesmodal.modal.modal_summary not available yet")
     out = lsq_free_json
     for key in ("omega_rad_s", "zeta", "mode_shapes"):
         assert key in out

@@ -60,6 +60,8 @@ def test_values_at_zero_and_beyond_the_clip():
     e, om, q = run(np.array([0.0, 2 * EXP_CLIP]))
     assert (e[0], om[0], q[0]) == (1.0, 0.0, 1.0)  # the quotient tends to 1 without 0/0
     assert e[1] == pytest.approx(np.exp(-EXP_CLIP), rel=2 * EPS)  # clipped argument
+    # exact by construction: e^{-EXP_CLIP} is below half a unit of 1, so 1 - e rounds to
+    # 1, and the quotient is then one correctly rounded division
     assert om[1] == 1.0 and q[1] == 1.0 / (2 * EXP_CLIP)  # om / x with x itself
 
 

@@ -167,6 +167,9 @@ def test_default_rig_is_the_report_chain_bitwise():
     g, m1, m2, m3, c1, c2, c3, c12, c23 = th = np.array(
         [6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
     M, C, K, b = model.matrices(th)
+    # exact by construction: the stiffnesses are integers in N/m, and each damping entry
+    # is the same sum of the same floats as the model's assembly (IEEE addition is
+    # correctly rounded on every platform)
     np.testing.assert_array_equal(M, np.diag([m1, m2, m3]))
     np.testing.assert_array_equal(K, [[774.0, -774.0, 0], [-774.0, 774.0 + 770.0, -770.0],
                                       [0, -770.0, 770.0 + 396.0]])
@@ -484,6 +487,8 @@ def test_rich_rig_layout():
     th = model.as_vector({"m1": 1.4, "m2": 1.0, "c1": 1.0, "c2": 2.0, "c12": 0.5,
                           "k_mid": 410.0})
     M, C, K, b = model.matrices(th)
+    # exact by construction: integer stiffnesses, dampers and gains that are sums of
+    # binary fractions (0.5, 1.0, 2.0), masses passed through
     np.testing.assert_array_equal(np.diag(M), [1.4, 1.0, 1.2])
     np.testing.assert_array_equal(K, [[770.0 + 410.0, -410.0, 0], [-410.0, 410.0 + 396.0,
                                                                    -396.0],
