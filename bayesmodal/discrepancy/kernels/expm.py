@@ -2,68 +2,83 @@
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
-
-from ._codegen import (
-    _compile,
-)
+from numba import njit
 
 #: Scaled norm bound and Taylor degree: theta^(m+1) / (m+1)! = 2.3e-17 relative error.
 _EXPM_THETA = 0.5
 _EXPM_DEGREE = 14
 
 
-@functools.lru_cache(maxsize=16)
-def _expm_kernel(d: int):
-    """Compiled ``kernel(X, n_squarings, E, X2, X3, X4, T)`` for (d, d, W) stacks.
+_COEFFS = np.array([1.0 / math.factorial(k) for k in range(_EXPM_DEGREE + 1)])
 
-    ``E = T_14(X)^(2^s)`` with ``T_14`` the degree-14 Taylor polynomial evaluated by
+
+@njit(cache=True, nogil=True, boundscheck=False, error_model="numpy")
+def _product(out, a, m):
+    """``out = a @ m`` for each lane of (d, d, W) stacks, the lane loop innermost.
+
+    Each entry is summed over ``k`` from 0 up, one rounding a term, as the unrolled
+    expression ``a[i, 0] m[0, j] + a[i, 1] m[1, j] + ...`` evaluates from the left."""
+    d, W = a.shape[0], a.shape[2]
+    for i in range(d):
+        for j in range(d):
+            for b in range(W):
+                out[i, j, b] = a[i, 0, b] * m[0, j, b]
+            for k in range(1, d):
+                for b in range(W):
+                    out[i, j, b] = out[i, j, b] + a[i, k, b] * m[k, j, b]
+
+
+@njit(cache=True, nogil=True, boundscheck=False, error_model="numpy")
+def _combination(out, X, X2, X3, c, j0):
+    """``out = c[j0] I + c[j0+1] X + c[j0+2] X^2 + c[j0+3] X^3``, the terms up to the
+    Taylor degree only, summed from the left."""
+    d, W = X.shape[0], X.shape[2]
+    top = c.size - 1
+    for i in range(d):
+        for j in range(d):
+            one = c[j0] if i == j else 0.0
+            if j0 + 3 <= top:
+                for b in range(W):
+                    out[i, j, b] = (one + c[j0 + 1] * X[i, j, b] + c[j0 + 2] * X2[i, j, b]
+                                    + c[j0 + 3] * X3[i, j, b])
+            else:  # j0 + 2 == top: the degree-14 polynomial's last block
+                for b in range(W):
+                    out[i, j, b] = one + c[j0 + 1] * X[i, j, b] + c[j0 + 2] * X2[i, j, b]
+
+
+@njit(cache=True, nogil=True, boundscheck=False, error_model="numpy")
+def _expm_kernel(X, n_squarings, E, X2, X3, X4, T, c):
+    """``E = T_14(X)^(2^s)`` for (d, d, W) stacks of any size ``d``.
+
+    ``T_14`` is the degree-14 Taylor polynomial (coefficients ``c``) evaluated by
     Paterson-Stockmeyer (``X^2, X^3, X^4`` and three products in ``X^4``: six matrix
     products instead of thirteen) and ``s = n_squarings[b]`` (int, shape (W,)) for lane
     ``b``, whose ``X`` is already scaled by ``2^-s``; the other arrays are work space.
-    The inner products are unrolled so that the lane loop (last axis) is innermost and
-    vectorised.
-    """
-    c = [1.0 / math.factorial(k) for k in range(_EXPM_DEGREE + 1)]
-
-    def product(out, a, m):
-        terms = " + ".join(f"{a}[i, {k}, b] * {m}[{k}, j, b]" for k in range(d))
-        return [f"    for i in range({d}):",
-                f"        for j in range({d}):",
-                "            for b in range(W):",
-                f"                {out}[i, j, b] = {terms}"]
-
-    def combination(out, j0):
-        # out = sum_i c[j0 + i] X^i, i = 0..3 (only the terms up to the degree)
-        pw = ["", "X", "X2", "X3"]
-        terms = [f"{c[j0 + i]!r} * {pw[i]}[i, j, b]" for i in range(1, 4)
-                 if j0 + i <= _EXPM_DEGREE]
-        return [f"    for i in range({d}):",
-                f"        for j in range({d}):",
-                f"            one = {c[j0]!r} if i == j else 0.0",
-                "            for b in range(W):",
-                f"                {out}[i, j, b] = one + " + " + ".join(terms)]
-
-    L = ["def kernel(X, n_squarings, E, X2, X3, X4, T):", "    W = X.shape[2]"]
-    L += product("X2", "X", "X") + product("X3", "X2", "X") + product("X4", "X2", "X2")
-    L += combination("E", 12)
+    One compiled function serves every ``d`` (a kernel unrolled per size took 20-40 s to
+    compile, one for each state size in use); the lane loop (last axis) is innermost and
+    vectorised."""
+    d, W = X.shape[0], X.shape[2]
+    _product(X2, X, X)
+    _product(X3, X2, X)
+    _product(X4, X2, X2)
+    _combination(E, X, X2, X3, c, 12)
     for j0 in (8, 4, 0):
-        L += product("T", "E", "X4")
-        L += combination("E", j0)
-        L += [f"    for i in range({d}):",
-              f"        for j in range({d}):",
-              "            for b in range(W):",
-              "                E[i, j, b] += T[i, j, b]"]
-    L += ["    for q in range(n_squarings.max()):"]
-    L += ["    " + line for line in product("T", "E", "E")]
-    L += [f"        for i in range({d}):",
-          f"            for j in range({d}):",
-          "                for b in range(W):",
-          "                    E[i, j, b] = T[i, j, b] if q < n_squarings[b] else E[i, j, b]"]
-    return _compile(L, f"<bayesmodal expm d={d}>")
+        _product(T, E, X4)
+        _combination(E, X, X2, X3, c, j0)
+        for i in range(d):
+            for j in range(d):
+                for b in range(W):
+                    E[i, j, b] += T[i, j, b]
+    top = n_squarings.max() if W else 0
+    for q in range(top):
+        _product(T, E, E)
+        for i in range(d):
+            for j in range(d):
+                for b in range(W):
+                    E[i, j, b] = T[i, j, b] if q < n_squarings[b] else E[i, j, b]
 
 
 def expm_batched(Z: np.ndarray) -> np.ndarray:
@@ -98,7 +113,7 @@ def expm_batched(Z: np.ndarray) -> np.ndarray:
     s = np.where(norm > _EXPM_THETA, s, 0).astype(np.int64)
     X = np.ascontiguousarray(np.moveaxis(Z * np.ldexp(1.0, -s)[:, None, None], 0, -1))
     E = np.empty_like(X)
-    _expm_kernel(d)(X, s, E, *(np.empty_like(X) for _ in range(4)))
+    _expm_kernel(X, s, E, *(np.empty_like(X) for _ in range(4)), _COEFFS)
     return np.ascontiguousarray(np.moveaxis(E, -1, 0))
 
 
