@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _readers
 from ._errors import DataError
-from .reading import ReadOptions, regularise_time
+from .reading import ReadOptions, drive_sign, regularise_time
 
 __all__ = [
     "Experiment",
@@ -423,6 +423,10 @@ def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) 
             t = reg.t_s
     exp = Experiment(t, v, y, name=name, source=str(path))
     _check_plausible(path, exp, raw_y, opts, kind)
+    # the static response says which way the drive is wired (a guess: a warning)
+    sign = drive_sign(exp.v_volt, exp.y_m, exp.dt)
+    if sign is not None and sign.reversed:
+        warnings.warn(f"{path}: {sign.message()}", stacklevel=4)
     return exp
 
 
@@ -499,7 +503,10 @@ def load_experiment(
     Experiment
         With ``sha256`` of the file recorded.  Timestamps rounded to a coarser clock, or
         jittered around a uniform step, are replaced by the fitted uniform grid with a
-        warning that says by how much they moved (``reading.regularise_time``).
+        warning that says by how much they moved (``reading.regularise_time``).  A record
+        whose carts move against the input at low frequency is read as it is, with a
+        warning that the drive may be reversed and the fix, ``input_scale=-1``
+        (``reading.drive_sign``).
 
     Raises
     ------
@@ -523,8 +530,9 @@ def load_experiment(
         raise DataError(f"{path}: not a regular file")
     kind = (fmt or path.suffix.lstrip(".")).lower()
     if m_per_count is not None:
-        if not (np.isfinite(m_per_count) and m_per_count > 0):
-            raise DataError(f"m_per_count must be finite and > 0 m, got {m_per_count!r}")
+        if not (np.isfinite(m_per_count) and m_per_count != 0):
+            raise DataError(f"m_per_count must be finite and non-zero m (negative for "
+                            f"encoders counting the other way), got {m_per_count!r}")
         if kind in ("mat", "txt") and opts.m_per_count is None:
             opts = replace(opts, m_per_count=float(m_per_count))
     if kind not in _FORMATS:
