@@ -344,7 +344,8 @@ def _export_roles(path: Path, opts: ReadOptions) -> dict | None:
     table = _ecp_export.read_export(path, lines, header)
     time = _ecp_export.export_time(table.column("Sample"), table.column("Time"),
                                    table.decimals)
-    if time.recovered and time.max_shift_s > 0:
+    # times printed exactly (to rounding of the float itself) need no word
+    if time.recovered and time.max_shift_s > _DT_RTOL * time.dt + 1e-12:
         warnings.warn(f"{path}: {time.message()}", stacklevel=5)
     data = table.data.copy()
     data[:, [n.lower() for n in table.names].index("time")] = time.t_s
