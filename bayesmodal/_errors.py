@@ -17,6 +17,11 @@ class ConfigError(ValueError):
     """A run configuration is invalid."""
 
 
+class IdentificationError(ValueError):
+    """A fit ended without determining its parameters (``Identification.identified`` is
+    False); the message names the cause and the fix."""
+
+
 def one_line(exc: BaseException) -> str:
     """Every problem of a (configuration) error on one line, joined by ``"; "``."""
     lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]

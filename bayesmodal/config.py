@@ -405,8 +405,9 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
     mpc = values.get(("data", "m_per_count"))
     if mpc is not None:
-        if not (mpc > 0 and mpc < 1):
-            err("data.m_per_count", f"must be in (0, 1) m per count, got {mpc!r}")
+        if not (0 < abs(mpc) < 1):  # negative: encoders counting the other way
+            err("data.m_per_count", f"must be non-zero and within (-1, 1) m per count "
+                f"(negative for encoders counting the other way), got {mpc!r}")
         kw["m_per_count"] = float(mpc)
 
     cols = values.get(("data", "columns"))
@@ -431,7 +432,8 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         from .reading import parse_scale  # noqa: PLC0415
 
         try:
-            kw[key] = parse_scale(str(val), key)
+            # the input may be reversed (a negative input_scale); time runs forwards
+            kw[key] = parse_scale(str(val), key, signed=key == "input_scale")
         except ConfigError as exc:
             err(f"data.{key}", str(exc))
 

@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _readers
+from . import _ecp_export, _readers
 from ._errors import DataError
-from .reading import ReadOptions, regularise_time
+from .reading import ReadOptions, drive_sign, regularise_time
 
 __all__ = [
     "Experiment",
@@ -305,6 +305,9 @@ def _mat_roles(path: Path, opts: ReadOptions) -> dict:
 
 
 def _txt_roles(path: Path, opts: ReadOptions) -> dict:
+    export = _export_roles(path, opts)
+    if export is not None:
+        return export
     table = _readers.read_text(path, None, header_rows=None)
     arr, names = table.data, table.names
     width = arr.shape[1]
@@ -321,6 +324,42 @@ def _txt_roles(path: Path, opts: ReadOptions) -> dict:
         cols.update({f"x{i + 1}": arr[:, 1 + i] for i in range(width - 2)})
         return cols
     return _table_roles(path, opts, arr, names)
+
+
+def _export_roles(path: Path, opts: ReadOptions) -> dict | None:
+    """Roles of an ECP Executive export (``_ecp_export``), or None for another text file.
+
+    Without a column map: time from the Sample index (the printed times are rounded),
+    the input from ``Control Effort`` (V), outputs from ``Encoder 1..n Pos`` (counts).
+    With a map, columns are named as the header spells them (``Time`` is the recovered
+    time) or by number.
+    """
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        return None  # read_text says it is not a text file
+    header = _ecp_export.header_index(lines)
+    if header is None:
+        return None
+    table = _ecp_export.read_export(path, lines, header)
+    time = _ecp_export.export_time(table.column("Sample"), table.column("Time"),
+                                   table.decimals)
+    # times printed exactly (to rounding of the float itself) need no word
+    if time.recovered and time.max_shift_s > _DT_RTOL * time.dt + 1e-12:
+        warnings.warn(f"{path}: {time.message()}", stacklevel=5)
+    data = table.data.copy()
+    data[:, [n.lower() for n in table.names].index("time")] = time.t_s
+    if opts.columns is not None:
+        return _table_roles(path, opts, data, table.names)
+    enc = table.encoders
+    if sorted(enc) != list(range(1, len(enc) + 1)):
+        raise DataError(f"{path}: ECP Executive export with encoders {sorted(enc)}; the "
+                        "outputs must be Encoder 1..n Pos without gaps, or map them with "
+                        "--columns x1='Encoder 2 Pos',... " + _hint_columns(
+                            _available(table.names, len(table.names))))
+    roles = {"t": time.t_s, "v": table.column("Control Effort")}
+    roles.update({f"x{k}": enc[k] for k in sorted(enc)})
+    return roles
 
 
 def _table_roles(path: Path, opts: ReadOptions, arr: np.ndarray, names) -> dict:
@@ -423,6 +462,10 @@ def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) 
             t = reg.t_s
     exp = Experiment(t, v, y, name=name, source=str(path))
     _check_plausible(path, exp, raw_y, opts, kind)
+    # the static response says which way the drive is wired (a guess: a warning)
+    sign = drive_sign(exp.v_volt, exp.y_m, exp.dt)
+    if sign is not None and sign.reversed:
+        warnings.warn(f"{path}: {sign.message()}", stacklevel=4)
     return exp
 
 
@@ -499,7 +542,10 @@ def load_experiment(
     Experiment
         With ``sha256`` of the file recorded.  Timestamps rounded to a coarser clock, or
         jittered around a uniform step, are replaced by the fitted uniform grid with a
-        warning that says by how much they moved (``reading.regularise_time``).
+        warning that says by how much they moved (``reading.regularise_time``).  A record
+        whose carts move against the input at low frequency is read as it is, with a
+        warning that the drive may be reversed and the fix, ``input_scale=-1``
+        (``reading.drive_sign``).
 
     Raises
     ------
@@ -523,8 +569,9 @@ def load_experiment(
         raise DataError(f"{path}: not a regular file")
     kind = (fmt or path.suffix.lstrip(".")).lower()
     if m_per_count is not None:
-        if not (np.isfinite(m_per_count) and m_per_count > 0):
-            raise DataError(f"m_per_count must be finite and > 0 m, got {m_per_count!r}")
+        if not (np.isfinite(m_per_count) and m_per_count != 0):
+            raise DataError(f"m_per_count must be finite and non-zero m (negative for "
+                            f"encoders counting the other way), got {m_per_count!r}")
         if kind in ("mat", "txt") and opts.m_per_count is None:
             opts = replace(opts, m_per_count=float(m_per_count))
     if kind not in _FORMATS:

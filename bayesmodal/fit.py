@@ -50,6 +50,12 @@ class LSQResult:
     x0 : ndarray, shape (n_experiments, 2 n_carts), or None
         Estimated initial positions (m) and velocities (m/s) per experiment with
         ``initial_state="estimate"``; None when every record starts from rest.
+    jac_singular_values : ndarray, shape (n_columns,), or None
+        Singular values of the final Jacobian with each column scaled to unit norm
+        (parameters and estimated initial states), largest first; NaN where the Jacobian
+        is not finite.  Read by :func:`bayesmodal.identified.identify`.
+    jac_shape : tuple of int
+        Shape ``(n_residuals, n_columns)`` of that Jacobian.
     """
 
     model: LinearModel
@@ -62,6 +68,8 @@ class LSQResult:
     message: str
     n_evaluations: int
     x0: np.ndarray | None = None
+    jac_singular_values: np.ndarray | None = None
+    jac_shape: tuple[int, int] = (0, 0)
 
     @property
     def params(self) -> dict[str, float]:
@@ -72,6 +80,21 @@ class LSQResult:
     def stderr(self) -> np.ndarray:
         """Gauss-Newton standard errors, shape (n_params,)."""
         return np.sqrt(np.clip(np.diag(self.cov), 0, None))
+
+    @property
+    def identification(self):
+        """The identifiability verdict of the fit (:func:`bayesmodal.identified.identify`).
+
+        Returns
+        -------
+        Identification
+            ``identified`` False, with the reason and the fix, when a gain or mass ended
+            at 0, a standard error is not finite or above its estimate, the Jacobian is
+            rank-deficient, or the fit is below 0 % on some record and cart.
+        """
+        from .identified import identify
+
+        return identify(self)
 
 
 def param_kinds(model: LinearModel) -> tuple[str, ...]:
@@ -372,7 +395,32 @@ def fit_lsq(
         message=str(sol.message),
         n_evaluations=int(sol.nfev),
         x0=x0_hat,
+        jac_singular_values=equilibrated_singular_values(Jw),
+        jac_shape=(int(Jw.shape[0]), int(Jw.shape[1])),
     )
+
+
+def equilibrated_singular_values(jac: np.ndarray) -> np.ndarray:
+    """Singular values of a Jacobian whose columns are scaled to unit norm.
+
+    Scaling the columns removes the parameters' units (a mass in kg and a damper in
+    N s/m), so that a small singular value means a direction the residuals do not see,
+    not a parameter measured in large units.  A zero column stays zero.
+
+    Parameters
+    ----------
+    jac : ndarray, shape (n_residuals, n_columns)
+
+    Returns
+    -------
+    ndarray, shape (n_columns,)
+        Largest first; all NaN when the Jacobian is not finite.
+    """
+    jac = np.asarray(jac, float)
+    if not np.all(np.isfinite(jac)):
+        return np.full(jac.shape[1], np.nan)
+    norms = np.linalg.norm(jac, axis=0)
+    return np.linalg.svd(jac / np.where(norms > 0, norms, 1.0), compute_uv=False)
 
 
 def barrier_residuals(experiments: Sequence[Experiment], nb: int) -> np.ndarray:

@@ -35,8 +35,8 @@ import numpy as np
 
 from ._errors import ConfigError
 
-__all__ = ["ReadOptions", "TimeRegularisation", "parse_columns", "parse_scale",
-           "regularise_time"]
+__all__ = ["DriveSign", "ReadOptions", "TimeRegularisation", "drive_sign", "parse_columns",
+           "parse_scale", "regularise_time"]
 
 _ROLE = re.compile(r"^(t|v|x[1-9][0-9]*)$")
 
@@ -70,14 +70,18 @@ def _check_columns(columns) -> tuple[tuple[str, str], ...]:
     return tuple(out)
 
 
-def _positive(name: str, value, *, allow_none: bool = False):
+def _positive(name: str, value, *, allow_none: bool = False, signed: bool = False):
+    """A finite scale factor: > 0, or (``signed``) non-zero of either sign."""
     if value is None and allow_none:
         return None
     try:
         x = float(value)
     except (TypeError, ValueError):
         raise ConfigError(f"{name} must be a number, got {value!r}") from None
-    if not (np.isfinite(x) and x > 0):
+    if signed and not (np.isfinite(x) and x != 0):
+        raise ConfigError(f"{name} must be finite and non-zero (negative for a reversed "
+                          f"sign), got {value!r}")
+    if not signed and not (np.isfinite(x) and x > 0):
         raise ConfigError(f"{name} must be finite and > 0, got {value!r}")
     return x
 
@@ -96,12 +100,14 @@ class ReadOptions:
         Default: the file's own ``t, x1..xn, v`` layout.  Stored as a tuple of pairs.
     input_scale : float
         Volts per unit of the input column (``5 / 4096`` for a 12-bit converter over
-        5 V), V.
+        5 V), V; non-zero, negative for a drive wired the other way round (+V moves the
+        carts to negative counts: ``-1``).
     time_scale : float
         Seconds per unit of the time column (``1e-3`` for milliseconds), s.
     m_per_count : float, optional
-        Metres per unit of the output columns, m.  Default: ``ECP_M_PER_COUNT`` for the
-        ECP ``.mat``/``.txt`` files (encoder counts), 1 for ``.csv`` (metres).
+        Metres per unit of the output columns, m; non-zero, negative for encoders that
+        count the other way.  Default: ``ECP_M_PER_COUNT`` for the ECP ``.mat``/``.txt``
+        files (encoder counts), 1 for ``.csv`` (metres).
     n_outputs : int, optional
         Number of outputs expected; a record with another number is refused.
 
@@ -122,10 +128,12 @@ class ReadOptions:
     def __post_init__(self) -> None:
         if self.columns is not None:
             object.__setattr__(self, "columns", _check_columns(self.columns))
-        object.__setattr__(self, "input_scale", _positive("input_scale", self.input_scale))
+        # a sign flip of the input or the outputs is a lab convention; time runs forwards
+        object.__setattr__(self, "input_scale",
+                           _positive("input_scale", self.input_scale, signed=True))
         object.__setattr__(self, "time_scale", _positive("time_scale", self.time_scale))
-        object.__setattr__(self, "m_per_count",
-                           _positive("m_per_count", self.m_per_count, allow_none=True))
+        object.__setattr__(self, "m_per_count", _positive("m_per_count", self.m_per_count,
+                                                          allow_none=True, signed=True))
         if self.n_outputs is not None:
             n = int(self.n_outputs)
             if n != self.n_outputs or n < 1:
@@ -148,15 +156,19 @@ class ReadOptions:
         return sum(1 for role, _ in self.columns if role[0] == "x")
 
 
-def parse_scale(text: str, name: str = "scale") -> float:
-    """A positive scale factor written as a number or a fraction.
+def parse_scale(text: str, name: str = "scale", *, signed: bool = False) -> float:
+    """A scale factor written as a number or a fraction.
 
     Parameters
     ----------
     text : str
-        ``"5/4096"``, ``"0.001"``, ``"1e-3"`` or ``"1/1000"``.
+        ``"5/4096"``, ``"0.001"``, ``"1e-3"``, ``"1/1000"`` (or ``"-1"``, ``"-5/4096"``
+        when ``signed``).
     name : str
         Option name for the error message.
+    signed : bool
+        Accept a negative factor (a sign convention: a reversed drive or encoder); zero
+        is refused either way.
 
     Returns
     -------
@@ -165,12 +177,14 @@ def parse_scale(text: str, name: str = "scale") -> float:
     Raises
     ------
     ConfigError
-        Not a number or fraction, or not finite and positive.
+        Not a number or fraction, not finite, zero, or negative unless ``signed``.
 
     Examples
     --------
     >>> parse_scale("5/4096") == 5 / 4096
     True
+    >>> parse_scale("-1", "--input-scale", signed=True)
+    -1.0
     """
     s = str(text).strip()
     try:
@@ -179,7 +193,12 @@ def parse_scale(text: str, name: str = "scale") -> float:
     except (ValueError, ZeroDivisionError):
         raise ConfigError(f"{name}: {text!r} is not a number or fraction (e.g. 5/4096 or "
                           "0.001)") from None
-    if not (np.isfinite(value) and value > 0):
+    except OverflowError:  # beyond a float (1e400): refused as not finite below
+        value = float("inf")
+    if signed and not (np.isfinite(value) and value != 0):
+        raise ConfigError(f"{name}: {text!r} must be finite and non-zero (negative for a "
+                          "reversed sign)")
+    if not signed and not (np.isfinite(value) and value > 0):
         raise ConfigError(f"{name}: {text!r} must be finite and > 0")
     return value
 
@@ -341,3 +360,110 @@ def _minimax_line(k: np.ndarray, r: np.ndarray) -> float:
     res = linprog([0.0, 0.0, 1.0], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 3,
                   method="highs")
     return float(res.x[2]) if res.success else float("inf")
+
+
+#: Low-pass corner for the static response, Hz: below the rig's modes (1-5 Hz; the ECP
+#: 210's first is at 1.3 Hz), where every cart follows the input in phase (a chain of
+#: springs to ground has a static flexibility matrix ``K^-1`` with positive entries).
+STATIC_BAND_HZ = 0.5
+
+#: Student t of a low-frequency correlation beyond which its sign is taken as known.
+_T_SIGNIFICANT = 4.0
+
+
+@dataclass(frozen=True)
+class DriveSign:
+    """Which way the carts follow the input at low frequency.
+
+    Attributes
+    ----------
+    correlation : ndarray, shape (n_outputs,)
+        Correlation of the low-passed input with each low-passed output.
+    t_stat : ndarray, shape (n_outputs,)
+        Its Student t, ``r sqrt((n_eff - 2) / (1 - r^2))``.
+    n_effective : float
+        Independent samples of signals band-limited to ``band_hz`` over the record,
+        ``2 band_hz T``.
+    band_hz : float
+        Low-pass corner, Hz.
+    reversed : bool
+        Every output moves against the input, at least one beyond ``t = -4``: the drive
+        is probably wired the other way round.
+    """
+
+    correlation: np.ndarray
+    t_stat: np.ndarray
+    n_effective: float
+    band_hz: float
+    reversed: bool
+
+    def message(self) -> str:
+        """One line with the evidence and the fix (empty unless ``reversed``)."""
+        if not self.reversed:
+            return ""
+        rs = ", ".join(f"{r:.2f}" for r in self.correlation)
+        return (f"the carts move against the input: below {self.band_hz:g} Hz, where a "
+                f"positive voltage pushes every cart forwards, the outputs correlate with "
+                f"the input at {rs}; the drive may be reversed: if +V moves the carts to "
+                "negative counts give --input-scale -1 (ReadOptions(input_scale=-1))")
+
+
+def drive_sign(v_volt, y_m, dt: float, *, band_hz: float = STATIC_BAND_HZ) -> DriveSign | None:
+    """Guess from a record's static response whether its drive is reversed.
+
+    Both signals are low-passed (4th-order Butterworth, forwards and backwards, so no
+    phase shift) below ``band_hz``, under the rig's modes, where the carts follow the
+    input quasi-statically and in phase; there the correlation of input and position is
+    positive for every cart.  A negative correlation on every output, at least one with
+    a Student t below ``-4`` on the ``2 band_hz T`` independent samples a band-limited
+    record holds (a chance correlation gets there with probability 0.2 % on 10 such
+    samples, 0.02 % on 37), says the carts move against the input.
+
+    Parameters
+    ----------
+    v_volt : ndarray, shape (N,)
+        Input, V.
+    y_m : ndarray, shape (N, n_outputs)
+        Positions, m.
+    dt : float
+        Sample interval, s.
+    band_hz : float
+        Low-pass corner, Hz (below the first mode).
+
+    Returns
+    -------
+    DriveSign or None
+        None when the record cannot tell: no input, shorter than a few periods of
+        ``band_hz``, or a sample rate too low for the band.
+
+    Examples
+    --------
+    >>> t = np.arange(4000) * 0.005
+    >>> v = 0.5 * ((t % 8) < 4)                      # a slow square wave
+    >>> drive_sign(v, -0.01 * v[:, None], 0.005).reversed
+    True
+    """
+    from scipy.signal import butter, sosfiltfilt
+
+    v = np.asarray(v_volt, float)
+    y = np.asarray(y_m, float).reshape(v.size, -1)
+    n_eff = 2.0 * band_hz * v.size * dt
+    nyquist = 0.5 / dt
+    if n_eff < 4 or band_hz >= 0.5 * nyquist or np.ptp(v) == 0:
+        return None
+    sos = butter(4, band_hz, fs=1.0 / dt, output="sos")
+    try:
+        vl = sosfiltfilt(sos, v - v[0])
+        yl = sosfiltfilt(sos, y - y[0], axis=0)
+    except ValueError:  # shorter than the filter's padding
+        return None
+    vc = vl - vl.mean()
+    yc = yl - yl.mean(axis=0)
+    den = np.sqrt(np.sum(vc**2) * np.sum(yc**2, axis=0))
+    if np.sum(vc**2) == 0:
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(den > 0, (vc @ yc) / den, 0.0)
+        t = r * np.sqrt((n_eff - 2) / np.maximum(1 - r**2, np.finfo(float).eps))
+    return DriveSign(r, t, float(n_eff), float(band_hz),
+                     bool(np.all(r < 0) and np.min(t) < -_T_SIGNIFICANT))

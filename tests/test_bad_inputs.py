@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.io
+from ecp_export_writer import ECP_DT, write_export
 
 from bayesmodal import DataError
 from bayesmodal.cli import main
@@ -172,6 +173,37 @@ def _ecp_text(name: str, *, header: tuple[str, ...] = (), index: bool = False,
 
 
 _LOGGER_MAP = ("--columns", "t=time,v=target_v,x1=enc1,x2=enc2,x3=enc3")
+
+
+def _reversed(name: str):
+    """A 5 s record of a 0.5 V square wave whose carts were driven by minus the input."""
+
+    def make(folder: Path) -> str:
+        t = np.arange(1000) * DT
+        v = 0.5 * ((t % 4.0) < 2.0)
+        y = simulate_linear(LinearModel(Rig(), "free"), THETA, -v, DT)
+        (folder / name).write_text(_csv_text(t, v, y))
+        return name
+
+    return make
+
+
+def _export(name: str, *, cut: bool = False):
+    """An ECP Executive export (times printed to 1 ms at 8.854 ms steps, whole counts);
+    ``cut``: its eleventh line lost its last value."""
+
+    def make(folder: Path) -> str:
+        t = np.arange(N) * ECP_DT
+        v = np.where((t >= 0.1) & (t < 0.15), 3.0, 0.0)
+        y = simulate_linear(LinearModel(Rig(), "free"), THETA, v, ECP_DT)
+        p = write_export(folder / name, v, y)
+        if cut:
+            lines = p.read_text().splitlines()
+            lines[10] = lines[10].rsplit(" ", 1)[0]
+            p.write_text("\n".join(lines) + "\n")
+        return name
+
+    return make
 
 
 def _sparse(name: str, size: int):
@@ -340,10 +372,10 @@ INPUTS = [
              "(input in converter units)", _logger_mat("logger.mat"),
              r"input up to 2458 V is far beyond the rig's \+-10 V command.*--input-scale 5/4096",
              entries=("load_experiment", "lsq", "ema", "run"), args=_LOGGER_MAP),
-    BadInput("txt_header_no_map", "ECP `.txt` with header rows `Sample Time Encoder 1 Pos "
-             "...`, no column map",
+    BadInput("txt_header_no_map", "`.txt` with header rows `Sample Time Encoder 1 Pos "
+             "... Motor Voltage`, no column map",
              _ecp_text("header.txt", header=("; exported", "Sample\tTime\tEncoder 1 Pos\t"
-                                             "Encoder 2 Pos\tEncoder 3 Pos\tControl Effort"),
+                                             "Encoder 2 Pos\tEncoder 3 Pos\tMotor Voltage"),
                        index=True),
              r"header 'Sample\\tTime.*does not name the columns t, x1..xn, v.*--columns.*"
              r"Time \(2\)"),
@@ -388,6 +420,25 @@ INPUTS = [
     BadInput("mat73_corrupt", "MATLAB v7.3 (HDF5) file with its data overwritten by noise",
              _mat73("v73bad.mat", corrupt=True),
              r"not a readable MATLAB v7.3 \(HDF5\) file"),
+    BadInput("ecp_export", "ECP Executive export (`[` rows `;`, times printed to 1 ms at "
+             "8.854 ms steps)", _export("export.txt"),
+             r"ECP Executive export: times printed to 0.001 s; the sample period 0.00885\d* s "
+             r"is recovered from the Sample index by a linear fit",
+             entries=("load_experiment", "lsq"), warn=True),
+    BadInput("ecp_export_ragged", "ECP Executive export with a row cut short",
+             _export("cut.txt", cut=True),
+             r"line 11 has 6 values, the header names 7 columns \(Sample, Time, Commanded "
+             r"Pos, .*truncated or ragged export", entries=("load_experiment", "lsq")),
+    BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
+             "negative counts)", _reversed("reversed.csv"),
+             r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",
+             entries=("load_experiment",), warn=True),
+    BadInput("unrelated_input", "an input column from another run (its pulse 1.4 s after "
+             "the carts moved)",
+             _csv("late.csv", lambda t, v, y: (t, np.roll(v, 280), y)),
+             r"not identified: no finite standard error for g_v = .*the data do not "
+             r"determine them; check that the input column is the open-loop motor command",
+             entries=("lsq",)),
     BadInput("two_carts", "a 2-cart record for the 3-cart model",
              _csv("two.csv", lambda t, v, y: (t, v, y[:, :2]), header="t,v,x1,x2"),
              "2 outputs but the model has 3 carts",

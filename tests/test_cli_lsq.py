@@ -53,6 +53,8 @@ def test_lsq_json_reproduces_table3_and_table5(lsq_free_json):
     fit = np.array(out["fit_percent"])
     assert fit.shape == (3,)
     np.testing.assert_allclose(fit, TABLE5_FREE, atol=0.5)
+    # the measured fit passes the identifiability verdict
+    assert out["identified"] is True and out["reason"] == ""
 
 
 def test_lsq_json_has_modal_summary(lsq_free_json):

@@ -34,11 +34,13 @@ def add_reader_arguments(p) -> None:
                         "default: the file's t, x1..xn, v")
     g.add_argument("--input-scale", default=None, metavar="V_PER_UNIT",
                    help="volts per unit of the input column, a number or fraction, e.g. "
-                        "5/4096 for a 12-bit converter over 5 V (default 1)")
+                        "5/4096 for a 12-bit converter over 5 V, -1 for a reversed drive "
+                        "(+V moves the carts to negative counts) (default 1)")
     g.add_argument("--time-scale", default=None, metavar="S_PER_UNIT",
                    help="seconds per unit of the time column, e.g. 1/1000 for ms (default 1)")
     g.add_argument("--m-per-count", default=None, metavar="M_PER_UNIT",
-                   help="metres per unit of the output columns, a number or fraction "
+                   help="metres per unit of the output columns, a number or fraction, "
+                        "negative for encoders counting the other way "
                         f"(default {ECP_M_PER_COUNT:.6g} for ECP .mat/.txt in counts, 1 for "
                         ".csv in metres)")
 
@@ -50,8 +52,9 @@ def reader_options(args) -> ReadOptions:
     for opt, key in (("input_scale", "input_scale"), ("time_scale", "time_scale"),
                      ("m_per_count", "m_per_count")):
         text = getattr(args, opt, None)
-        if text is not None:
-            scales[key] = parse_scale(text, "--" + opt.replace("_", "-"))
+        if text is not None:  # a sign flip of the input or the encoders is allowed
+            scales[key] = parse_scale(text, "--" + opt.replace("_", "-"),
+                                      signed=key != "time_scale")
     return ReadOptions(columns=parse_columns(columns) if columns else None, **scales)
 
 

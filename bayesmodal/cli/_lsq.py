@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._errors import IdentificationError
 from .._format import estimate, param_unit, percent, values
 from ..fit import fit_lsq
+from ..identified import identify
 from ..system import LinearModel
 from ._common import (
     add_data_args,
@@ -38,8 +40,10 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def lsq_summary(res) -> dict:
-    """JSON-ready summary of an LSQResult with its modal quantities."""
+def lsq_summary(res, names=None) -> dict:
+    """JSON-ready summary of an LSQResult with its modal quantities and its
+    identifiability verdict (``identified``, ``reason``, ``problems``; record names
+    ``names`` in the messages)."""
     out = {
         "damping": res.model.damping,
         "parameters": res.params,
@@ -48,6 +52,7 @@ def lsq_summary(res) -> dict:
         else res.fit_percent.tolist(),
         "sigma_m": res.sigma_m.tolist(),
         "success": res.success,
+        **identify(res, names).as_dict(),
     }
     try:
         from ..modal import modal_summary
@@ -62,10 +67,14 @@ def run(args) -> int:
     rig = load_rig(args)
     model = LinearModel(rig, damping_of(args, rig))
     res = fit_lsq(exps, model, initial_state=args.initial_state)
-    summary = lsq_summary(res)
-    if args.json:
+    summary = lsq_summary(res, [e.name for e in exps])
+    if args.json:  # the whole result, `identified` and `reason` included, in any case
         print_json(summary)
-    else:
+    if not summary["identified"]:
+        # the estimate is not an answer: one line with the cause and the fix, exit 2
+        where = ", ".join(str(e.source or e.name) for e in exps)
+        raise IdentificationError(f"{where}: not identified: {summary['reason']}")
+    if not args.json:
         print(format_lsq(summary, res, [e.name for e in exps]))
     return 0
 
