@@ -177,7 +177,9 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     # 2. standard errors that are not finite
     bad = [i for i in range(theta.size) if not np.isfinite(se[i])]
     if bad:
-        shown = ", ".join(_value(model.names[i], theta[i], se[i]) for i in bad[:3])
+        # the names only: an estimate without an error says nothing, and where the fit
+        # stopped on a singular J^T J depends on the optimiser's path
+        shown = ", ".join(model.names[i] for i in bad[:3])
         problems.append(f"no finite standard error for {shown} (J^T J is singular at the "
                         f"estimate): the data do not determine them; {_INPUT_FIX}")
     # 3. a rank-deficient Jacobian

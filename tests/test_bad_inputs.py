@@ -436,7 +436,7 @@ INPUTS = [
     BadInput("unrelated_input", "an input column from another run (its pulse 1.4 s after "
              "the carts moved)",
              _csv("late.csv", lambda t, v, y: (t, np.roll(v, 280), y)),
-             r"not identified: no finite standard error for g_v = .*the data do not "
+             r"not identified: no finite standard error for g_v, .*the data do not "
              r"determine them; check that the input column is the open-loop motor command",
              entries=("lsq",)),
     BadInput("two_carts", "a 2-cart record for the 3-cart model",

@@ -83,7 +83,7 @@ def test_each_rule_alone(fits):
     cov = res.cov.copy()
     cov[4, 4] = np.nan
     v = identify(replace(res, cov=cov))
-    assert not v.identified and v.reason.startswith("no finite standard error for c1 = ")
+    assert not v.identified and v.reason.startswith("no finite standard error for c1 (")
     # a damper whose standard error is beyond the Jacobian's resolution
     cov = res.cov.copy()
     cov[5, 5] = (1e9 * res.theta[5]) ** 2
