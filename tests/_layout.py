@@ -79,8 +79,9 @@ def text_boxes(fig, renderer=None) -> list[TextBox]:
     sup = getattr(fig, "_suptitle", None)
     if _visible_text(sup):
         out.append(TextBox(f"suptitle {sup.get_text()!r}", sup.get_window_extent(r)))
+    sups = [getattr(fig, n, None) for n in ("_suptitle", "_supxlabel", "_supylabel")]
     for k, t in enumerate(fig.texts):
-        if _visible_text(t):
+        if _visible_text(t) and all(t is not x for x in sups):
             out.append(TextBox(f"figure text {k} {t.get_text()!r}",
                                t.get_window_extent(r)))
     for k, leg in enumerate(fig.legends):
