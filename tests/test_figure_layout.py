@@ -73,8 +73,8 @@ def _posterior(exps):
         layout = RecordLayout({"g_v": "hierarchical", "v0": "shared"}, noise_scale="response")
         n_par = record_priors(RecordsLikelihood(model, exps, "ar1", None, layout)).n_params
     run = sample_posterior(exps, model, noise="ar1", layout=layout, start=TRUTH,
-                           n_walkers=2 * n_par, n_steps=12, burn=4, thin=1, rng=1,
-                           warn=False)
+                           refine=False, n_walkers=2 * n_par, n_steps=12, burn=4, thin=1,
+                           rng=1, warn=False)
     return run, to_inference_data(run, n_predictive=10, pointwise=False, rng=1)
 
 
