@@ -173,7 +173,6 @@ def plot_stabilization(diagram, *, ax=None, frf=None, band=None):
             seen.add(key)
     ax.set_xlabel("natural frequency |lambda| (rad/s)")
     ax.set_ylabel("number of modes n")
-    ax.set_title("stabilisation diagram")
     if frf is not None:
         from ..ema.peaks import mode_indicator
 
@@ -182,7 +181,9 @@ def plot_stabilization(diagram, *, ax=None, frf=None, band=None):
         sel = np.ones(w.size, bool) if band is None else (w >= band[0]) & (w <= band[1])
         ax2.semilogy(w[sel], mode_indicator(frf)[sel], color="0.3", lw=0.8)
         ax2.set_ylabel("mode indicator sum |H_i| / max |H_i|")
-    ax.legend(fontsize="small", loc="upper left")
+    # the legend, headed by the title, above the axes: inside it would hide the poles
+    ax.legend(fontsize="small", loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=4,
+              frameon=False, title="stabilisation diagram")
     return ax
 
 

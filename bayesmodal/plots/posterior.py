@@ -23,6 +23,9 @@ _UNITS = {"g_v": "N/V", "ca": "1/s", "cb": "s"}
 
 
 def _label(name: str) -> str:
+    base, sep, _ = name.partition("[")
+    if sep and base in _UNITS:  # a record's own value of a parameter, g_v[data_steps]
+        return f"{name} ({_UNITS[base]})"
     if name in _UNITS:
         return f"{name} ({_UNITS[name]})"
     if name[0] == "m" and name[1:].isdigit():
@@ -57,19 +60,36 @@ def plot_trace(idata, *, var_names=None, axes=None):
     ndarray of matplotlib.axes.Axes, shape (n_vars, 2)
     """
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     names = _names(idata, var_names)
     if axes is None:
-        fig, axes = plt.subplots(len(names), 2, figsize=(9, 1.6 * len(names) + 0.6),
-                                 squeeze=False, gridspec_kw={"width_ratios": [3, 1]})
+        fig, axes = plt.subplots(len(names), 2, figsize=(9, 1.6 * len(names) + 0.8),
+                                 squeeze=False, gridspec_kw={"width_ratios": [3, 1]},
+                                 layout="constrained")
     axes = np.asarray(axes).reshape(len(names), 2)
     a = idata.posterior.attrs
     for i, nm in enumerate(names):
         x = _scale(nm) * idata.posterior[nm].values  # (chain, draw); noise in mm
         axes[i, 0].plot(x.T, lw=0.4, alpha=0.5)
-        axes[i, 0].set_ylabel(_label(nm), fontsize=8)
+        # a record's parameter (g_v[data_steps]) on two lines, so that it fits the row
+        base, sep, record = nm.partition("[")
+        if sep:
+            axes[i, 0].set_ylabel(f"{_label(base)}\n[{record}", fontsize=7)
+        else:
+            axes[i, 0].set_ylabel(_label(nm), fontsize=8)
         axes[i, 1].hist(x.ravel(), bins=40, color="0.4")
         axes[i, 1].set_yticks([])
+        # plain numbers (an offset text would sit on the tick labels of the panel above),
+        # three of them, so that long values of the narrow histogram stay apart
+        for ax_ in axes[i]:
+            ax_.ticklabel_format(useOffset=False)
+            ax_.tick_params(labelsize=7)
+        axes[i, 0].yaxis.set_major_locator(MaxNLocator(3))
+        axes[i, 1].xaxis.set_major_locator(MaxNLocator(3))
+        if i < len(names) - 1:  # the draws are the same on every row
+            axes[i, 0].sharex(axes[-1, 0])
+            axes[i, 0].tick_params(labelbottom=False)
     axes[-1, 0].set_xlabel(f"retained draw (every {a.get('thin', 1)} steps after "
                            f"{a.get('burn', 0)} burn-in)")
     axes[-1, 1].set_xlabel("value")
@@ -188,9 +208,11 @@ def plot_corner(idata, *, var_names=None, axes=None, reference=None):
                 a.set_xticklabels([])
             else:
                 a.set_xlabel(_label(names[j]), fontsize=7)
+                # upright: a label turned 45 degrees to the left runs into the last one
+                # of the panel to its left
                 for t in a.get_xticklabels():
-                    t.set_rotation(45)
-                    t.set_ha("right")
+                    t.set_rotation(90)
+                    t.set_ha("center")
             if j == 0 and i > 0:
                 a.set_ylabel(_label(names[i]), fontsize=7)
             elif i != j:
@@ -248,7 +270,8 @@ def plot_predictive(idata, *, experiment: str | None = None, prob: float = 0.9, 
     w = slice(None) if t_range is None else (t >= t_range[0]) & (t <= t_range[1])
     n_out = y.shape[1]
     if axes is None:
-        fig, axes = plt.subplots(2 * n_out, 1, figsize=(9, 2.2 * 2 * n_out), sharex=True,
+        fig, axes = plt.subplots(2 * n_out, 1, figsize=(9, 2.2 * 2 * n_out + 0.6),
+                                 sharex=True, layout="constrained",
                                  gridspec_kw={"height_ratios": [2, 1] * n_out})
     axes = np.asarray(axes).ravel()
     mm = 1e3
@@ -266,9 +289,12 @@ def plot_predictive(idata, *, experiment: str | None = None, prob: float = 0.9, 
         b.plot(t[w], res[w], "k", lw=0.5)
         b.axhline(0, color="0.5", lw=0.5)
         b.set_ylabel("residual (mm)")
-    axes[0].legend(fontsize=7, loc="upper right", ncol=2)
-    axes[0].set_title(f"posterior predictive, {exp} ({idata.posterior.attrs.get('damping')} "
-                      f"damping, {idata.posterior.attrs.get('noise')} noise)")
+    # one legend below the panels, where it hides no part of the record
+    fig = axes[0].figure
+    fig.suptitle(f"posterior predictive, {exp} ({idata.posterior.attrs.get('damping')} "
+                 f"damping, {idata.posterior.attrs.get('noise')} noise)", fontsize=10)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=4,
+               fontsize=7, frameon=False)
     axes[-1].set_xlabel("time (s)")
     return axes
 

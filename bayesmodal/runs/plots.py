@@ -7,19 +7,59 @@ import numpy as np
 __all__ = ["plot_residuals", "plot_residual_acf", "plot_run_intervals"]
 
 
-def _axes(axes, n_rows: int, n_cols: int, size=(9.0, 2.2)):
+#: Most record panels side by side.  At the report's width (1100 px for a 9-inch figure)
+#: four columns leave each panel about 250 px, room for a record name of some 25
+#: characters and its tick labels; more records wrap onto further rows of panels.
+MAX_COLUMNS = 4
+
+
+def _record_axes(axes, n_records: int, n_rows: int, row_height_in: float):
+    """Axes of one panel per record and row, ``(n_records, n_rows)``, in blocks of at
+    most :data:`MAX_COLUMNS` records side by side; the figure's height follows the grid."""
     import matplotlib.pyplot as plt
 
     if axes is not None:
-        return np.asarray(axes).reshape(n_rows, n_cols)
-    fig, ax = plt.subplots(n_rows, n_cols, figsize=(size[0], size[1] * n_rows), squeeze=False,
-                           sharex="col")
-    fig.set_layout_engine("constrained")
-    return ax
+        ax = np.asarray(axes).reshape(n_rows, n_records)
+        return ax.T, ax
+    n_cols = min(n_records, MAX_COLUMNS)
+    n_blocks = -(-n_records // n_cols)
+    fig = plt.figure(figsize=(9.0, 0.9 + row_height_in * n_rows * n_blocks),
+                     layout="constrained")
+    grid = fig.subplots(n_rows * n_blocks, n_cols, squeeze=False)
+    per_record = np.empty((n_records, n_rows), dtype=object)
+    for r in range(n_records):
+        b, c = divmod(r, n_cols)
+        per_record[r] = grid[b * n_rows:(b + 1) * n_rows, c]
+    for a in grid.ravel()[n_records * n_rows:] if n_rows == 1 else ():
+        a.set_visible(False)
+    if n_rows > 1:
+        for r in range(n_records, n_blocks * n_cols):
+            b, c = divmod(r, n_cols)
+            for a in grid[b * n_rows:(b + 1) * n_rows, c]:
+                a.set_visible(False)
+    return per_record, per_record.T
+
+
+def _label_record_panels(per_record, x_label: str, y_label) -> None:
+    """Record names as panel titles, x labels under each record's bottom panel only,
+    y labels on the first column of panels only."""
+    for r, col in enumerate(per_record):
+        for j, a in enumerate(col):
+            if j < len(col) - 1:
+                a.sharex(col[-1])
+                a.tick_params(labelbottom=False)
+        col[-1].set_xlabel(x_label)
+        first = r % MAX_COLUMNS == 0
+        for j, a in enumerate(col):
+            if first:
+                a.set_ylabel(y_label(j))
 
 
 def plot_residuals(checks, *, axes=None):
     """Residual time series, one row per output, one column per experiment.
+
+    The panels are titled with the record's name; four records at most side by side, more
+    wrap onto further rows.
 
     Parameters
     ----------
@@ -32,21 +72,29 @@ def plot_residuals(checks, *, axes=None):
     """
     checks = list(checks)
     n_out = checks[0].residual_m.shape[1]
-    ax = _axes(axes, n_out, len(checks))
-    for c, chk in enumerate(checks):
-        for j in range(n_out):
-            a = ax[j, c]
+    per_record, ax = _record_axes(axes, len(checks), n_out, 1.6)
+    for chk, col in zip(checks, per_record, strict=True):
+        for j, a in enumerate(col):
             a.plot(chk.t_s, 1e3 * chk.residual_m[:, j], lw=0.5, color="C0")
             a.axhline(0.0, color="k", lw=0.5)
-            a.set_ylabel(f"x{j + 1} residual (mm)")
-            if j == 0:
-                a.set_title(f"{chk.experiment}: measured - model at posterior median")
-        ax[-1, c].set_xlabel("time (s)")
+        col[0].set_title(chk.experiment, fontsize=9)
+    if axes is None:
+        _label_record_panels(per_record, "time (s)", lambda j: f"x{j + 1} residual (mm)")
+        ax[0, 0].figure.suptitle("Residuals: measured - model at the posterior median",
+                                 fontsize=10)
+    else:
+        for col in per_record:
+            col[-1].set_xlabel("time (s)")
+            for j, a in enumerate(col):
+                a.set_ylabel(f"x{j + 1} residual (mm)")
     return ax
 
 
 def plot_residual_acf(checks, *, axes=None):
     """Residual autocorrelation with the 95 % band of white noise, one panel per experiment.
+
+    The panels are titled with the record's name and share one legend, below them; four
+    records at most side by side, more wrap onto further rows.
 
     Parameters
     ----------
@@ -58,18 +106,28 @@ def plot_residual_acf(checks, *, axes=None):
     ndarray of Axes, shape (1, n_experiments)
     """
     checks = list(checks)
-    ax = _axes(axes, 1, len(checks), size=(9.0, 3.0))
-    for c, chk in enumerate(checks):
-        a = ax[0, c]
+    per_record, ax = _record_axes(axes, len(checks), 1, 2.4)
+    for chk, (a,) in zip(checks, per_record, strict=True):
         for j in range(chk.acf.shape[1]):
             a.plot(chk.lag_s, chk.acf[:, j], lw=1.0, label=f"x{j + 1}")
-        a.axhspan(-chk.band, chk.band, color="0.8",
-                  label=f"white-noise limit (95 %, +-{chk.band:.3f})")
+        a.axhspan(-chk.band, chk.band, color="0.8", label="white-noise limit (95 %)")
         a.axhline(0.0, color="k", lw=0.5)
+        a.set_title(chk.experiment, fontsize=9)
+    first = per_record[0, 0]
+    lo = min(a.get_ylim()[0] for a in ax.ravel())
+    for a in ax.ravel():
+        a.set_ylim(lo, 1.05)  # one scale: every ACF is 1 at lag 0
+    for r, (a,) in enumerate(per_record):
         a.set_xlabel("lag (s)")
-        a.set_ylabel("autocorrelation (-)")
-        a.set_title(f"{chk.experiment}: residual ACF")
-        a.legend(fontsize=8, loc="upper right")
+        if r % MAX_COLUMNS == 0 or axes is not None:
+            a.set_ylabel("autocorrelation (-)")
+    fig = first.figure
+    if axes is None:
+        fig.suptitle("Autocorrelation of the residuals at the posterior median", fontsize=10)
+        fig.legend(*first.get_legend_handles_labels(), loc="outside lower center",
+                   ncol=4, fontsize=8, frameon=False)
+    else:
+        first.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     return ax
 
 
