@@ -175,6 +175,17 @@ def test_static_plots_have_no_collisions(saved_figures, tmp_path, capsys):
     _assert_clean(saved_figures)
 
 
+@pytest.mark.slow
+def test_diagnose_plots_have_no_collisions(saved_figures, tmp_path, capsys):
+    """Every figure of ``diagnose --plots`` (the residual diagnostics of each training
+    record and the before/after fit); slow: the null calibration needs 19 refits."""
+    data = _cli_record(tmp_path / "data_impulses.csv", "impulses")
+    assert main(["diagnose", data, "--no-posterior", "--null", "19", "--max-effects", "1",
+                 "--plots", str(tmp_path / "p"), "--quiet"]) == 0
+    assert len(saved_figures) >= 10
+    _assert_clean(saved_figures)
+
+
 # ------------------------------------------------------------------ the checker itself
 
 
