@@ -8,6 +8,7 @@ are described in the package docstring (``bayesmodal.discrepancy.kernels``).
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib.util
 import math
@@ -44,6 +45,68 @@ def fma(typingctx, a, b, c):
         return builder.call(fn, args)
 
     return sig, codegen
+
+
+@intrinsic
+def select(typingctx, cond, a, b):
+    """``a if cond else b`` as one LLVM ``select``, both operands evaluated: no branch.
+
+    The generated kernels hold a hundred or more conditional expressions; as Python
+    ``a if c else b`` each splits its block in two, and numba's SSA reconstruction and
+    type inference, whose cost grows with the blocks, then took most of a kernel's
+    compilation (Coulomb, three carts: 21 of 37 s).  The operands are unified to one
+    type (int and float to float, as the conditional expression's result would be)."""
+    out = typingctx.unify_pairs(a, b)
+    if out is None or not isinstance(out, (types.Number, types.Boolean)):
+        return None
+    sig = out(cond, a, b)
+
+    def codegen(context, builder, signature, args):
+        c, x, y = args
+        ct, xt, yt = signature.args
+        pred = context.cast(builder, c, ct, types.boolean)
+        return builder.select(pred, context.cast(builder, x, xt, signature.return_type),
+                              context.cast(builder, y, yt, signature.return_type))
+
+    return sig, codegen
+
+
+#: Nodes an operand of a conditional expression may hold to become a ``select``: names,
+#: constants and float arithmetic on them (no subscript, whose index may be valid only
+#: when its branch is taken; no integer division or modulo, which may raise; calls only
+#: to the pure functions below).
+_SAFE_NODES = (ast.Name, ast.Constant, ast.BinOp, ast.UnaryOp, ast.Compare, ast.BoolOp,
+               ast.Load, ast.Attribute, ast.Call, ast.IfExp, ast.operator, ast.unaryop,
+               ast.cmpop, ast.boolop)
+_SAFE_CALLS = {"abs", "fma", "math.copysign", "pow2_neg", "min", "max"}
+
+
+def _is_safe(node: ast.AST) -> bool:
+    for n in ast.walk(node):
+        if not isinstance(n, _SAFE_NODES) or isinstance(n, (ast.FloorDiv, ast.Mod)):
+            return False
+        if isinstance(n, ast.Call) and ast.unparse(n.func) not in _SAFE_CALLS:
+            return False
+    return True
+
+
+class _Selects(ast.NodeTransformer):
+    """``a if c else b`` -> ``select(c, a, b)`` where both operands are safe to evaluate."""
+
+    def visit_IfExp(self, node):
+        self.generic_visit(node)
+        if _is_safe(node.body) and _is_safe(node.orelse):
+            return ast.copy_location(ast.Call(ast.Name("select", ast.Load()),
+                                              [node.test, node.body, node.orelse], []),
+                                     node)
+        return node
+
+
+def branch_free(src: str) -> str:
+    """The generated source with its conditional expressions as ``select`` calls
+    (``_Selects``): the same values, fewer blocks for numba to compile."""
+    tree = _Selects().visit(ast.parse(src))
+    return ast.unparse(ast.fix_missing_locations(tree)) + "\n"
 
 
 @intrinsic
@@ -109,7 +172,7 @@ def _kernel_dir() -> Path | None:
 
 
 #: Intrinsics the generated kernels may call, imported by every generated module.
-_INTRINSICS = ("fma", "pow2_neg")
+_INTRINSICS = ("fma", "pow2_neg", "select")
 
 #: One kernel built at a time: threads evaluating walkers side by side
 #: (``bayesmodal.inference.threads``) ask for the same kernel at once, and a second thread
@@ -126,7 +189,7 @@ def _compile(lines: list[str], label: str):
     Thread-safe.
     """
     with _COMPILE_LOCK:
-        src = "\n".join(lines) + "\n"
+        src = branch_free("\n".join(lines) + "\n")
         imports = (f"import math\n\nimport numpy as np\n\n"
                    f"from {__name__} import {', '.join(_INTRINSICS)}\n\n")
         # the key covers the imports of the generated file (the module and the names of
@@ -152,7 +215,8 @@ def _compile(lines: list[str], label: str):
                 return njit(cache=True, **_JIT)(module.kernel)
             except OSError:
                 pass
-        namespace: dict = {"np": np, "math": math, "fma": fma, "pow2_neg": pow2_neg}
+        namespace: dict = {"np": np, "math": math, "fma": fma, "pow2_neg": pow2_neg,
+                           "select": select}
         exec(compile(src, label, "exec"), namespace)  # noqa: S102
         return njit(**_JIT)(namespace["kernel"])
 
