@@ -14,8 +14,9 @@ converter units, time in ms) are read with a :class:`~bayesmodal.reading.ReadOpt
 (column map and scale factors).  Rounded timestamps are put on their uniform grid with a
 warning; jittered ones are kept as recorded (an ``Experiment`` with ``recorded_stamps``),
 which the linear model simulates step by step and every analysis that needs a uniform
-grid refuses with the fix (``time_base="grid"``); the misreads that would otherwise pass silently (a sample index as
-time, converter units as volts, mm or counts as metres) are refused with the fix.
+grid refuses with the fix (``time_base="grid"``); the misreads that would otherwise
+pass silently (a sample index as time, converter units as volts, mm or counts as
+metres) are refused with the fix.
 """
 
 from __future__ import annotations
@@ -609,8 +610,9 @@ def load_experiment(
     ------
     DataError
         For a missing, empty, oversized, truncated or malformed file, missing columns,
-        non-finite values, irregular time, a gap of missing samples, and for the misreads: a time column that counts
-        samples, an input far beyond a few volts, displacements in mm or counts.
+        non-finite values, irregular time, a gap of missing samples, and for the misreads:
+        a time column that counts samples, an input far beyond a few volts,
+        displacements in mm or counts.
 
     Examples
     --------
