@@ -212,15 +212,18 @@ def direct_steps_kernel(n_states: int, n_out: int, width: int):
         "def kernel(P, idx, u, X, Y):",
         "    for k in range(u.shape[0]):",
         "        uk = u[k]",
-        f"        po = idx[k] * {rows * w}",
+        # a view at the step's block: its indices are then provably non-negative (a
+        # runtime offset inside the index keeps numba's wraparound test in the lane
+        # loop, which then does not vectorise: 3.7 times slower)
+        f"        Pj = P[idx[k] * {rows * w}:]",
         f"        yo = k * {n_out * w}",
         f"        for b in range({w}):",
     ]
     lines += [f"            x{i} = X[{i * w} + b]" for i in range(s)]
     lines += [f"            Y[yo + {i * w} + b] = x{i}" for i in range(n_out)]
     for i in range(s):
-        terms = " + ".join(f"P[po + {(i * s + j) * w} + b] * x{j}" for j in range(s))
-        lines.append(f"            X[{i * w} + b] = P[po + {(s * s + i) * w} + b] * uk + {terms}")
+        terms = " + ".join(f"Pj[{(i * s + j) * w} + b] * x{j}" for j in range(s))
+        lines.append(f"            X[{i * w} + b] = Pj[{(s * s + i) * w} + b] * uk + {terms}")
     return _compile(lines, f"direct steps s={s} o={n_out} w={w}")
 
 
@@ -242,7 +245,7 @@ def modal_steps_kernel(n_modes: int, n_out: int, width: int):
         "def kernel(Q, idx, u, W, Y):",
         "    for k in range(u.shape[0]):",
         "        uk = u[k]",
-        f"        qo = {g_rows * w} + idx[k] * {4 * nm * w}",
+        f"        Qj = Q[{g_rows * w} + idx[k] * {4 * nm * w}:]",  # as direct_steps_kernel
         f"        yo = k * {n_out * w}",
         f"        for b in range({w}):",
     ]
@@ -257,10 +260,10 @@ def modal_steps_kernel(n_modes: int, n_out: int, width: int):
         )
         lines.append(f"            Y[yo + {i * w} + b] = {terms}")
     for m in range(nm):
-        lines.append(f"            mr = Q[qo + {2 * m * w} + b]")
-        lines.append(f"            mi = Q[qo + {(2 * m + 1) * w} + b]")
-        lines.append(f"            rr = Q[qo + {(2 * nm + 2 * m) * w} + b]")
-        lines.append(f"            ri = Q[qo + {(2 * nm + 2 * m + 1) * w} + b]")
+        lines.append(f"            mr = Qj[{2 * m * w} + b]")
+        lines.append(f"            mi = Qj[{(2 * m + 1) * w} + b]")
+        lines.append(f"            rr = Qj[{(2 * nm + 2 * m) * w} + b]")
+        lines.append(f"            ri = Qj[{(2 * nm + 2 * m + 1) * w} + b]")
         lines.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + rr * uk")
         lines.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m} + ri * uk")
     return _compile(lines, f"modal steps m={nm} o={n_out} w={w}")

@@ -364,12 +364,16 @@ class LinearSimulator:
         if self.n_out > n:
             raise ModelError(f"n_out = {self.n_out} exceeds the {n} positions")
         x0b = np.ascontiguousarray(self._initial(x0, nb, 2 * n))
-        forms = [self._second_order_form(masses, C, K, b, x0b, h)
-                 for h in ([self.dt] if self.step_values is None else self.step_values)]
-        ok, mu, G, w0, A, B = forms[0]
+        ok, mu, G, w0, A, B = self._second_order_form(masses, C, K, b, x0b, self.dt)
         steps = None
         if self.step_values is not None:
-            ok, steps = _steps_form([f[:3] for f in forms])
+            steps = _steps_from_poles(mu, self.step_values, masses, C, K)
+            if steps is None:  # some pole may alias on the first step: each step anew
+                forms = [(ok, mu, G)] + [self._second_order_form(masses, C, K, b, x0b, h)[:3]
+                                         for h in self.step_values[1:]]
+                ok, steps = _steps_form(forms)
+            else:
+                ok = ok & np.all(np.isfinite(steps[1]), axis=(0, 2))
         return (self._time_key, self.n_out, ok, mu, G, w0, A, B, x0b,
                 {"masses": masses, "C": C, "K": K, "b": b}, steps)
 
@@ -602,6 +606,27 @@ class LinearSimulator:
         X = np.ascontiguousarray(x0b[real].T)
         direct_steps_kernel(s, self.n_out, width)(P.ravel(), idx, self.u, X.ravel(),
                                                   Y[c].reshape(-1))
+
+
+def _steps_from_poles(mu0, values, masses, C, K):
+    """``(mu, r)`` of each distinct step from the first step's poles, or None.
+
+    ``mu_j = exp(lambda h_j) = exp(log(mu_0) h_j / h_0)``: the principal logarithm gives
+    back ``lambda h_0`` when ``|Im(lambda)| h_0 < pi``, which holds for every mode when
+    ``(||M^-1 C|| + sqrt(||M^-1 K||)) h_0 < pi`` (a root of ``lambda^2 M + lambda C + K``
+    has ``|lambda|^2 <= |lambda| ||M^-1 C|| + ||M^-1 K||``; Frobenius norms bound the
+    spectral ones).  This saves a modal decomposition per step.
+    """
+    h0 = float(values[0])
+    inv_m = 1.0 / masses[:, :, None]
+    bound = (np.sqrt(np.sum((inv_m * C) ** 2, axis=(1, 2)))
+             + np.sqrt(np.sqrt(np.sum((inv_m * K) ** 2, axis=(1, 2)))))
+    if not np.all(np.isfinite(bound) & (bound * h0 < np.pi)):
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_mu0 = np.log(mu0)
+        mus = [mu0] + [np.exp(log_mu0 * (float(h) / h0)) for h in values[1:]]
+    return np.stack(mus), _step_ratios(mu0, mus)
 
 
 def _steps_form(forms):
