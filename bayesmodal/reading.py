@@ -455,9 +455,9 @@ def choose_time_base(t_s, mode: str = "auto") -> TimeBase:
         if reg.kind in ("rounded", "jitter"):
             return TimeBase(reg.t_s, reg.kind, False, **stats, message=reg.message())
         return TimeBase(grid, "grid", False, **stats,
-                        message=f"timestamps put on a uniform grid ({jitter}); samples "
+                        message=f"timestamps put on a uniform grid: {jitter}; samples "
                         f"moved by up to {max(-r.min(), r.max()):.3g} s")
-    kept = (f"timestamps are not uniform ({jitter}); kept as recorded: the linear model "
+    kept = (f"timestamps are not uniform: {jitter}; kept as recorded: the linear model "
             "is simulated on them step by step (--time-base grid puts them on the "
             "uniform grid)")
     if mode == "stamps":
