@@ -11,9 +11,12 @@ ECP files hold positions in encoder counts; they are converted to metres with
 
 Files laid out otherwise (other variable names, struct fields, header rows, the input in
 converter units, time in ms) are read with a :class:`~bayesmodal.reading.ReadOptions`
-(column map and scale factors).  Rounded or jittered timestamps are put on their uniform
-grid with a warning; the misreads that would otherwise pass silently (a sample index as
-time, converter units as volts, mm or counts as metres) are refused with the fix.
+(column map and scale factors).  Rounded timestamps are put on their uniform grid with a
+warning; jittered ones are kept as recorded (an ``Experiment`` with ``recorded_stamps``),
+which the linear model simulates step by step and every analysis that needs a uniform
+grid refuses with the fix (``time_base="grid"``); the misreads that would otherwise
+pass silently (a sample index as time, converter units as volts, mm or counts as
+metres) are refused with the fix.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import numpy as np
 
 from . import _ecp_export, _readers
 from ._errors import DataError
-from .reading import ReadOptions, drive_sign, regularise_time
+from .reading import ReadOptions, choose_time_base, drive_sign
 
 __all__ = [
     "Experiment",
@@ -64,7 +67,7 @@ class Experiment:
     Parameters
     ----------
     t_s : ndarray, shape (N,)
-        Sample times, s; uniform and strictly increasing.
+        Sample times, s; strictly increasing, and uniform unless ``recorded_stamps``.
     v_volt : ndarray, shape (N,)
         Motor command voltage, V.
     y_m : ndarray, shape (N, n_carts)
@@ -73,12 +76,19 @@ class Experiment:
         Short name (e.g. the file stem).
     source : str
         Where the data came from (path or description).
+    sha256 : str
+        SHA-256 of the file read, or empty.
+    recorded_stamps : bool
+        ``t_s`` are a logger's stamps whose steps may differ: the input is held between
+        them and the linear model is simulated on them step by step (``sim_dt``);
+        :attr:`dt` then refuses a non-uniform record, so that an analysis that needs a
+        uniform grid says so instead of using a wrong step.
 
     Raises
     ------
     DataError
-        On NaN/inf, unequal lengths, fewer than 3 samples, non-increasing or non-uniform
-        time.
+        On NaN/inf, unequal lengths, fewer than 3 samples, non-increasing time, or
+        non-uniform time without ``recorded_stamps``.
 
     Examples
     --------
@@ -94,6 +104,7 @@ class Experiment:
     name: str = "experiment"
     source: str = ""
     sha256: str = field(default="", repr=False)
+    recorded_stamps: bool = False
 
     def __post_init__(self) -> None:
         where = f"{self.name}" + (f" ({self.source})" if self.source else "")
@@ -129,16 +140,22 @@ class Experiment:
             k = int(np.argmax(dts <= 0))
             raise DataError(
                 f"{where}: time is not strictly increasing at sample {k + 1} "
-                f"(t[{k}] = {t[k]!r}, t[{k + 1}] = {t[k + 1]!r}; duplicated or decreasing)"
+                f"(t[{k}] = {t[k]!r}, t[{k + 1}] = {t[k + 1]!r}; duplicated or decreasing); "
+                "sort the rows by time and drop repeated samples"
             )
         dt = (t[-1] - t[0]) / (t.size - 1)
         dev = np.abs(dts - dt)
-        if np.max(dev) > _DT_RTOL * dt + 1e-12:
+        uniform = bool(np.max(dev) <= _DT_RTOL * dt + 1e-12)
+        if not uniform and not self.recorded_stamps:
             k = int(np.argmax(dev))
             raise DataError(
                 f"{where}: time steps are not equally spaced (mean dt {dt:.6g} s, "
-                f"step {k} is {dts[k]:.6g} s); resample to a uniform grid first"
+                f"step {k} is {dts[k]:.6g} s); keep the stamps with --time-base stamps "
+                "(the linear fit simulates on them) or put them on a uniform grid with "
+                "--time-base grid (ReadOptions(time_base=...))"
             )
+        object.__setattr__(self, "recorded_stamps", bool(self.recorded_stamps))
+        object.__setattr__(self, "_uniform", uniform)
         for a in (t, v, y):
             a.setflags(write=False)
         object.__setattr__(self, "t_s", t)
@@ -146,9 +163,42 @@ class Experiment:
         object.__setattr__(self, "y_m", y)
 
     @property
-    def dt(self) -> float:
-        """Sample interval, s."""
+    def is_uniform(self) -> bool:
+        """The samples lie on a uniform grid (steps equal to a relative 1e-6)."""
+        return self._uniform
+
+    @property
+    def mean_dt(self) -> float:
+        """Mean sample interval ``(t[-1] - t[0]) / (N - 1)``, s (the step of a uniform
+        record; for recorded stamps only a summary)."""
         return float((self.t_s[-1] - self.t_s[0]) / (self.t_s.size - 1))
+
+    @property
+    def dt(self) -> float:
+        """Sample interval, s.
+
+        Raises
+        ------
+        DataError
+            For recorded stamps whose steps differ: the analysis asking needs a uniform
+            grid; the message names the fix.
+        """
+        if not self._uniform:
+            steps = np.diff(self.t_s)
+            where = self.source or self.name
+            raise DataError(
+                f"{where}: time steps are not equally spaced (recorded stamps, steps "
+                f"{steps.min():.4g} to {steps.max():.4g} s) and this analysis needs a "
+                "uniform grid; read the record with --time-base grid "
+                "(ReadOptions(time_base=\"grid\")), or fit the linear model with "
+                "`bayesmodal lsq`, which simulates on the stamps")
+        return self.mean_dt
+
+    @property
+    def sim_dt(self) -> float | np.ndarray:
+        """The sample interval as the linear simulator takes it: ``dt`` (float, s) for a
+        uniform record, else the recorded steps ``t[k+1] - t[k]``, shape (N - 1,), s."""
+        return self.mean_dt if self._uniform else np.diff(self.t_s)
 
     @property
     def n_samples(self) -> int:
@@ -167,6 +217,7 @@ class Experiment:
             name=f"{self.name}[{start}:{stop}]",
             source=self.source,
             sha256=self.sha256,
+            recorded_stamps=self.recorded_stamps,
         )
 
 
@@ -453,17 +504,22 @@ def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) 
     t = cols["t"] * opts.time_scale
     v = cols["v"] * opts.input_scale
     y = raw_y * scale_y
-    # a rounded or jittered time base is put on its uniform grid; anything else is left
-    # for Experiment to refuse
+    # rounded stamps go on their uniform grid, jittered ones are kept (reading.py);
+    # anything else is left for Experiment to refuse
+    stamps = False
     if t.size >= 3 and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0):
-        reg = regularise_time(t)
-        if reg.kind in ("rounded", "jitter"):
-            warnings.warn(f"{path}: {reg.message()}", stacklevel=4)
-            t = reg.t_s
-    exp = Experiment(t, v, y, name=name, source=str(path))
+        try:
+            base = choose_time_base(t, opts.time_base)
+        except DataError as exc:
+            raise DataError(f"{path}: {exc}") from None
+        if base.message:
+            warnings.warn(f"{path}: {base.message}", stacklevel=4)
+        t, stamps = base.t_s, base.recorded_stamps
+    exp = Experiment(t, v, y, name=name, source=str(path), recorded_stamps=stamps)
     _check_plausible(path, exp, raw_y, opts, kind)
-    # the static response says which way the drive is wired (a guess: a warning)
-    sign = drive_sign(exp.v_volt, exp.y_m, exp.dt)
+    # the static response says which way the drive is wired (a guess: a warning; the
+    # 0.5 Hz band does not see a millisecond's jitter)
+    sign = drive_sign(exp.v_volt, exp.y_m, exp.mean_dt)
     if sign is not None and sign.reversed:
         warnings.warn(f"{path}: {sign.message()}", stacklevel=4)
     return exp
@@ -474,15 +530,16 @@ def _check_plausible(path: Path, exp: Experiment, raw_y: np.ndarray, opts: ReadO
     """Refuse the silent misreads: sample index as time, converter units, mm or counts."""
     t = exp.t_s
     t_role = (opts.column_map or {}).get("t", "t")
-    if opts.time_scale == 1.0 and np.all(t == np.round(t)) and abs(exp.dt - 1.0) < 1e-12:
+    if (opts.time_scale == 1.0 and np.all(t == np.round(t))
+            and abs(exp.mean_dt - 1.0) < 1e-12):
         raise DataError(
             f"{path}: the time column {t_role!r} counts samples ({t[0]:g}, {t[1]:g}, "
             f"{t[2]:g}, ...), it is not a time in seconds; map the time column with "
             "--columns t=NAME (a text file's columns by number, e.g. t=2), or give "
             "--time-scale 1/1000 if it is in milliseconds")
-    if exp.dt > _MAX_PLAUSIBLE_DT:
+    if exp.mean_dt > _MAX_PLAUSIBLE_DT:
         raise DataError(
-            f"{path}: sample interval {exp.dt:.4g} s is implausible for the rig (its modes "
+            f"{path}: sample interval {exp.mean_dt:.4g} s is implausible for the rig (its modes "
             f"at 1-5 Hz need well under {_MAX_PLAUSIBLE_DT} s); if the time column is in "
             "milliseconds give --time-scale 1/1000 (ReadOptions(time_scale=1e-3))")
     vmax = float(np.max(np.abs(exp.v_volt)))
@@ -540,9 +597,11 @@ def load_experiment(
     Returns
     -------
     Experiment
-        With ``sha256`` of the file recorded.  Timestamps rounded to a coarser clock, or
-        jittered around a uniform step, are replaced by the fitted uniform grid with a
-        warning that says by how much they moved (``reading.regularise_time``).  A record
+        With ``sha256`` of the file recorded.  Timestamps rounded to a coarser clock are
+        replaced by the fitted uniform grid with a warning that says by how much they
+        moved; jittered ones are kept as recorded (``recorded_stamps``) with a warning
+        that gives the steps' range (``reading.choose_time_base``; ``options.time_base``
+        chooses otherwise).  A record
         whose carts move against the input at low frequency is read as it is, with a
         warning that the drive may be reversed and the fix, ``input_scale=-1``
         (``reading.drive_sign``).
@@ -551,8 +610,9 @@ def load_experiment(
     ------
     DataError
         For a missing, empty, oversized, truncated or malformed file, missing columns,
-        non-finite values, irregular time, and for the misreads: a time column that counts
-        samples, an input far beyond a few volts, displacements in mm or counts.
+        non-finite values, irregular time, a gap of missing samples, and for the misreads:
+        a time column that counts samples, an input far beyond a few volts,
+        displacements in mm or counts.
 
     Examples
     --------
@@ -588,7 +648,7 @@ def load_experiment(
         roles = _csv_roles(path, opts)
     exp = _assemble(path, roles, opts, kind, path.stem)
     return Experiment(exp.t_s, exp.v_volt, exp.y_m, name=exp.name, source=exp.source,
-                      sha256=file_sha256(path))
+                      sha256=file_sha256(path), recorded_stamps=exp.recorded_stamps)
 
 
 def check_identifiable(experiment: Experiment) -> None:

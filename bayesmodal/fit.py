@@ -2,7 +2,9 @@
 
 The parameters minimise ``sum_e sum_k ||y_e[k] - yhat_e[k; theta]||^2`` over one or more
 experiments, with ``yhat`` the exact ZOH simulation from rest (or, for free decays with
-``initial_state="estimate"``, from an initial state estimated with the parameters).
+``initial_state="estimate"``, from an initial state estimated with the parameters), on
+each record's own time base: a uniform grid, or a logger's recorded stamps, each step
+with its own exact hold (``Experiment.sim_dt``).
 Positive parameters are optimised in log space (which makes the problem scale-free and
 keeps masses positive); damping coefficients that may vanish (``c12, c23, ..., cb``) are
 optimised on a linear scale with a zero lower bound.  The Jacobian is by forward
@@ -226,7 +228,9 @@ def initial_state_guess(model: LinearModel, experiment: Experiment) -> np.ndarra
     idx = np.arange(n) if out is None else out
     x0 = np.zeros(2 * n)
     x0[idx] = experiment.y_m[0]
-    x0[n + idx] = (experiment.y_m[1] - experiment.y_m[0]) / experiment.dt
+    first_step = (experiment.dt if experiment.is_uniform
+                  else experiment.t_s[1] - experiment.t_s[0])
+    x0[n + idx] = (experiment.y_m[1] - experiment.y_m[0]) / first_step
     return x0
 
 
@@ -246,7 +250,7 @@ def residuals(model: LinearModel, theta: np.ndarray, experiments: Sequence[Exper
     """
     parts = []
     for i, e in enumerate(experiments):
-        yh = simulate_linear(model, theta, e.v_volt, e.dt, None if x0 is None else x0[:, i])
+        yh = simulate_linear(model, theta, e.v_volt, e.sim_dt, None if x0 is None else x0[:, i])
         parts.append((e.y_m[None] - yh).reshape(theta.shape[0], -1))
     return np.concatenate(parts, axis=1)
 
@@ -363,7 +367,8 @@ def fit_lsq(
 
     fits, sq = [], []
     for i, e in enumerate(experiments):
-        yh = simulate_linear(model, theta, e.v_volt, e.dt, None if x0_hat is None else x0_hat[i])
+        yh = simulate_linear(model, theta, e.v_volt, e.sim_dt,
+                             None if x0_hat is None else x0_hat[i])
         fits.append(fit_percent(e.y_m, yh))
         sq.append(((e.y_m - yh) ** 2).sum(axis=0))
     n_total = sum(e.n_samples for e in experiments)

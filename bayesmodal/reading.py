@@ -20,8 +20,16 @@ deviate from it the way rounding or clock jitter does:
   clock makes a step or a ramp in the residuals, whose autocorrelation is near 1) and
   smaller than half a step.
 
-Anything else (a gap, a change of rate, a drifting clock) is left alone, and
-``Experiment`` refuses it as not equally spaced.
+Stamps that scatter beyond half a step but independently from one sample to the next
+(a microcontroller logger whose loop runs at about a millisecond with jitter, its stamps
+rounded to whole ms) cannot be a uniform clock: they are the sample instants themselves.
+:func:`choose_time_base` keeps them as recorded (``ReadOptions(time_base="auto")``, the
+default); the linear model is then simulated exactly on them, each step with its own
+zero-order hold.  ``time_base="grid"`` puts any monotone record on its fitted uniform
+grid instead, ``time_base="stamps"`` keeps the recorded stamps whatever they look like.
+Anything else (a missing sample, a change of rate, a drifting clock) is left alone in
+``auto``, and ``Experiment`` refuses it as not equally spaced with both fixes; stamps
+that stall for more than ``MAX_GAP_STEPS`` median steps are refused in every mode.
 """
 
 from __future__ import annotations
@@ -33,10 +41,14 @@ from fractions import Fraction
 
 import numpy as np
 
-from ._errors import ConfigError
+from ._errors import ConfigError, DataError
 
-__all__ = ["DriveSign", "ReadOptions", "TimeRegularisation", "drive_sign", "parse_columns",
+__all__ = ["DriveSign", "MAX_GAP_STEPS", "ReadOptions", "TIME_BASES", "TimeBase",
+           "TimeRegularisation", "choose_time_base", "drive_sign", "parse_columns",
            "parse_scale", "regularise_time"]
+
+#: How a reader may take the time column (``ReadOptions.time_base``).
+TIME_BASES = ("auto", "stamps", "grid")
 
 _ROLE = re.compile(r"^(t|v|x[1-9][0-9]*)$")
 
@@ -110,6 +122,12 @@ class ReadOptions:
         files (encoder counts), 1 for ``.csv`` (metres).
     n_outputs : int, optional
         Number of outputs expected; a record with another number is refused.
+    time_base : {"auto", "stamps", "grid"}
+        ``"auto"``: stamps rounded or jittered within half a step are put on their
+        fitted uniform grid, stamps scattered further but independently (a logger's
+        jitter) are kept as recorded, anything else is refused; ``"stamps"``: keep the
+        recorded stamps (only the linear fit simulates on them); ``"grid"``: put the
+        stamps on their least-squares uniform grid.  See :func:`choose_time_base`.
 
     Examples
     --------
@@ -124,8 +142,11 @@ class ReadOptions:
     time_scale: float = 1.0
     m_per_count: float | None = None
     n_outputs: int | None = None
+    time_base: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.time_base not in TIME_BASES:
+            raise ConfigError(f"time_base must be one of {TIME_BASES}, got {self.time_base!r}")
         if self.columns is not None:
             object.__setattr__(self, "columns", _check_columns(self.columns))
         # a sign flip of the input or the outputs is a lab convention; time runs forwards
@@ -332,6 +353,129 @@ def regularise_time(t_s) -> TimeRegularisation:
         if rho1 < 0.5:
             return TimeRegularisation(grid, float(dt), "jitter", shift)
     return TimeRegularisation(t, float(mean_dt), "irregular", shift)
+
+
+#: Longest step a record may hold, in median steps: beyond it the logger stalled (samples
+#: are missing and the input held over the gap is not known), not jittered.
+MAX_GAP_STEPS = 5.0
+
+
+@dataclass(frozen=True)
+class TimeBase:
+    """The time base a record is read with (:func:`choose_time_base`).
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (N,)
+        The times to use, s: the recorded stamps, or a uniform grid.
+    kind : str
+        ``"uniform"`` (recorded on a uniform grid), ``"rounded"``, ``"jitter"``
+        (regularised to the fitted grid), ``"grid"`` (put on the fitted grid on request),
+        ``"stamps"`` (non-uniform stamps kept as recorded) or ``"irregular"`` (left
+        unchanged for ``Experiment`` to refuse).
+    recorded_stamps : bool
+        ``t_s`` are non-uniform stamps to be simulated step by step.
+    step_min_s, step_median_s, step_max_s : float
+        Smallest, median and largest recorded step, s.
+    grid_dt_s : float
+        Step of the least-squares uniform grid, s.
+    shift_min_s, shift_max_s : float
+        Smallest and largest distance of a stamp from that grid (stamp minus grid), s.
+    message : str
+        The one-line warning to give (empty when there is nothing to say).
+    """
+
+    t_s: np.ndarray
+    kind: str
+    recorded_stamps: bool
+    step_min_s: float
+    step_median_s: float
+    step_max_s: float
+    grid_dt_s: float
+    shift_min_s: float
+    shift_max_s: float
+    message: str = ""
+
+
+def choose_time_base(t_s, mode: str = "auto") -> TimeBase:
+    """Decide how a record's timestamps are used: as recorded, or on a uniform grid.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N,)
+        Finite, strictly increasing timestamps, s (``N >= 3``).
+    mode : {"auto", "stamps", "grid"}
+        See ``ReadOptions.time_base``.
+
+    Returns
+    -------
+    TimeBase
+
+    Raises
+    ------
+    DataError
+        A step longer than ``MAX_GAP_STEPS`` median steps (samples missing), with the
+        fix.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> k = np.arange(500)
+    >>> t = np.round(k * 1.127 + rng.uniform(0, 0.12, 500)) / 1000  # a logger's stamps, ms
+    >>> tb = choose_time_base(t)
+    >>> tb.kind, tb.recorded_stamps, round(tb.step_min_s, 6), round(tb.step_max_s, 6)
+    ('stamps', True, 0.001, 0.002)
+    """
+    if mode not in TIME_BASES:
+        raise ConfigError(f"time_base must be one of {TIME_BASES}, got {mode!r}")
+    t = np.asarray(t_s, dtype=float)
+    steps = np.diff(t)
+    n = t.size
+    k = np.arange(n, dtype=float)
+    dt, t0 = np.polyfit(k, t, 1)
+    grid = t0 + k * dt
+    r = t - grid
+    median = float(np.median(steps))
+    stats = dict(step_min_s=float(steps.min()), step_median_s=median,
+                 step_max_s=float(steps.max()), grid_dt_s=float(dt),
+                 shift_min_s=float(r.min()), shift_max_s=float(r.max()))
+    reg = regularise_time(t)
+    if reg.kind == "uniform":
+        return TimeBase(t, "uniform", False, **stats)
+    worst = int(np.argmax(steps))
+    if steps[worst] > MAX_GAP_STEPS * median:
+        raise DataError(
+            f"time jumps by {steps[worst]:.4g} s after t = {t[worst]:.6g} s, "
+            f"{steps[worst] / median:.0f} times the median step of {median:.4g} s: samples "
+            "are missing; cut the record at the gap and read the parts as separate records")
+    jitter = (f"steps {stats['step_min_s']:.4g} to {stats['step_max_s']:.4g} s (median "
+              f"{median:.4g} s), stamps {stats['shift_min_s']:+.3g} to "
+              f"{stats['shift_max_s']:+.3g} s from a uniform step of {dt:.6g} s")
+    if mode == "grid":
+        if reg.kind in ("rounded", "jitter"):
+            return TimeBase(reg.t_s, reg.kind, False, **stats, message=reg.message())
+        return TimeBase(grid, "grid", False, **stats,
+                        message=f"timestamps put on a uniform grid: {jitter}; samples "
+                        f"moved by up to {max(-r.min(), r.max()):.3g} s")
+    kept = (f"timestamps are not uniform: {jitter}; kept as recorded: the linear model "
+            "is simulated on them step by step (--time-base grid puts them on the "
+            "uniform grid)")
+    if mode == "stamps":
+        return TimeBase(t, "stamps", True, **stats, message=kept)
+    if reg.kind == "rounded":  # a uniform clock printed coarsely: the grid is the truth
+        return TimeBase(reg.t_s, reg.kind, False, **stats, message=reg.message())
+    if reg.kind == "jitter" or (n >= _MIN_JITTER_SAMPLES and _lag1(r) < 0.5):
+        # independent scatter: the stamps are the sample instants, not a clock's noise
+        return TimeBase(t, "stamps", True, **stats, message=kept)
+    return TimeBase(t, "irregular", False, **stats)
+
+
+def _lag1(r: np.ndarray) -> float:
+    """Lag-1 autocorrelation of grid residuals (independent jitter: about 0, standard
+    error ``1 / sqrt(N)``; a gap, drift or change of rate: near 1)."""
+    rc = r - r.mean()
+    den = float(np.dot(rc, rc))
+    return float(np.dot(rc[1:], rc[:-1]) / den) if den > 0 else 0.0
 
 
 def _minimax_line(k: np.ndarray, r: np.ndarray) -> float:

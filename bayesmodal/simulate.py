@@ -17,6 +17,15 @@ trustworthy (real or repeated eigenvalues, ill-conditioned eigenvectors, an unco
 mode) are detected by comparing the modal static gain with ``-A^-1 B`` and fall back to
 the full-state recursion.  Both kernels are compiled with numba, vectorised across the
 batch (see ``_kernels``).
+
+Recorded stamps.  A logger whose steps ``h_k = t[k+1] - t[k]`` differ still holds the
+input between samples, so each step is integrated exactly by its own ``expm`` of the
+step: ``mu_j = exp(lambda h_j)`` and ``gamma_j = (mu_j - 1) / lambda * beta``.  Stamps
+rounded to milliseconds take a handful of distinct steps, each discretised once.  Scaling
+the modal state by the first step's ``gamma_0`` keeps one output gain ``G`` for all steps,
+and the input enters with the weight ``r_j = gamma_j / gamma_0 = (mu_j - 1) / (mu_0 - 1)``
+(``beta`` and ``lambda`` cancel): ``w[k+1] = mu_j w[k] + r_j v[k]``, two more multiplies
+per mode and step than the uniform recursion.
 """
 
 from __future__ import annotations
@@ -30,8 +39,10 @@ from ._errors import DataError, ModelError
 from ._kernels import (
     aligned_empty,
     direct_kernel,
+    direct_steps_kernel,
     modal_affine_sums_kernel,
     modal_kernel,
+    modal_steps_kernel,
     modal_sums_kernel,
     padded_width,
 )
@@ -70,6 +81,84 @@ def _check_dt(dt: float) -> float:
     if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
         raise DataError(f"sample interval dt must be finite and > 0 s, got {dt!r}")
     return float(dt)
+
+
+def step_groups(steps: np.ndarray, t_max: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct values of a record's steps and, for each step, which one it is.
+
+    Steps are differences of stamps, each exact only to the stamps' own rounding, so two
+    steps are the same when they differ by less than ``4 eps max(|t|)`` (a difference of
+    two floats near ``t`` is off by up to ``eps |t|``; stamps rounded to ms that should give
+    exactly 1 ms give 0.001 +- 1e-18..1e-15 s).
+
+    Parameters
+    ----------
+    steps : ndarray, shape (N - 1,)
+        Steps ``t[k+1] - t[k]``, s (> 0).
+    t_max : float
+        Largest ``|t|`` of the stamps, s (the resolution's scale; default the sum of
+        the steps).
+
+    Returns
+    -------
+    values : ndarray, shape (J,)
+        Each group's first step, s, in order of first appearance.
+    index : ndarray of int64, shape (N,)
+        ``values[index[k]]`` is the step from sample ``k`` to ``k + 1``; the last entry
+        (no step follows) is 0.
+
+    Examples
+    --------
+    >>> v, i = step_groups(np.diff(np.array([0.0, 0.001, 0.002, 0.004, 0.005])))
+    >>> v.tolist(), i.tolist()
+    ([0.001, 0.002], [0, 0, 1, 0, 0])
+    """
+    h = np.asarray(steps, dtype=float)
+    scale = max(float(t_max), float(np.sum(h)))
+    tol = 4 * np.finfo(float).eps * scale
+    order = np.argsort(h, kind="stable")
+    hs = h[order]
+    label_sorted = np.concatenate([[0], np.cumsum(np.diff(hs) > tol)])
+    label = np.empty(h.size, np.int64)
+    label[order] = label_sorted
+    # renumber the groups by first appearance, so that step 0's group is block 0
+    _, first = np.unique(label, return_index=True)
+    rank = np.empty(first.size, np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+    index = rank[label]
+    # each group's first step stands for it (all agree to the stamps' resolution; a
+    # constant array of steps gives back its value exactly)
+    values = h[np.sort(first)]
+    return values, np.concatenate([index, [0]])
+
+
+def _check_steps(dt, n_samples: int):
+    """``(dt, None, None)`` for a scalar step, else ``(h_0, values, index)`` of
+    :func:`step_groups` for per-sample steps (one group: a uniform step again)."""
+    if np.isscalar(dt):
+        return _check_dt(dt), None, None
+    h = np.asarray(dt, dtype=float)
+    if h.shape != (n_samples - 1,):
+        raise DataError(f"steps must be a scalar dt or have shape ({n_samples - 1},) (one "
+                        f"per interval between the {n_samples} samples), got {h.shape}")
+    if not np.all(np.isfinite(h) & (h > 0)):
+        k = int(np.argmax(~(np.isfinite(h) & (h > 0))))
+        raise DataError(f"steps must be finite and > 0 s; step {k} is {h[k]!r}")
+    values, index = step_groups(h)
+    if values.size == 1:
+        return float(values[0]), None, None
+    return float(values[0]), values, index
+
+
+def _step_ratios(mu0: np.ndarray, mus: list[np.ndarray]) -> np.ndarray:
+    """Input weights ``r_j = (mu_j - 1) / (mu_0 - 1)``, shape (J, nb, m); ``r_0 = 1``
+    exactly."""
+    r = np.empty((len(mus),) + mu0.shape, complex)
+    r[0] = 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j in range(1, len(mus)):
+            r[j] = (mus[j] - 1.0) / (mu0 - 1.0)
+    return r
 
 
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
@@ -160,8 +249,9 @@ class LinearSimulator:
     ----------
     u : ndarray, shape (N,)
         Input samples (V), held over each sample interval.
-    dt : float
-        Sample interval, s.
+    dt : float or ndarray, shape (N - 1,)
+        Sample interval, s; or the recorded steps ``t[k+1] - t[k]`` of a record whose
+        stamps jitter (each distinct step discretised once, see :func:`step_groups`).
     n_out : int
         Number of leading states returned (the cart positions).
 
@@ -182,7 +272,9 @@ class LinearSimulator:
         if not np.all(np.isfinite(u)):
             raise DataError("input u has non-finite values (NaN or inf)")
         self.u = u
-        self.dt = _check_dt(dt)
+        # with recorded steps, dt is the first step's value (the modal gains' scale)
+        self.dt, self.step_values, self.step_index = _check_steps(dt, u.size)
+        self._time_key = self.dt if self.step_values is None else tuple(self.step_values)
         self.n_out = int(n_out)
         self._buffers: dict[tuple[int, int], np.ndarray] = {}
 
@@ -216,7 +308,12 @@ class LinearSimulator:
             raise ModelError(f"A must be (nb, s, s) and B (nb, s); got {A.shape} and {B.shape}")
         x0b = self._initial(x0, A.shape[0], A.shape[1])
         ok, mu, G, w0 = _modal_form(A, B, x0b, self.dt, self.n_out)
-        return self._dispatch(ok, mu, G, w0, A, B, x0b)
+        steps = None
+        if self.step_values is not None:
+            forms = [(ok, mu, G)] + [_modal_form(A, B, x0b, h, self.n_out)[:3]
+                                     for h in self.step_values[1:]]
+            ok, steps = _steps_form(forms)
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, steps=steps)
 
     def run_second_order(
         self,
@@ -267,11 +364,28 @@ class LinearSimulator:
         if self.n_out > n:
             raise ModelError(f"n_out = {self.n_out} exceeds the {n} positions")
         x0b = np.ascontiguousarray(self._initial(x0, nb, 2 * n))
+        ok, mu, G, w0, A, B = self._second_order_form(masses, C, K, b, x0b, self.dt)
+        steps = None
+        if self.step_values is not None:
+            steps = _steps_from_poles(mu, self.step_values, masses, C, K)
+            if steps is None:  # some pole may alias on the first step: each step anew
+                forms = [(ok, mu, G)] + [self._second_order_form(masses, C, K, b, x0b, h)[:3]
+                                         for h in self.step_values[1:]]
+                ok, steps = _steps_form(forms)
+            else:
+                ok = ok & np.all(np.isfinite(steps[1]), axis=(0, 2))
+        return (self._time_key, self.n_out, ok, mu, G, w0, A, B, x0b,
+                {"masses": masses, "C": C, "K": K, "b": b}, steps)
+
+    def _second_order_form(self, masses, C, K, b, x0b, dt):
+        """``ok, mu, G, w0, A, B`` of a batch for step ``dt``: the compiled modal form,
+        the general one for the lanes it cannot handle (``A, B`` None if none)."""
+        nb, n = masses.shape
         mu = np.zeros((nb, n), complex)
         G = np.zeros((nb, self.n_out, n), complex)
         w0 = np.zeros((nb, n), complex)
         ok = np.zeros(nb, bool)
-        modal_form_mck(masses, C, K, b, x0b, self.dt, self.n_out, mu, G, w0, ok)
+        modal_form_mck(masses, C, K, b, x0b, dt, self.n_out, mu, G, w0, ok)
         # static-gain check of the compiled modal form against K^-1 b
         dc_exact = np.linalg.solve(K, b[..., None])[:, : self.n_out, 0]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -284,13 +398,12 @@ class LinearSimulator:
         if not np.all(ok):
             A, B = _second_order_state_space(masses, C, K, b)
             bad = np.flatnonzero(~ok)
-            ok2, mu2, G2, w02 = _modal_form(A[bad], B[bad], x0b[bad], self.dt, self.n_out)
+            ok2, mu2, G2, w02 = _modal_form(A[bad], B[bad], x0b[bad], dt, self.n_out)
             if mu2 is not None:
                 good = bad[ok2]
                 mu[good], G[good], w0[good] = mu2[ok2], G2[ok2], w02[ok2]
                 ok[good] = True
-        return (self.dt, self.n_out, ok, mu, G, w0, A, B, x0b,
-                {"masses": masses, "C": C, "K": K, "b": b})
+        return ok, mu, G, w0, A, B
 
     def run_prepared(self, prepared: tuple, *, lanes_last: bool = False) -> np.ndarray:
         """Simulate this simulator's input with a form of :meth:`prepare_second_order`.
@@ -309,8 +422,8 @@ class LinearSimulator:
         ndarray
             A view of the simulator's buffer (valid until the next call).
         """
-        ok, mu, G, w0, A, B, x0b, second_order = self._own(prepared)
-        return self._dispatch(ok, mu, G, w0, A, B, x0b, lanes_last=lanes_last,
+        ok, mu, G, w0, A, B, x0b, second_order, steps = self._own(prepared)
+        return self._dispatch(ok, mu, G, w0, A, B, x0b, lanes_last=lanes_last, steps=steps,
                               **second_order)
 
     def _initial(self, x0, nb: int, s: int) -> np.ndarray:
@@ -344,7 +457,10 @@ class LinearSimulator:
             Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))`` (or
             ``ar1_sums_affine`` of the two responses), bit for bit.
         """
-        ok, mu, G, w0, A, B, x0b, second_order = self._own(prepared)
+        ok, mu, G, w0, A, B, x0b, second_order, steps = self._own(prepared)
+        if steps is not None:
+            raise ModelError("residual sums are computed on a uniform grid only; simulate "
+                             "the recorded steps with run_prepared and form the residuals")
         y = np.ascontiguousarray(y, dtype=float)
         if y.shape != (self.u.size, self.n_out):
             raise DataError(f"y must have shape {(self.u.size, self.n_out)}, got {y.shape}")
@@ -359,15 +475,15 @@ class LinearSimulator:
     def _own(self, prepared: tuple) -> tuple:
         """The modal form of :meth:`prepare_second_order` without its ``dt`` and ``n_out``,
         after checking that they are this simulator's."""
-        dt, n_out, *form = prepared
-        if dt != self.dt or n_out != self.n_out:
-            raise ModelError(f"prepared form is for dt={dt}, n_out={n_out}; this simulator "
-                             f"has dt={self.dt}, n_out={self.n_out}: prepare it here")
+        key, n_out, *form = prepared
+        if key != self._time_key or n_out != self.n_out:
+            raise ModelError(f"prepared form is for dt={key}, n_out={n_out}; this simulator "
+                             f"has dt={self._time_key}, n_out={self.n_out}: prepare it here")
         return tuple(form)
 
     def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
                   sums_against: np.ndarray | None = None, affine: np.ndarray | None = None,
-                  **second_order) -> np.ndarray:
+                  steps: tuple | None = None, **second_order) -> np.ndarray:
         """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct
         (with ``sums_against``: return the residual sums, see :meth:`residual_sums`)."""
         nb, s = x0b.shape
@@ -387,6 +503,10 @@ class LinearSimulator:
             # per-lane gain and offset; padding lanes get g = v0 = 0 (their sums are dropped)
             gv = (None if affine is None
                   else np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0))
+            if steps is not None:
+                self._run_steps(c, real, ok, steps, G, w0, A, B, x0b, second_order, Y,
+                                width)
+                continue
             if np.all(ok[real]):
                 # blocks on 64 bytes: off it the kernel took 17-18.5 instead of 11.6 us
                 # per evaluation (_kernels.ALIGN_BYTES)
@@ -448,6 +568,88 @@ class LinearSimulator:
             return y[0, :nb]
         return y.reshape(n_chunks * width, self.u.size, self.n_out)[:nb]
 
+    def _run_steps(self, c, real, ok, steps, G, w0, A, B, x0b, second_order, Y, width):
+        """Chunk ``c`` (lanes ``real``) over the recorded steps: the modal recursion with a
+        pole and an input weight per distinct step when all its lanes allow, else the
+        full-state recursion with the exact ZOH of each distinct step."""
+        s = x0b.shape[1]
+        nm = s // 2
+        n_steps = self.step_values.size
+        idx = self.step_index
+        mu, r = steps
+        if mu is not None and np.all(ok[real]):
+            g_rows = 2 * nm * self.n_out
+            Q = aligned_empty((g_rows + 4 * nm * n_steps, width))
+            g = G[real].reshape(width, self.n_out * nm).T  # rows i*nm + m
+            Q[0:g_rows:2] = g.real
+            Q[1:g_rows:2] = g.imag
+            for j in range(n_steps):
+                o = g_rows + 4 * nm * j
+                Q[o : o + 2 * nm : 2] = mu[j, real].real.T
+                Q[o + 1 : o + 2 * nm : 2] = mu[j, real].imag.T
+                Q[o + 2 * nm : o + 4 * nm : 2] = r[j, real].real.T
+                Q[o + 2 * nm + 1 : o + 4 * nm : 2] = r[j, real].imag.T
+            W = aligned_empty((2 * nm, width))
+            W[0::2] = w0[real].real.T
+            W[1::2] = w0[real].imag.T
+            modal_steps_kernel(nm, self.n_out, width)(Q.ravel(), idx, self.u, W.ravel(),
+                                                      Y[c].reshape(-1))
+            return
+        if A is None:
+            A, B = _second_order_state_space(**second_order)
+        rows = s * s + s
+        P = aligned_empty((n_steps * rows, width))
+        for j, h in enumerate(self.step_values):
+            d = discretize_zoh(A[real], B[real], float(h))
+            P[j * rows : j * rows + s * s] = d.Ad.reshape(width, s * s).T
+            P[j * rows + s * s : (j + 1) * rows] = d.Bd.T
+        X = np.ascontiguousarray(x0b[real].T)
+        direct_steps_kernel(s, self.n_out, width)(P.ravel(), idx, self.u, X.ravel(),
+                                                  Y[c].reshape(-1))
+
+
+def _steps_from_poles(mu0, values, masses, C, K):
+    """``(mu, r)`` of each distinct step from the first step's poles, or None.
+
+    ``mu_j = exp(lambda h_j) = exp(log(mu_0) h_j / h_0)``: the principal logarithm gives
+    back ``lambda h_0`` when ``|Im(lambda)| h_0 < pi``, which holds for every mode when
+    ``(||M^-1 C|| + sqrt(||M^-1 K||)) h_0 < pi`` (a root of ``lambda^2 M + lambda C + K``
+    has ``|lambda|^2 <= |lambda| ||M^-1 C|| + ||M^-1 K||``; Frobenius norms bound the
+    spectral ones).  This saves a modal decomposition per step.
+    """
+    h0 = float(values[0])
+    inv_m = 1.0 / masses[:, :, None]
+    bound = (np.sqrt(np.sum((inv_m * C) ** 2, axis=(1, 2)))
+             + np.sqrt(np.sqrt(np.sum((inv_m * K) ** 2, axis=(1, 2)))))
+    if not np.all(np.isfinite(bound) & (bound * h0 < np.pi)):
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_mu0 = np.log(mu0)
+        mus = [mu0] + [np.exp(log_mu0 * (float(h) / h0)) for h in values[1:]]
+    return np.stack(mus), _step_ratios(mu0, mus)
+
+
+def _steps_form(forms):
+    """Combine the modal forms of each distinct step: ``ok`` (nb,) and ``(mu, r)``, each
+    shape (J, nb, m), poles and input weights (``_step_ratios``).
+
+    ``forms`` is ``[(ok_j, mu_j, G_j), ...]``, step 0 first.  Each step's output gains
+    are ``G_j = r_j G_0`` when the modes come in the same order; a lane where they do
+    not (to 1e-8, far above the rounding of ``r_j``) is left to the full-state recursion.
+    """
+    ok0, mu0, G0 = forms[0]
+    if mu0 is None or any(f[1] is None for f in forms):
+        nb = ok0.size
+        return np.zeros(nb, bool), (None, None)
+    ok = ok0.copy()
+    r = _step_ratios(mu0, [f[1] for f in forms])
+    with np.errstate(invalid="ignore", over="ignore"):
+        for j, (ok_j, _, G_j) in enumerate(forms[1:], start=1):
+            err = np.max(np.abs(G_j - r[j][:, None, :] * G0), axis=(1, 2))
+            size = np.max(np.abs(G_j), axis=(1, 2))
+            ok &= ok_j & (err <= 1e-8 * size) & np.all(np.isfinite(r[j]), axis=1)
+    return ok, (np.stack([f[1] for f in forms]), r)
+
 
 def _second_order_state_space(masses, C, K, b):
     nb, n = masses.shape
@@ -477,8 +679,8 @@ def simulate_state_space(
     B : ndarray, shape (nb, s) or (s,)
     u : ndarray, shape (N,)
         Input samples, held constant over each interval.
-    dt : float
-        Sample interval, s.
+    dt : float or ndarray, shape (N - 1,)
+        Sample interval, s, or the recorded steps ``t[k+1] - t[k]``, s.
     n_out : int
         Number of leading states returned as outputs.
     x0 : ndarray, shape (s,) or (nb, s), optional
@@ -508,8 +710,9 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
         Parameter vectors in ``model.names`` order.
     u : ndarray, shape (N,)
         Motor voltage, V, held over each sample interval.
-    dt : float
-        Sample interval, s.
+    dt : float or ndarray, shape (N - 1,)
+        Sample interval, s, or the recorded steps ``t[k+1] - t[k]`` of a record whose
+        stamps jitter (``Experiment.sim_dt``), s.
     x0 : ndarray, shape (2n,) or (nb, 2n), optional
         Initial state (positions m, velocities m/s); zero by default.
 

@@ -398,11 +398,12 @@ INPUTS = [
              r"timestamps are rounded to 0.001 s; regularised to a uniform step of 0.004\d+ s, "
              r"moving samples by at most 0.000\d+ s \(1\d % of a step\)",
              entries=("load_experiment", "lsq"), warn=True),
-    BadInput("jittered_time", "timestamps jittering by up to 30 % of a step",
+    BadInput("jittered_time", "timestamps jittering by up to 30 % of a step (kept)",
              _ecp_text("jitter.txt", time=lambda t: t + DT * np.random.default_rng(2).uniform(
                  -0.3, 0.3, t.size)),
-             r"timestamps jitter around a uniform step of 0.005\d* s by up to 0.001\d* s "
-             r"\(\d+ % of a step\); regularised to the uniform grid",
+             r"timestamps are not uniform: steps 0.00\d+ to 0.00\d+ s \(median 0.005\d* s\), "
+             r"stamps -0.001\d* to \+0.001\d* s from a uniform step of 0.005\d* s; kept as "
+             r"recorded: the linear model is simulated on them step by step",
              entries=("load_experiment", "lsq"), warn=True),
     BadInput("mat_struct", "`.mat` holding one struct `data`",
              _write("struct.mat", _mat_bytes(data={"t": np.arange(5.0), "x": np.zeros(5)})),

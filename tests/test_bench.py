@@ -52,6 +52,9 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
     assert out["headline"] == headline(out["extensions"])
     assert set(out["headline"]) == {"coulomb_friction", "best_combined"}
     assert set(out["machine"]) == {"load_average", "cores", "busy"}
+    st = out["stamps"]
+    assert st["n_distinct_steps"] >= 2 and st["target"] == 1.5
+    assert st["meets_target"] == (st["ratio"] <= st["target"])
     s = out["sampler"]
     assert s["n_samples"] == 300
     # the emcee run does all a likelihood call does and more, which does all a bare

@@ -17,7 +17,7 @@ from .. import __version__
 from .._errors import ConfigError, DataError, ModelError, one_line
 
 #: Sub-command modules, in help order.
-COMMANDS = ("report", "lsq", "static", "modal", "bench", "sample", "compare", "ema",
+COMMANDS = ("report", "inspect", "lsq", "static", "modal", "bench", "sample", "compare", "ema",
             "diagnose", "crossval", "run", "batch", "rerun")
 
 

@@ -7,6 +7,7 @@ from ..bench import (
     EXTENSION_MAX_RATIO,
     bench_extensions,
     bench_linear,
+    bench_stamps,
     headline,
     machine_load,
 )
@@ -40,7 +41,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     out = {"machine": machine_load(),
-           "linear": bench_linear(args.samples, args.batch, quick=args.quick)}
+           "linear": bench_linear(args.samples, args.batch, quick=args.quick),
+           "stamps": bench_stamps(args.samples, args.batch, quick=args.quick)}
     if not args.no_extensions:
         names = None if args.extensions is None else tuple(
             n.strip() for n in args.extensions.split(",") if n.strip())
@@ -66,6 +68,10 @@ def run(args) -> int:
               f"{lin['us_per_eval_fresh_output']:.1f} us/eval (fresh output)")
         print(f"  scipy lsim {lin['lsim_us_per_eval']:.0f} us/eval")
         print(f"  speedup {lin['speedup']:.0f}x (fresh output {lin['speedup_fresh_output']:.0f}x)")
+        st = out["stamps"]
+        print(f"on a logger's recorded stamps ({st['n_distinct_steps']} distinct steps): "
+              f"{st['us_per_eval_stamps']:.1f} us/eval, {st['ratio']:.2f}x the uniform "
+              f"simulator (target <= {st['target']:g}x)")
         if "extensions" in out:
             print(f"model extensions (cost per evaluation vs the linear simulator, median of "
                   f"rounds; target <= {EXTENSION_MAX_RATIO:g}x, combinations "

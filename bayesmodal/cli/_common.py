@@ -9,7 +9,7 @@ from pathlib import Path
 from .._errors import DataError
 from .._json import to_jsonable
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
-from ..reading import ReadOptions, parse_columns, parse_scale
+from ..reading import TIME_BASES, ReadOptions, parse_columns, parse_scale
 from ..system import Rig
 
 
@@ -25,7 +25,8 @@ def add_data_args(p, *, many: bool = False) -> None:
 
 
 def add_reader_arguments(p) -> None:
-    """Add ``--columns``, ``--input-scale``, ``--time-scale`` and ``--m-per-count``."""
+    """Add ``--columns``, ``--input-scale``, ``--time-scale``, ``--m-per-count`` and
+    ``--time-base``."""
     g = p.add_argument_group("reading lab files (see bayesmodal.data.ReadOptions)")
     g.add_argument("--columns", default=None, metavar="ROLE=COLUMN,...",
                    help="which column is time, input and outputs, e.g. "
@@ -43,6 +44,11 @@ def add_reader_arguments(p) -> None:
                         "negative for encoders counting the other way "
                         f"(default {ECP_M_PER_COUNT:.6g} for ECP .mat/.txt in counts, 1 for "
                         ".csv in metres)")
+    g.add_argument("--time-base", choices=TIME_BASES, default="auto",
+                   help="auto: rounded stamps go on their uniform grid, jittered stamps are "
+                        "kept as recorded (the linear fit simulates on them, step by step); "
+                        "stamps: keep the recorded stamps; grid: put the stamps on their "
+                        "least-squares uniform grid (analyses that need one)")
 
 
 def reader_options(args) -> ReadOptions:
@@ -55,7 +61,8 @@ def reader_options(args) -> ReadOptions:
         if text is not None:  # a sign flip of the input or the encoders is allowed
             scales[key] = parse_scale(text, "--" + opt.replace("_", "-"),
                                       signed=key != "time_scale")
-    return ReadOptions(columns=parse_columns(columns) if columns else None, **scales)
+    return ReadOptions(columns=parse_columns(columns) if columns else None,
+                       time_base=getattr(args, "time_base", None) or "auto", **scales)
 
 
 def load_data(paths, args) -> list[Experiment]:
