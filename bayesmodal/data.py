@@ -190,7 +190,8 @@ class Experiment:
                 f"{where}: time steps are not equally spaced (recorded stamps, steps "
                 f"{steps.min():.4g} to {steps.max():.4g} s) and this analysis needs a "
                 "uniform grid; read the record with --time-base grid "
-                "(ReadOptions(time_base=\"grid\")), or fit the linear model with "
+                "(time_base = \"grid\" in a run configuration's [data], "
+                "ReadOptions(time_base=\"grid\")), or fit the linear model with "
                 "`bayesmodal lsq`, which simulates on the stamps")
         return self.mean_dt
 

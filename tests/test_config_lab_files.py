@@ -101,6 +101,11 @@ def test_lab_file_keys_leave_the_hash_alone_at_their_defaults():
                           check_files=False)
     assert len({plain.hash(), mapped.hash(), scaled.hash()}) == 3
     assert mapped.to_dict()["columns"] == MAP   # recorded in config.json
+    # the time base: "auto" is the default (same hash), another one is a new run
+    auto = parse_config({"data": {**base["data"], "time_base": "auto"}}, check_files=False)
+    grid = parse_config({"data": {**base["data"], "time_base": "grid"}}, check_files=False)
+    assert auto.hash() == plain.hash() != grid.hash()
+    assert grid.read_options().time_base == "grid" and plain.read_options().time_base == "auto"
 
 
 def test_rig_sensor_scale_is_the_default_counts_scale():
@@ -127,6 +132,7 @@ def test_rig_sensor_scale_is_the_default_counts_scale():
     ({"input_scale": "5/0"}, "data.input_scale", "not a number or fraction"),
     ({"time_scale": -1}, "data.time_scale", "must be finite and > 0"),
     ({"input_scale": True}, "data.input_scale", "not a number or fraction"),
+    ({"time_base": "uniform"}, "data.time_base", "must be one of auto, stamps, grid"),
 ])
 def test_bad_lab_file_keys_name_the_key_and_the_fix(data, key, match):
     with pytest.raises(ConfigError, match=match) as info:
