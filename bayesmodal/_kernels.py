@@ -83,6 +83,24 @@ def direct_kernel(n_states: int, n_out: int, width: int):
     return _compile(lines, f"direct s={s} o={n_out} w={w}")
 
 
+def _modal_state_and_outputs(nm: int, n_out: int, w: int, row0: int) -> list[str]:
+    """Kernel lines loading each mode's state ``wr, wi`` of lane ``b`` and writing the
+    outputs ``Y = Re(sum_m q_m w_m)``, the output residues ``q`` from row ``row0`` of
+    ``Q`` on (shared by the uniform-step and the per-step modal kernels)."""
+    lines = []
+    for m in range(nm):
+        lines.append(f"            wr{m} = W[{2 * m * w} + b]")
+        lines.append(f"            wi{m} = W[{(2 * m + 1) * w} + b]")
+    for i in range(n_out):
+        terms = " + ".join(
+            f"Q[{(row0 + 2 * (i * nm + m)) * w} + b] * wr{m}"
+            f" - Q[{(row0 + 2 * (i * nm + m) + 1) * w} + b] * wi{m}"
+            for m in range(nm)
+        )
+        lines.append(f"            Y[yo + {i * w} + b] = {terms}")
+    return lines
+
+
 @functools.lru_cache(maxsize=64)
 def modal_kernel(n_modes: int, n_out: int, width: int):
     """Compiled ``kernel(Q, u, W, Y)`` for the scaled modal recursion.
@@ -101,16 +119,7 @@ def modal_kernel(n_modes: int, n_out: int, width: int):
         f"        yo = k * {n_out * w}",
         f"        for b in range({w}):",
     ]
-    for m in range(nm):
-        lines.append(f"            wr{m} = W[{2 * m * w} + b]")
-        lines.append(f"            wi{m} = W[{(2 * m + 1) * w} + b]")
-    for i in range(n_out):
-        terms = " + ".join(
-            f"Q[{(2 * nm + 2 * (i * nm + m)) * w} + b] * wr{m}"
-            f" - Q[{(2 * nm + 2 * (i * nm + m) + 1) * w} + b] * wi{m}"
-            for m in range(nm)
-        )
-        lines.append(f"            Y[yo + {i * w} + b] = {terms}")
+    lines += _modal_state_and_outputs(nm, n_out, w, 2 * nm)
     for m in range(nm):
         lines.append(f"            mr = Q[{2 * m * w} + b]")
         lines.append(f"            mi = Q[{(2 * m + 1) * w} + b]")
@@ -249,16 +258,7 @@ def modal_steps_kernel(n_modes: int, n_out: int, width: int):
         f"        yo = k * {n_out * w}",
         f"        for b in range({w}):",
     ]
-    for m in range(nm):
-        lines.append(f"            wr{m} = W[{2 * m * w} + b]")
-        lines.append(f"            wi{m} = W[{(2 * m + 1) * w} + b]")
-    for i in range(n_out):
-        terms = " + ".join(
-            f"Q[{2 * (i * nm + m) * w} + b] * wr{m}"
-            f" - Q[{(2 * (i * nm + m) + 1) * w} + b] * wi{m}"
-            for m in range(nm)
-        )
-        lines.append(f"            Y[yo + {i * w} + b] = {terms}")
+    lines += _modal_state_and_outputs(nm, n_out, w, 0)
     for m in range(nm):
         lines.append(f"            mr = Qj[{2 * m * w} + b]")
         lines.append(f"            mi = Qj[{(2 * m + 1) * w} + b]")
