@@ -206,6 +206,21 @@ def _export(name: str, *, cut: bool = False):
     return make
 
 
+def _instrument(name: str, **kw):
+    """A UFF dataset 58 or TDMS file (by the suffix of ``name``) of a pulse response in mm,
+    written by pyuff's or npTDMS's own writer; ``kw`` go to the writer."""
+
+    def make(folder: Path) -> str:
+        from instrument_writers import write_tdms, write_uff58
+
+        t, v, y = _record()
+        write = write_tdms if name.endswith(".tdms") else write_uff58
+        write(folder / name, DT, v, y, units=("mm",) * 3, **kw)
+        return name
+
+    return make
+
+
 def _sparse(name: str, size: int):
     def make(folder: Path) -> str:
         p = folder / name
@@ -429,6 +444,23 @@ INPUTS = [
              _export("cut.txt", cut=True),
              r"line 11 has 6 values, the header names 7 columns \(Sample, Time, Commanded "
              r"Pos, .*truncated or ragged export", entries=("load_experiment", "lsq")),
+    BadInput("uff_frf", "UFF file of frequency response functions (dataset 58 type 4)",
+             _instrument("frf.uff", func_type=4),
+             r"dataset 58 records of function type 4 \(frequency response function\), none "
+             r"a time response \(type 1\); bayesmodal reads time records",
+             entries=("load_experiment", "lsq")),
+    BadInput("tdms_garbage", "4 kB of random bytes named `.tdms`",
+             _write("noise.tdms", _GARBAGE), r"not a TDMS file \(no TDSm lead-in\)",
+             entries=("load_experiment", "lsq")),
+    BadInput("tdms_no_unit", "TDMS outputs without a unit label",
+             _instrument("bare.tdms", label_outputs=False),
+             r"no displacement channel \(a length unit such as m or mm, or counts\); name "
+             r"the channels with --columns", entries=("load_experiment", "lsq")),
+    BadInput("tdms_no_unit_mapped", "TDMS outputs without a unit label, mapped by name",
+             _instrument("bare.tdms", label_outputs=False),
+             r"output channel 'cart1' has the unit 'none', not a length or counts; give "
+             r"metres per unit with --m-per-count", entries=("load_experiment", "lsq"),
+             args=("--columns", "t=time,v=drive,x1=cart1,x2=cart2,x3=cart3")),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",

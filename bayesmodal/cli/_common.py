@@ -17,10 +17,12 @@ def add_data_args(p, *, many: bool = False) -> None:
     """Add the positional DATA argument(s) and the reader options."""
     if many:
         p.add_argument("data", nargs="+", metavar="DATA",
-                       help="data files (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI)")
+                       help="data files (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI, "
+                       ".uff/.unv dataset 58 or .tdms channels with units)")
     else:
         p.add_argument("data", metavar="DATA",
-                       help="data file (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI)")
+                       help="data file (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI, "
+                       ".uff/.unv dataset 58 or .tdms channels with units)")
     add_reader_arguments(p)
 
 
