@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _channels, _ecp_export, _readers
+from . import _channels, _ecp_export, _readers, _window
 from ._errors import DataError
 from .reading import ReadOptions, drive_sign, regularise_time
 
@@ -592,8 +592,9 @@ def load_experiment(
     else:
         roles = _csv_roles(path, opts)
     exp = _assemble(path, roles, opts, kind, path.stem)
-    return Experiment(exp.t_s, exp.v_volt, exp.y_m, name=exp.name, source=exp.source,
-                      sha256=file_sha256(path))
+    part = _window.cut(str(path), exp.t_s, opts.t_start, opts.t_end)  # all by default
+    return Experiment(exp.t_s[part], exp.v_volt[part], exp.y_m[part], name=exp.name,
+                      source=exp.source, sha256=file_sha256(path))
 
 
 def check_identifiable(experiment: Experiment) -> None:

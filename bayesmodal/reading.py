@@ -86,6 +86,19 @@ def _positive(name: str, value, *, allow_none: bool = False, signed: bool = Fals
     return x
 
 
+def _time(name: str, value) -> float | None:
+    """A finite time in s, or None."""
+    if value is None:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a time in s, got {value!r}") from None
+    if isinstance(value, bool) or not np.isfinite(x):
+        raise ConfigError(f"{name} must be a finite time in s, got {value!r}")
+    return x
+
+
 @dataclass(frozen=True)
 class ReadOptions:
     """How to read a record whose layout or units differ from the ECP defaults.
@@ -110,6 +123,12 @@ class ReadOptions:
         files (encoder counts), 1 for ``.csv`` (metres).
     n_outputs : int, optional
         Number of outputs expected; a record with another number is refused.
+    t_start, t_end : float, optional
+        A time window, s of the record's own clock (after ``time_scale``): the samples
+        with ``t_start <= t <= t_end`` are kept, with their times as recorded.  Both
+        bounds must lie within the record and ``t_end > t_start``.  A window that does
+        not start at rest needs its initial state estimated (``fit_lsq(...,
+        initial_state="estimate")``, ``--initial-state estimate``).
 
     Examples
     --------
@@ -124,6 +143,8 @@ class ReadOptions:
     time_scale: float = 1.0
     m_per_count: float | None = None
     n_outputs: int | None = None
+    t_start: float | None = None
+    t_end: float | None = None
 
     def __post_init__(self) -> None:
         if self.columns is not None:
@@ -142,6 +163,11 @@ class ReadOptions:
             if m is not None and m != n:
                 raise ConfigError(f"the column map names {m} outputs but n_outputs is {n}")
             object.__setattr__(self, "n_outputs", n)
+        for key in ("t_start", "t_end"):
+            object.__setattr__(self, key, _time(key, getattr(self, key)))
+        if self.t_start is not None and self.t_end is not None and self.t_end <= self.t_start:
+            raise ConfigError(f"t_end ({self.t_end:g} s) must be after t_start "
+                              f"({self.t_start:g} s)")
 
     @property
     def column_map(self) -> dict[str, str] | None:

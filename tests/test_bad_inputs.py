@@ -461,6 +461,15 @@ INPUTS = [
              r"output channel 'cart1' has the unit 'none', not a length or counts; give "
              r"metres per unit with --m-per-count", entries=("load_experiment", "lsq"),
              args=("--columns", "t=time,v=drive,x1=cart1,x2=cart2,x3=cart3")),
+    BadInput("window_outside", "a time window after the record's end",
+             _csv("short.csv"), r"t_start = 30 s is outside the record; the record spans 0 to "
+             r"1.995 s \(step 0.005 s\)", entries=("load_experiment", "lsq", "run"),
+             args=("--t-start", "30")),
+    BadInput("window_in_motion", "a time window that starts while the carts swing",
+             _csv("swing.csv"), r"the window starts at t = 0.3 s with output 1 at -?\d.* mm, "
+             r"not at rest; .*where the carts rest at 0 with no input",
+             entries=("lsq", "run"), args=("--t-start", "0.3"),
+             patterns={"lsq": r"fit it with --initial-state estimate, or start the window"}),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",
@@ -559,10 +568,10 @@ def _config_data(args: tuple[str, ...]) -> str:
         if key == "columns":
             pairs = (item.split("=", 1) for item in val.split(","))
             lines.append("columns = { " + ", ".join(f'{r} = "{c}"' for r, c in pairs) + " }")
-        elif key == "m_per_count":   # a number in the configuration
+        elif key in ("m_per_count", "t_start", "t_end"):   # a number in the configuration
             from bayesmodal.reading import parse_scale
 
-            lines.append(f"{key} = {parse_scale(val)!r}")
+            lines.append(f"{key} = {parse_scale(val, signed=True)!r}")
         else:   # a number or fraction, as on the command line
             lines.append(f'{key} = "{val}"')
     return "".join(ln + "\n" for ln in lines)

@@ -27,7 +27,8 @@ def add_data_args(p, *, many: bool = False) -> None:
 
 
 def add_reader_arguments(p) -> None:
-    """Add ``--columns``, ``--input-scale``, ``--time-scale`` and ``--m-per-count``."""
+    """Add ``--columns``, ``--input-scale``, ``--time-scale``, ``--m-per-count``,
+    ``--t-start`` and ``--t-end``."""
     g = p.add_argument_group("reading lab files (see bayesmodal.data.ReadOptions)")
     g.add_argument("--columns", default=None, metavar="ROLE=COLUMN,...",
                    help="which column is time, input and outputs, e.g. "
@@ -45,6 +46,12 @@ def add_reader_arguments(p) -> None:
                         "negative for encoders counting the other way "
                         f"(default {ECP_M_PER_COUNT:.6g} for ECP .mat/.txt in counts, 1 for "
                         ".csv in metres)")
+    g.add_argument("--t-start", default=None, type=float, metavar="S",
+                   help="keep the record from this time on, s of the record's own clock "
+                        "(times stay as recorded; a window that does not start at rest "
+                        "needs --initial-state estimate) (default: the first sample)")
+    g.add_argument("--t-end", default=None, type=float, metavar="S",
+                   help="keep the record up to this time, s (default: the last sample)")
 
 
 def reader_options(args) -> ReadOptions:
@@ -57,7 +64,10 @@ def reader_options(args) -> ReadOptions:
         if text is not None:  # a sign flip of the input or the encoders is allowed
             scales[key] = parse_scale(text, "--" + opt.replace("_", "-"),
                                       signed=key != "time_scale")
-    return ReadOptions(columns=parse_columns(columns) if columns else None, **scales)
+    window = {k: getattr(args, k) for k in ("t_start", "t_end")
+              if getattr(args, k, None) is not None}
+    return ReadOptions(columns=parse_columns(columns) if columns else None, **scales,
+                       **window)
 
 
 def load_data(paths, args) -> list[Experiment]:
@@ -113,8 +123,22 @@ def load_args(args) -> list[Experiment]:
                             f"{args.rig!r} has {rig.n_outputs} sensors; give one column "
                             "per sensor, in the rig's sensor order")
         if getattr(args, "initial_state", "rest") == "rest":
+            if opts.t_start is not None:  # the fit starts the window from rest
+                _check_rest(e, opts, hasattr(args, "initial_state"))
             check_identifiable(e)  # (a free decay has no input: checked by the fit)
     return exps
+
+
+def _check_rest(e: Experiment, opts: ReadOptions, can_estimate: bool) -> None:
+    """Refuse a window that does not start at rest for a fit that assumes it does."""
+    from .._window import motion_at_start
+
+    why = motion_at_start(e.y_m, e.v_volt, e.dt)
+    if why:
+        fix = "fit it with --initial-state estimate, or " if can_estimate else ""
+        raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s "
+                        f"with {why}, not at rest; {fix}start the window where the carts "
+                        "rest at 0 with no input")
 
 
 def print_json(obj) -> None:
