@@ -21,6 +21,47 @@ _K_NOISE = 5.0
 _REST_FRACTION = 1e-3
 
 
+def select(where: str, t_s: np.ndarray, v_volt: np.ndarray, y_m: np.ndarray, opts):
+    """The part of a record to fit, and its outputs less their final rest if asked.
+
+    The time window first (:func:`cut`), then, with ``opts.release == "auto"``, the cut
+    at the release of a hand-released decay (``_release.find_release``), then, with
+    ``opts.rest_offset == "final"``, each output less its final rest position
+    (``_release.final_rest``).
+
+    Parameters
+    ----------
+    where : str
+        The file, for messages.
+    t_s : ndarray, shape (N,)
+        Times, s.
+    v_volt : ndarray, shape (N,)
+        Input, V.
+    y_m : ndarray, shape (N, n_outputs)
+        Positions, m.
+    opts : ReadOptions
+
+    Returns
+    -------
+    t_s, v_volt, y_m : ndarray
+        The kept samples, shapes (M,), (M,), (M, n_outputs).
+    """
+    from . import _release
+
+    part = cut(where, t_s, opts.t_start, opts.t_end)
+    t, v, y = t_s[part], v_volt[part], y_m[part]
+    if opts.release == "auto":
+        if np.any(v != 0):
+            raise DataError(f"{where}: the input is not zero (up to "
+                            f"{np.max(np.abs(v)):.3g} V); --release auto is for a cart "
+                            "released by hand with no input")
+        k0 = _release.find_release(where, y)
+        t, v, y = t[k0:], v[k0:], y[k0:]
+    if opts.rest_offset == "final":
+        y = y - _release.final_rest(where, y)
+    return t, v, y
+
+
 def cut(where: str, t_s: np.ndarray, t_start: float | None, t_end: float | None) -> slice:
     """The samples of a time window.
 

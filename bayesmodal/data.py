@@ -592,9 +592,8 @@ def load_experiment(
     else:
         roles = _csv_roles(path, opts)
     exp = _assemble(path, roles, opts, kind, path.stem)
-    part = _window.cut(str(path), exp.t_s, opts.t_start, opts.t_end)  # all by default
-    return Experiment(exp.t_s[part], exp.v_volt[part], exp.y_m[part], name=exp.name,
-                      source=exp.source, sha256=file_sha256(path))
+    t, v, y = _window.select(str(path), exp.t_s, exp.v_volt, exp.y_m, opts)  # all by default
+    return Experiment(t, v, y, name=exp.name, source=exp.source, sha256=file_sha256(path))
 
 
 def check_identifiable(experiment: Experiment) -> None:

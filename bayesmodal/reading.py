@@ -129,6 +129,14 @@ class ReadOptions:
         bounds must lie within the record and ``t_end > t_start``.  A window that does
         not start at rest needs its initial state estimated (``fit_lsq(...,
         initial_state="estimate")``, ``--initial-state estimate``).
+    release : {None, "auto"}
+        ``"auto"``: a hand-released free decay; the record (or its window) is cut at the
+        release, the last sample before the held cart moves (``bayesmodal._release``),
+        and its initial state must be estimated (the CLI does so).
+    rest_offset : {"none", "final"}
+        ``"final"``: subtract from each output its mean over the record's last 10 %, where
+        dry friction left the carts at rest away from the springs' equilibrium (refused
+        when they still move there).
 
     Examples
     --------
@@ -145,6 +153,8 @@ class ReadOptions:
     n_outputs: int | None = None
     t_start: float | None = None
     t_end: float | None = None
+    release: str | None = None
+    rest_offset: str = "none"
 
     def __post_init__(self) -> None:
         if self.columns is not None:
@@ -168,6 +178,12 @@ class ReadOptions:
         if self.t_start is not None and self.t_end is not None and self.t_end <= self.t_start:
             raise ConfigError(f"t_end ({self.t_end:g} s) must be after t_start "
                               f"({self.t_start:g} s)")
+        if self.release not in (None, "auto"):
+            raise ConfigError(f"release must be 'auto' (a hand-released decay, cut at the "
+                              f"release) or None, got {self.release!r}")
+        if self.rest_offset not in ("none", "final"):
+            raise ConfigError(f"rest_offset must be 'none' or 'final' (subtract the final "
+                              f"rest position), got {self.rest_offset!r}")
 
     @property
     def column_map(self) -> dict[str, str] | None:

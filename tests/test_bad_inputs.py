@@ -470,6 +470,10 @@ INPUTS = [
              r"not at rest; .*where the carts rest at 0 with no input",
              entries=("lsq", "run"), args=("--t-start", "0.3"),
              patterns={"lsq": r"fit it with --initial-state estimate, or start the window"}),
+    BadInput("release_driven", "a driven record (a 3 V pulse) read as a hand release",
+             _csv("driven.csv"), r"the input is not zero \(up to 3 V\); --release auto is "
+             r"for a cart released by hand with no input", entries=("load_experiment", "lsq"),
+             args=("--release", "auto")),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",

@@ -28,7 +28,7 @@ def add_data_args(p, *, many: bool = False) -> None:
 
 def add_reader_arguments(p) -> None:
     """Add ``--columns``, ``--input-scale``, ``--time-scale``, ``--m-per-count``,
-    ``--t-start`` and ``--t-end``."""
+    ``--t-start``, ``--t-end``, ``--release`` and ``--rest-offset``."""
     g = p.add_argument_group("reading lab files (see bayesmodal.data.ReadOptions)")
     g.add_argument("--columns", default=None, metavar="ROLE=COLUMN,...",
                    help="which column is time, input and outputs, e.g. "
@@ -52,6 +52,13 @@ def add_reader_arguments(p) -> None:
                         "needs --initial-state estimate) (default: the first sample)")
     g.add_argument("--t-end", default=None, type=float, metavar="S",
                    help="keep the record up to this time, s (default: the last sample)")
+    g.add_argument("--release", choices=["auto"], default=None,
+                   help="auto: a cart held displaced by hand, then released; cut the record "
+                        "at the release (the last sample before it moves) and estimate the "
+                        "initial state (default: no cut)")
+    g.add_argument("--rest-offset", choices=["none", "final"], default=None,
+                   help="final: subtract each output's mean over the record's last 10 %%, "
+                        "where dry friction left the carts at rest (default none)")
 
 
 def reader_options(args) -> ReadOptions:
@@ -64,7 +71,7 @@ def reader_options(args) -> ReadOptions:
         if text is not None:  # a sign flip of the input or the encoders is allowed
             scales[key] = parse_scale(text, "--" + opt.replace("_", "-"),
                                       signed=key != "time_scale")
-    window = {k: getattr(args, k) for k in ("t_start", "t_end")
+    window = {k: getattr(args, k) for k in ("t_start", "t_end", "release", "rest_offset")
               if getattr(args, k, None) is not None}
     return ReadOptions(columns=parse_columns(columns) if columns else None, **scales,
                        **window)
@@ -105,6 +112,8 @@ def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
     rig = load_rig(args) if getattr(args, "rig", None) else None
     opts = reader_options(args)
+    if opts.release is not None and hasattr(args, "initial_state"):
+        args.initial_state = "estimate"  # a released cart starts displaced, not at rest
     exps = []
     for p in paths:
         o = opts
