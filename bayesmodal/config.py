@@ -13,6 +13,8 @@ problem in a file is collected and reported at once, each naming the file and th
     time_scale = "1/1000"                        # optional: s per unit of the time
     time_base = "grid"                           # optional: auto, stamps or grid (a
                                                  # logger's stamps; CLI --time-base)
+    t_start = 2.0                                # optional: a time window, s of the
+    t_end = 12.0                                 # record's clock (starting at rest)
 
     [rig]
     springs_n_m = [774.0, 770.0, 396.0]   # a chain; or file = "my_rig.toml" (or a preset
@@ -125,7 +127,7 @@ NOISE_MODELS = ("ar1", "white")
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "data": {"files": list, "m_per_count": (int, float), "heldout": list, "columns": dict,
              "input_scale": (int, float, str), "time_scale": (int, float, str),
-             "time_base": str},
+             "time_base": str, "t_start": (int, float), "t_end": (int, float)},
     "rig": {"springs_n_m": list, "file": str, "name": str, "clamped": list, "carts": list,
             "springs": list, "dampers": dict, "drive": dict, "sensors": list},
     "model": {"damping": str, "extensions": list},
@@ -200,6 +202,8 @@ class RunConfig:
     input_scale: float = 1.0
     time_scale: float = 1.0
     time_base: str = "auto"
+    t_start: float | None = None
+    t_end: float | None = None
 
     #: Fields left out of the hash at their defaults (configs written before them keep
     #: their hashes).
@@ -207,7 +211,8 @@ class RunConfig:
                      "temperature": 1.0,
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None, "columns": None, "input_scale": 1.0,
-                     "time_scale": 1.0, "time_base": "auto", "init": "ball", "prune": None}
+                     "time_scale": 1.0, "time_base": "auto", "init": "ball", "prune": None,
+                     "t_start": None, "t_end": None}
 
     def read_options(self):
         """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
@@ -215,7 +220,8 @@ class RunConfig:
         from .reading import ReadOptions  # noqa: PLC0415
 
         return ReadOptions(columns=self.columns, input_scale=self.input_scale,
-                           time_scale=self.time_scale, time_base=self.time_base)
+                           time_scale=self.time_scale, time_base=self.time_base,
+                           t_start=self.t_start, t_end=self.t_end)
 
     def make_rig(self):
         """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
@@ -450,6 +456,16 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
                 f"must be one of {', '.join(TIME_BASES)}, got {time_base!r}")
         else:
             kw["time_base"] = time_base
+
+    window = {k: values[("data", k)] for k in ("t_start", "t_end") if ("data", k) in values}
+    if window:
+        from .reading import ReadOptions  # noqa: PLC0415
+
+        try:
+            ReadOptions(**window)
+            kw.update(window)
+        except ConfigError as exc:
+            err("data." + next(iter(window)), str(exc))
 
     springs = values.get(("rig", "springs_n_m"))
     if springs is not None:

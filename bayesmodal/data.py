@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _ecp_export, _readers
+from . import _channels, _ecp_export, _readers, _window
 from ._errors import DataError
 from .reading import ReadOptions, choose_time_base, drive_sign
 
@@ -482,7 +482,7 @@ def _vector(path: Path, role: str, a) -> np.ndarray:
     return np.asarray(a, dtype=float).ravel()
 
 
-_FORMATS = ("mat", "txt", "csv")
+_FORMATS = ("mat", "txt", "csv", *_channels.FORMATS)
 
 #: Largest plausible motor command, V (the ECP amplifier takes +-10 V).
 _MAX_PLAUSIBLE_V = 30.0
@@ -585,7 +585,9 @@ def load_experiment(
         ``.mat`` (MATLAB v5 or v7.3), ``.txt`` (columns separated by white space, optional
         header rows) or ``.csv`` (header row).  Without a column map: ECP ``.mat``/``.txt``
         with ``t, x1..xn, v`` in encoder counts, CSV with header ``t,v,x1..xn`` in SI units.
-    fmt : {"mat", "txt", "csv"}, optional
+        ``.uff``/``.unv`` (dataset 58 time records, ``pyuff``) and ``.tdms`` (``npTDMS``):
+        named channels with units (``bayesmodal._channels``).
+    fmt : {"mat", "txt", "csv", "uff", "unv", "tdms"}, optional
         Format; by default taken from the file extension.
     m_per_count : float, optional
         Metres per encoder count for the ECP ``.mat``/``.txt`` files, m (default
@@ -638,17 +640,21 @@ def load_experiment(
     if kind not in _FORMATS:
         raise DataError(
             f"{path}: unknown format {kind!r}; expected one of {_FORMATS} "
-            "(ECP .mat/.txt in counts, or CSV with header t,v,x1..xn in SI units)"
+            "(ECP .mat/.txt in counts, CSV with header t,v,x1..xn in SI units, UFF "
+            "dataset 58 or TDMS channels with units)"
         )
     _check_size(path, max_bytes)
     if kind == "mat":
         roles = _mat_roles(path, opts)
     elif kind == "txt":
         roles = _txt_roles(path, opts)
+    elif kind in _channels.FORMATS:  # instrument files: named channels with units
+        roles, opts = _channels.read_roles(path, kind, opts)
     else:
         roles = _csv_roles(path, opts)
     exp = _assemble(path, roles, opts, kind, path.stem)
-    return Experiment(exp.t_s, exp.v_volt, exp.y_m, name=exp.name, source=exp.source,
+    t, v, y = _window.select(str(path), exp.t_s, exp.v_volt, exp.y_m, opts)  # all by default
+    return Experiment(t, v, y, name=exp.name, source=exp.source,
                       sha256=file_sha256(path), recorded_stamps=exp.recorded_stamps)
 
 

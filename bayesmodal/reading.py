@@ -98,6 +98,19 @@ def _positive(name: str, value, *, allow_none: bool = False, signed: bool = Fals
     return x
 
 
+def _time(name: str, value) -> float | None:
+    """A finite time in s, or None."""
+    if value is None:
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a time in s, got {value!r}") from None
+    if isinstance(value, bool) or not np.isfinite(x):
+        raise ConfigError(f"{name} must be a finite time in s, got {value!r}")
+    return x
+
+
 @dataclass(frozen=True)
 class ReadOptions:
     """How to read a record whose layout or units differ from the ECP defaults.
@@ -128,6 +141,20 @@ class ReadOptions:
         jitter) are kept as recorded, anything else is refused; ``"stamps"``: keep the
         recorded stamps (only the linear fit simulates on them); ``"grid"``: put the
         stamps on their least-squares uniform grid.  See :func:`choose_time_base`.
+    t_start, t_end : float, optional
+        A time window, s of the record's own clock (after ``time_scale``): the samples
+        with ``t_start <= t <= t_end`` are kept, with their times as recorded.  Both
+        bounds must lie within the record and ``t_end > t_start``.  A window that does
+        not start at rest needs its initial state estimated (``fit_lsq(...,
+        initial_state="estimate")``, ``--initial-state estimate``).
+    release : {None, "auto"}
+        ``"auto"``: a hand-released free decay; the record (or its window) is cut at the
+        release, the last sample before the held cart moves (``bayesmodal._release``),
+        and its initial state must be estimated (the CLI does so).
+    rest_offset : {"none", "final"}
+        ``"final"``: subtract from each output its mean over the record's last 10 %, where
+        dry friction left the carts at rest away from the springs' equilibrium (refused
+        when they still move there).
 
     Examples
     --------
@@ -143,6 +170,10 @@ class ReadOptions:
     m_per_count: float | None = None
     n_outputs: int | None = None
     time_base: str = "auto"
+    t_start: float | None = None
+    t_end: float | None = None
+    release: str | None = None
+    rest_offset: str = "none"
 
     def __post_init__(self) -> None:
         if self.time_base not in TIME_BASES:
@@ -163,6 +194,17 @@ class ReadOptions:
             if m is not None and m != n:
                 raise ConfigError(f"the column map names {m} outputs but n_outputs is {n}")
             object.__setattr__(self, "n_outputs", n)
+        for key in ("t_start", "t_end"):
+            object.__setattr__(self, key, _time(key, getattr(self, key)))
+        if self.t_start is not None and self.t_end is not None and self.t_end <= self.t_start:
+            raise ConfigError(f"t_end ({self.t_end:g} s) must be after t_start "
+                              f"({self.t_start:g} s)")
+        if self.release not in (None, "auto"):
+            raise ConfigError(f"release must be 'auto' (a hand-released decay, cut at the "
+                              f"release) or None, got {self.release!r}")
+        if self.rest_offset not in ("none", "final"):
+            raise ConfigError(f"rest_offset must be 'none' or 'final' (subtract the final "
+                              f"rest position), got {self.rest_offset!r}")
 
     @property
     def column_map(self) -> dict[str, str] | None:

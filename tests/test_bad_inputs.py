@@ -206,6 +206,21 @@ def _export(name: str, *, cut: bool = False):
     return make
 
 
+def _instrument(name: str, **kw):
+    """A UFF dataset 58 or TDMS file (by the suffix of ``name``) of a pulse response in mm,
+    written by pyuff's or npTDMS's own writer; ``kw`` go to the writer."""
+
+    def make(folder: Path) -> str:
+        from instrument_writers import write_tdms, write_uff58
+
+        t, v, y = _record()
+        write = write_tdms if name.endswith(".tdms") else write_uff58
+        write(folder / name, DT, v, y, units=("mm",) * 3, **kw)
+        return name
+
+    return make
+
+
 def _sparse(name: str, size: int):
     def make(folder: Path) -> str:
         p = folder / name
@@ -430,6 +445,36 @@ INPUTS = [
              _export("cut.txt", cut=True),
              r"line 11 has 6 values, the header names 7 columns \(Sample, Time, Commanded "
              r"Pos, .*truncated or ragged export", entries=("load_experiment", "lsq")),
+    BadInput("uff_frf", "UFF file of frequency response functions (dataset 58 type 4)",
+             _instrument("frf.uff", func_type=4),
+             r"dataset 58 records of function type 4 \(frequency response function\), none "
+             r"a time response \(type 1\); bayesmodal reads time records",
+             entries=("load_experiment", "lsq")),
+    BadInput("tdms_garbage", "4 kB of random bytes named `.tdms`",
+             _write("noise.tdms", _GARBAGE), r"not a TDMS file \(no TDSm lead-in\)",
+             entries=("load_experiment", "lsq")),
+    BadInput("tdms_no_unit", "TDMS outputs without a unit label",
+             _instrument("bare.tdms", label_outputs=False),
+             r"no displacement channel \(a length unit such as m or mm, or counts\); name "
+             r"the channels with --columns", entries=("load_experiment", "lsq")),
+    BadInput("tdms_no_unit_mapped", "TDMS outputs without a unit label, mapped by name",
+             _instrument("bare.tdms", label_outputs=False),
+             r"output channel 'cart1' has the unit 'none', not a length or counts; give "
+             r"metres per unit with --m-per-count", entries=("load_experiment", "lsq"),
+             args=("--columns", "t=time,v=drive,x1=cart1,x2=cart2,x3=cart3")),
+    BadInput("window_outside", "a time window after the record's end",
+             _csv("short.csv"), r"t_start = 30 s is outside the record; the record spans 0 to "
+             r"1.995 s \(step 0.005 s\)", entries=("load_experiment", "lsq", "run"),
+             args=("--t-start", "30")),
+    BadInput("window_in_motion", "a time window that starts while the carts swing",
+             _csv("swing.csv"), r"the window starts at t = 0.3 s with output 1 at -?\d.* mm, "
+             r"not at rest; .*where the carts rest at 0 with no input",
+             entries=("lsq", "run"), args=("--t-start", "0.3"),
+             patterns={"lsq": r"fit it with --initial-state estimate, or start the window"}),
+    BadInput("release_driven", "a driven record (a 3 V pulse) read as a hand release",
+             _csv("driven.csv"), r"the input is not zero \(up to 3 V\); --release auto is "
+             r"for a cart released by hand with no input", entries=("load_experiment", "lsq"),
+             args=("--release", "auto")),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",
@@ -528,10 +573,10 @@ def _config_data(args: tuple[str, ...]) -> str:
         if key == "columns":
             pairs = (item.split("=", 1) for item in val.split(","))
             lines.append("columns = { " + ", ".join(f'{r} = "{c}"' for r, c in pairs) + " }")
-        elif key == "m_per_count":   # a number in the configuration
+        elif key in ("m_per_count", "t_start", "t_end"):   # a number in the configuration
             from bayesmodal.reading import parse_scale
 
-            lines.append(f"{key} = {parse_scale(val)!r}")
+            lines.append(f"{key} = {parse_scale(val, signed=True)!r}")
         else:   # a number or fraction, as on the command line
             lines.append(f'{key} = "{val}"')
     return "".join(ln + "\n" for ln in lines)

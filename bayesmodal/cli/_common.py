@@ -17,16 +17,18 @@ def add_data_args(p, *, many: bool = False) -> None:
     """Add the positional DATA argument(s) and the reader options."""
     if many:
         p.add_argument("data", nargs="+", metavar="DATA",
-                       help="data files (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI)")
+                       help="data files (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI, "
+                       ".uff/.unv dataset 58 or .tdms channels with units)")
     else:
         p.add_argument("data", metavar="DATA",
-                       help="data file (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI)")
+                       help="data file (.mat/.txt ECP in counts, .csv t,v,x1..xn in SI, "
+                       ".uff/.unv dataset 58 or .tdms channels with units)")
     add_reader_arguments(p)
 
 
 def add_reader_arguments(p) -> None:
-    """Add ``--columns``, ``--input-scale``, ``--time-scale``, ``--m-per-count`` and
-    ``--time-base``."""
+    """Add ``--columns``, ``--input-scale``, ``--time-scale``, ``--m-per-count``,
+    ``--time-base``, ``--t-start``, ``--t-end``, ``--release`` and ``--rest-offset``."""
     g = p.add_argument_group("reading lab files (see bayesmodal.data.ReadOptions)")
     g.add_argument("--columns", default=None, metavar="ROLE=COLUMN,...",
                    help="which column is time, input and outputs, e.g. "
@@ -49,6 +51,19 @@ def add_reader_arguments(p) -> None:
                         "kept as recorded (the linear fit simulates on them, step by step); "
                         "stamps: keep the recorded stamps; grid: put the stamps on their "
                         "least-squares uniform grid (analyses that need one)")
+    g.add_argument("--t-start", default=None, type=float, metavar="S",
+                   help="keep the record from this time on, s of the record's own clock "
+                        "(times stay as recorded; a window that does not start at rest "
+                        "needs --initial-state estimate) (default: the first sample)")
+    g.add_argument("--t-end", default=None, type=float, metavar="S",
+                   help="keep the record up to this time, s (default: the last sample)")
+    g.add_argument("--release", choices=["auto"], default=None,
+                   help="auto: a cart held displaced by hand, then released; cut the record "
+                        "at the release (the last sample before it moves) and estimate the "
+                        "initial state (default: no cut)")
+    g.add_argument("--rest-offset", choices=["none", "final"], default=None,
+                   help="final: subtract each output's mean over the record's last 10 %%, "
+                        "where dry friction left the carts at rest (default none)")
 
 
 def reader_options(args) -> ReadOptions:
@@ -61,8 +76,11 @@ def reader_options(args) -> ReadOptions:
         if text is not None:  # a sign flip of the input or the encoders is allowed
             scales[key] = parse_scale(text, "--" + opt.replace("_", "-"),
                                       signed=key != "time_scale")
+    window = {k: getattr(args, k) for k in ("t_start", "t_end", "release", "rest_offset")
+              if getattr(args, k, None) is not None}
     return ReadOptions(columns=parse_columns(columns) if columns else None,
-                       time_base=getattr(args, "time_base", None) or "auto", **scales)
+                       time_base=getattr(args, "time_base", None) or "auto", **scales,
+                       **window)
 
 
 def load_data(paths, args) -> list[Experiment]:
@@ -100,6 +118,8 @@ def load_args(args) -> list[Experiment]:
     paths = args.data if isinstance(args.data, list) else [args.data]
     rig = load_rig(args) if getattr(args, "rig", None) else None
     opts = reader_options(args)
+    if opts.release is not None and hasattr(args, "initial_state"):
+        args.initial_state = "estimate"  # a released cart starts displaced, not at rest
     exps = []
     for p in paths:
         o = opts
@@ -118,8 +138,22 @@ def load_args(args) -> list[Experiment]:
                             f"{args.rig!r} has {rig.n_outputs} sensors; give one column "
                             "per sensor, in the rig's sensor order")
         if getattr(args, "initial_state", "rest") == "rest":
+            if opts.t_start is not None:  # the fit starts the window from rest
+                _check_rest(e, opts, hasattr(args, "initial_state"))
             check_identifiable(e)  # (a free decay has no input: checked by the fit)
     return exps
+
+
+def _check_rest(e: Experiment, opts: ReadOptions, can_estimate: bool) -> None:
+    """Refuse a window that does not start at rest for a fit that assumes it does."""
+    from .._window import motion_at_start
+
+    why = motion_at_start(e.y_m, e.v_volt, e.dt)
+    if why:
+        fix = "fit it with --initial-state estimate, or " if can_estimate else ""
+        raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s "
+                        f"with {why}, not at rest; {fix}start the window where the carts "
+                        "rest at 0 with no input")
 
 
 def print_json(obj) -> None:

@@ -104,6 +104,16 @@ def _prior(ov):
     return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
 
 
+def _check_window_rest(e: Experiment) -> None:
+    from .._window import motion_at_start
+
+    why = motion_at_start(e.y_m, e.v_volt, e.dt)
+    if why:
+        raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s with "
+                        f"{why}, not at rest; a run starts every record from rest: set "
+                        "t_start where the carts rest at 0 with no input")
+
+
 def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Experiment, ...]:
     out = []
     for f in files:
@@ -111,6 +121,8 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
             out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count,
                                        options=cfg.read_options()))
             if fitted:
+                if cfg.t_start is not None:  # a run starts every record from rest
+                    _check_window_rest(out[-1])
                 check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
             raise ConfigError(f"{cfg.source}: [{key}] {exc}") from exc
