@@ -36,7 +36,7 @@ FORBIDDEN_MODULES = {"pickle", "cPickle", "dill", "shelve", "marshal", "cloudpic
 EXEC_ALLOWED = {"_kernels.py", "discrepancy/kernels/_codegen.py"}
 #: Modules that call ``_compile`` of the modules above with generated kernel lines.
 COMPILE_CALLERS = ("discrepancy/kernels/backlash.py", "discrepancy/kernels/coulomb.py",
-                   "discrepancy/kernels/cubic.py", "discrepancy/kernels/expm.py",
+                   "discrepancy/kernels/cubic.py",
                    "discrepancy/kernels/linear_input.py",
                    "discrepancy/kernels/lugre.py", "inference/noise/kalman.py")
 
