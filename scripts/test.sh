@@ -9,8 +9,11 @@ cd "$(dirname "$0")/.."
 ensure_venv "[test]"
 if [ $# -eq 0 ]; then
     # one pytest worker per core (pytest-xdist), each test file on one worker so that its
-    # module fixtures are built once; BAYESMODAL_TEST_WORKERS=0 runs in this process);
-    # the ten slowest tests are listed at the end, so every run shows where the time goes
-    set -- -m "not slow" -n "${BAYESMODAL_TEST_WORKERS:-auto}" --dist loadfile --durations=10
+    # module fixtures are built once; BAYESMODAL_TEST_WORKERS=0 runs in this process),
+    # the files in the order tests/conftest.py gives them (the longest first, not
+    # pytest-xdist's most-tests-first); the ten slowest tests are listed at the end, so
+    # every run shows where the time goes
+    set -- -m "not slow" -n "${BAYESMODAL_TEST_WORKERS:-auto}" --dist loadfile \
+        --no-loadscope-reorder --durations=10
 fi
 "$VENV/bin/python" -m pytest -q "$@"

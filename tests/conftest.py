@@ -216,3 +216,22 @@ def shape_atol(method, M, K, omega2, U):
     norm = np.linalg.norm(U, axis=-2)
     return np.broadcast_to((s * norm * (1 + np.max(np.abs(U), axis=-2)))[..., None, :],
                            np.shape(U))
+
+
+# ----------------------------------------------------------------------------- scheduling
+#: Test files that take longest in the default suite from an empty kernel cache (the ten
+#: slowest tests that `scripts/test.sh` lists, summed by file), longest first.  With
+#: `--dist loadfile` pytest-xdist hands files to the workers in collection order, so a
+#: long file collected late finishes alone after the other worker has run out of files;
+#: collected first, the short files fill in around it (longest processing time first).
+LONGEST_FIRST = ("test_diagnose_hidden.py", "test_extensions.py", "test_diagnose_forward.py",
+                 "test_runs_run.py", "test_docs.py", "test_inference_extension.py",
+                 "test_end_stop.py", "test_effects_global_fit.py", "test_bench.py",
+                 "test_diagnostics.py", "test_effects_combined_filters.py")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Run the longest test files first (``LONGEST_FIRST``), the rest in their order."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    order = {id(item): i for i, item in enumerate(items)}
+    items.sort(key=lambda it: (rank.get(it.path.name, len(rank)), order[id(it)]))
