@@ -224,3 +224,30 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
         rank=rank,
         min_fit_percent=min_fit,
     )
+
+
+def require_identified(result, experiments, what: str) -> None:
+    """Raise ``IdentificationError`` when the linear least-squares fit that ``what`` (a
+    posterior, a diagnosis) starts from is not identified (:func:`identify`).
+
+    An analysis built on such a fit would sample, or search for effects around, an
+    estimate that is not an answer; one line names the records, the cause and the fix.
+
+    Parameters
+    ----------
+    result : LSQResult
+        The least-squares fit.
+    experiments : sequence of Experiment
+        The records it was fitted to (their names and sources name them).
+    what : str
+        The analysis that needs the fit, e.g. ``"the posterior"``.
+    """
+    from ._errors import IdentificationError
+
+    exps = list(experiments)
+    verdict = identify(result, [e.name for e in exps])
+    if not verdict.identified:
+        where = ", ".join(str(e.source or e.name) for e in exps)
+        raise IdentificationError(f"{where}: not identified: the linear least-squares fit "
+                                  f"{what} starts from does not determine its parameters: "
+                                  f"{verdict.reason}")

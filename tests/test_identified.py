@@ -136,3 +136,33 @@ def test_lsq_json_of_a_normal_record_says_identified(tmp_path):
     assert code == 0, err
     js = json.loads(out)
     assert js["identified"] is True and js["reason"] == "" and js["problems"] == []
+
+
+@pytest.mark.parametrize("command", [
+    ["sample", "--steps", "10", "--walkers", "32"],
+    ["diagnose", "--no-posterior", "--null", "19"],
+])
+def test_sample_and_diagnose_refuse_a_reversed_drive_before_any_work(command, tmp_path):
+    """The posterior and the diagnosis start from the linear fit: on a record it does not
+    identify they stop at once with one line (no sampling, no null calibration), where a
+    posterior around g_v = 0 or a search for effects behind a reversed drive would be a
+    wrong answer with exit 0."""
+    path = tmp_path / "rev.csv"
+    save_csv(_record(-1.0), path)
+    code, out, err = _cli([command[0], str(path), *command[1:]])
+    errors = [e for e in err if ": error: " in e]
+    assert code == 2 and out == "" and len(errors) == 1, err
+    assert errors[0].startswith(f"bayesmodal {command[0]}: error: {path}: not identified: "
+                                "the linear least-squares fit")
+    assert "--input-scale -1" in errors[0]
+    assert not list(tmp_path.glob("*.nc")) and not list(tmp_path.glob("*.h5"))
+
+
+def test_require_identified_passes_a_normal_fit(fits):
+    from bayesmodal.identified import require_identified
+
+    # negative control: an identified fit goes through, a reversed one does not
+    require_identified(fits["normal"], [_record(1.0)], "the posterior")
+    with pytest.raises(ValueError, match="not identified: the linear least-squares fit the "
+                                         "posterior starts from"):
+        require_identified(fits["reversed"], [_record(-1.0)], "the posterior")

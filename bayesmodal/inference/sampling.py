@@ -38,6 +38,7 @@ from .._progress import progress_bar
 from ..config import extension_revisions
 from ..data import Experiment
 from ..fit import LSQResult, fit_lsq
+from ..identified import require_identified
 from ..system import LinearModel
 from .likelihood import Likelihood, as_experiments
 from .mode import posterior_mode
@@ -648,6 +649,7 @@ def sample_posterior(
         if isinstance(noise, str) and noise.strip().lower() == "ar:auto":
             if start is None and extension is None:
                 start = fit_lsq(list(exps), model)
+                require_identified(start, exps, "the posterior")
             noise = choose_noise(exps, model, start, extension=extension)
     if layout is None:
         lik = Likelihood(model, exps, noise, extension, initial_state)
@@ -698,6 +700,9 @@ def sample_posterior(
     if ext is None:
         if start is None:
             start = fit_lsq(list(exps), model, initial_state=initial_state)
+            # no posterior around an estimate that is not an answer (a reversed drive, an
+            # input that is not the motor command): one line with the cause and the fix
+            require_identified(start, exps, "the posterior")
         lsq = start if isinstance(start, LSQResult) else None
         theta_mech = np.asarray(start.theta if lsq is not None else start, dtype=float)
         if lik.initial_state_names and lsq is not None:

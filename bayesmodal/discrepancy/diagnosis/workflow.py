@@ -36,6 +36,7 @@ from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import announce, progress_bar
 from ...data import Experiment
 from ...fit import fit_lsq
+from ...identified import require_identified
 from ...metrics import fit_percent
 from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
@@ -303,6 +304,7 @@ def diagnose(
     announce("diagnose: least-squares fit of the linear model", enabled=progress)
     with np.errstate(all="ignore"):
         linear = fit_lsq(train_exps, model)
+    require_identified(linear, train_exps, "the diagnosis")
     y_lin = [simulate_linear(model, linear.theta, e.v_volt, e.dt) for e in train_exps]
     noise = fit_noise([e.y_m - y for e, y in zip(train_exps, y_lin, strict=True)], q)
 
