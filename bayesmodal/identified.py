@@ -88,6 +88,11 @@ class Identification:
         identified.
     problems : tuple of str
         Every problem found, most decisive first (``reason`` is ``problems[0]``).
+    rules : tuple of str
+        The rule behind each problem, in the same order: ``"bound"`` (a gain, mass or
+        spring indistinguishable from 0), ``"stderr"`` (a standard error not finite),
+        ``"jacobian"`` (not finite or rank-deficient), ``"fit"`` (below 0 %),
+        ``"damper"`` (a log-scale damper beyond the Jacobian's resolution).
     relative_stderr : ndarray, shape (n_params,)
         Standard error over the absolute estimate, per parameter (``inf`` for an estimate
         of 0, ``nan`` for a standard error that is not finite).
@@ -103,6 +108,7 @@ class Identification:
     identified: bool
     reason: str
     problems: tuple[str, ...]
+    rules: tuple[str, ...]
     relative_stderr: np.ndarray
     singular_values: np.ndarray | None
     rank: int | None
@@ -165,13 +171,18 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     if names is None:
         names = [f"record {i + 1}" for i in range(fits.shape[0])]
     problems: list[str] = []
+    rules: list[str] = []
+
+    def add(rule: str, text: str) -> None:
+        rules.append(rule)
+        problems.append(text)
 
     # 1. a parameter whose zero switches the model off, indistinguishable from that zero
     for i, (name, kind) in enumerate(zip(model.names, kinds, strict=True)):
         if kind in _ESSENTIAL and (theta[i] <= 0 or rel[i] >= MAX_RELATIVE_STDERR):
             what = {"gain": "the drive gain", "mass": "the mass",
                     "spring": "the spring"}[kind]
-            problems.append(f"{what} {name} is indistinguishable from its bound 0 (zero "
+            add("bound", f"{what} {name} is indistinguishable from its bound 0 (zero "
                             f"within one standard error: {_value(name, theta[i], se[i])}): "
                             f"{_BOUND_FIX[kind]}")
     # 2. standard errors that are not finite
@@ -180,20 +191,20 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
         # the names only: an estimate without an error says nothing, and where the fit
         # stopped on a singular J^T J depends on the optimiser's path
         shown = ", ".join(model.names[i] for i in bad[:3])
-        problems.append(f"no finite standard error for {shown} (J^T J is singular at the "
+        add("stderr", f"no finite standard error for {shown} (J^T J is singular at the "
                         f"estimate): the data do not determine them; {_INPUT_FIX}")
     # 3. a rank-deficient Jacobian
     s = result.jac_singular_values
     rank = None
     if s is not None and not np.all(np.isfinite(s)):
-        problems.append("the Jacobian is not finite at the estimate (a parameter ran off "
+        add("jacobian", "the Jacobian is not finite at the estimate (a parameter ran off "
                         f"to an extreme): the data do not determine it; {_INPUT_FIX}")
     elif s is not None and np.size(s):
         s = np.asarray(s, float)
         tol = max(result.jac_shape[0], s.size) * np.finfo(float).eps * s[0]
         rank = int(np.sum(s > tol))
         if rank < s.size:
-            problems.append(f"the Jacobian is rank-deficient (rank {rank} of {s.size}; "
+            add("jacobian", f"the Jacobian is rank-deficient (rank {rank} of {s.size}; "
                             f"smallest singular value {sig(s[-1] / s[0], 2)} of the "
                             "largest): some parameters are not determined by these "
                             f"records; {_INPUT_FIX}, or fix the undetermined parameters "
@@ -202,7 +213,7 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     min_fit = float(np.min(fits)) if fits.size else float("nan")
     if fits.size and min_fit < 0:
         e, k = np.unravel_index(int(np.argmin(fits)), fits.shape)
-        problems.append(f"the model explains less than the record's mean (fit "
+        add("fit", f"the model explains less than the record's mean (fit "
                         f"{min_fit:.1f} % on output {k + 1} of {names[e]}): the estimate "
                         "does not describe the record; check the input's sign "
                         "(--input-scale -1 for a reversed drive) and column (--columns "
@@ -212,13 +223,14 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
              and np.isfinite(se[i]) and rel[i] > MAX_RELATIVE_STDERR_DAMPER]
     if loose:
         shown = ", ".join(_value(model.names[i], theta[i], se[i]) for i in loose[:3])
-        problems.append(f"standard error over {sig(MAX_RELATIVE_STDERR_DAMPER, 2)} times "
+        add("damper", f"standard error over {sig(MAX_RELATIVE_STDERR_DAMPER, 2)} times "
                         f"the estimate for {shown}: the data do not determine them; "
                         f"{_INPUT_FIX}")
     return Identification(
         identified=not problems,
         reason=problems[0] if problems else "",
         problems=tuple(problems),
+        rules=tuple(rules),
         relative_stderr=rel,
         singular_values=s,
         rank=rank,
@@ -226,9 +238,19 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     )
 
 
-def require_identified(result, experiments, what: str) -> None:
+#: The rules whose failure makes an analysis built on the linear fit a wrong answer: a
+#: drive gain, mass or spring that may be 0 (a reversed drive ends with g_v at 0) and a
+#: fit below the record's mean (an input that is not the motor command).  A singular
+#: J^T J alone is not among them: on records with strong dry friction the linear fit's
+#: dampers end on their bound and its standard errors are not finite, and those are the
+#: records ``diagnose`` is for.
+STARTING_POINT_RULES = ("bound", "fit")
+
+
+def require_identified(result, experiments, what: str,
+                       rules: Sequence[str] = STARTING_POINT_RULES) -> None:
     """Raise ``IdentificationError`` when the linear least-squares fit that ``what`` (a
-    posterior, a diagnosis) starts from is not identified (:func:`identify`).
+    posterior, a diagnosis) starts from fails one of ``rules`` (:func:`identify`).
 
     An analysis built on such a fit would sample, or search for effects around, an
     estimate that is not an answer; one line names the records, the cause and the fix.
@@ -241,13 +263,17 @@ def require_identified(result, experiments, what: str) -> None:
         The records it was fitted to (their names and sources name them).
     what : str
         The analysis that needs the fit, e.g. ``"the posterior"``.
+    rules : sequence of str
+        The rules that refuse (``Identification.rules``); default
+        ``STARTING_POINT_RULES``.
     """
     from ._errors import IdentificationError
 
     exps = list(experiments)
     verdict = identify(result, [e.name for e in exps])
-    if not verdict.identified:
+    failed = [p for p, r in zip(verdict.problems, verdict.rules, strict=True) if r in rules]
+    if failed:
         where = ", ".join(str(e.source or e.name) for e in exps)
         raise IdentificationError(f"{where}: not identified: the linear least-squares fit "
                                   f"{what} starts from does not determine its parameters: "
-                                  f"{verdict.reason}")
+                                  f"{failed[0]}")

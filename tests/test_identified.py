@@ -166,3 +166,17 @@ def test_require_identified_passes_a_normal_fit(fits):
     with pytest.raises(ValueError, match="not identified: the linear least-squares fit the "
                                          "posterior starts from"):
         require_identified(fits["reversed"], [_record(-1.0)], "the posterior")
+
+
+def test_a_singular_covariance_alone_does_not_stop_the_analyses(fits):
+    """On records with strong dry friction the linear fit's J^T J is singular (dampers on
+    their bound): its standard errors are not finite, which ``lsq`` reports, but the
+    posterior and the diagnosis may start from it; a drive gain at 0 stops them."""
+    from bayesmodal.identified import require_identified
+
+    res = fits["normal"]
+    singular = replace(res, cov=np.full_like(res.cov, np.nan))
+    v = identify(singular)
+    assert not v.identified and v.rules[0] == "stderr" and len(v.rules) == len(v.problems)
+    require_identified(singular, [_record(1.0)], "the diagnosis")
+    assert "bound" in identify(fits["reversed"]).rules
