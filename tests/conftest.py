@@ -218,6 +218,24 @@ def shape_atol(method, M, K, omega2, U):
                            np.shape(U))
 
 
+# ----------------------------------------------------------------------------- the CLI
+def run_cli(argv: list[str]) -> tuple[int, str, list[str]]:
+    """Run ``bayesmodal ARGV`` in this process: exit code, stdout, and stderr's lines
+    (every warning shown, as the command line shows each one once)."""
+    import contextlib
+    import io
+    import warnings
+
+    from bayesmodal.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
+            warnings.catch_warnings():
+        warnings.simplefilter("always")  # shown by the CLI, one line each
+        code = main(list(argv))
+    return code, out.getvalue(), err.getvalue().splitlines()
+
+
 # ----------------------------------------------------------------------------- scheduling
 #: Test files that take longest in the default suite from an empty kernel cache (the ten
 #: slowest tests that `scripts/test.sh` lists, summed by file), longest first.  With

@@ -12,7 +12,6 @@ that the committed table is what the cases produce: each row of the table is a t
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import os
@@ -25,10 +24,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.io
+from conftest import run_cli as _cli
 from ecp_export_writer import ECP_DT, write_export
 
 from bayesmodal import DataError
-from bayesmodal.cli import main
 from bayesmodal.data import MAX_FILE_BYTES, Experiment, load_experiment, save_csv
 from bayesmodal.simulate import simulate_linear
 from bayesmodal.system import LinearModel, Rig
@@ -580,15 +579,6 @@ def _config_data(args: tuple[str, ...]) -> str:
         else:   # a number or fraction, as on the command line
             lines.append(f'{key} = "{val}"')
     return "".join(ln + "\n" for ln in lines)
-
-
-def _cli(argv: list[str]) -> tuple[int, str, list[str]]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
-            warnings.catch_warnings():
-        warnings.simplefilter("always")  # shown by the CLI, one line each
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue().splitlines()
 
 
 def run_case(entry: str, bad: BadInput, folder: Path) -> Outcome:

@@ -9,16 +9,13 @@ the whole result with ``--json``.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
-import warnings
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import run_cli as _cli
 
-from bayesmodal.cli import main
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.fit import fit_lsq
 from bayesmodal.identified import MAX_RELATIVE_STDERR, identify
@@ -97,15 +94,6 @@ def test_each_rule_alone(fits):
     fp[0, 2] = -3.0
     v = identify(replace(res, fit_percent=fp), ["rec"])
     assert not v.identified and "fit -3.0 % on output 3 of rec" in v.reason
-
-
-def _cli(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
-            warnings.catch_warnings():
-        warnings.simplefilter("always")  # shown by the CLI, one line each
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue().splitlines()
 
 
 def test_lsq_refuses_a_reversed_drive_with_one_line(tmp_path):

@@ -9,16 +9,14 @@ fix.  The record is simulated from a known truth with the input negated; read wi
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import warnings
 
 import numpy as np
 import pytest
+from conftest import run_cli as _cli
 
 from bayesmodal import ConfigError
-from bayesmodal.cli import main
 from bayesmodal.config import parse_config
 from bayesmodal.data import Experiment, load_experiment, save_csv
 from bayesmodal.reading import ReadOptions, drive_sign, parse_scale
@@ -89,15 +87,6 @@ def test_a_reversed_drive_is_guessed_from_the_static_response(tmp_path):
     # no input, or a record too short for the band: no guess
     assert drive_sign(0 * v, y, DT) is None
     assert drive_sign(v[:100], y[:100], DT) is None
-
-
-def _cli(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
-            warnings.catch_warnings():
-        warnings.simplefilter("always")
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue().splitlines()
 
 
 @pytest.mark.parametrize("flip_outputs", [False, True], ids=["input-scale", "m-per-count"])
