@@ -357,11 +357,6 @@ def test_an_exchange_mends_a_wrong_plant_side_effect_accepted_first():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "with scipy 1.17.1 / numpy 2.4.6 (fresh venv of 26 Nov 2026; the same at the landed "
-    "d3bc4a3) the forced backlash fit of seed 20002 is exchanged for cubic stiffness, "
-    "then motor lag and input delay are added: the exchange's test is only as good as "
-    "the local fit of the effect it replaces (docs/diagnose.md, 'Exchanges')"))
 def test_an_exchange_leaves_a_true_plant_side_effect_in_place():
     """Negative control of the exchange: on backlash + motor lag data (seed 20002), started
     from backlash, the backlash stays and the lag is added."""
