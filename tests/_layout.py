@@ -118,6 +118,20 @@ def overlaps(a, b, tol: float = OVERLAP_TOL_PX) -> bool:
     return w > tol and h > tol
 
 
+def _legends(fig) -> list[tuple[str, object]]:
+    """The figure's legends and those of its axes, each with a description."""
+    legends = [(f"figure legend {k}", leg) for k, leg in enumerate(fig.legends)]
+    legends += [(f"axes {i} legend", a.get_legend()) for i, a in enumerate(fig.axes)
+                if a.get_legend() is not None]
+    return legends
+
+
+def _inside(p: np.ndarray, box) -> np.ndarray:
+    """Which display points ``p`` (shape (n, 2)) lie in the bounding box ``box``."""
+    return ((p[:, 0] >= box.x0) & (p[:, 0] <= box.x1)
+            & (p[:, 1] >= box.y0) & (p[:, 1] <= box.y1))
+
+
 def legend_cover(fig, renderer=None) -> list[tuple[str, int, float]]:
     """Share of each axes' data points that each legend covers.
 
@@ -137,9 +151,7 @@ def legend_cover(fig, renderer=None) -> list[tuple[str, int, float]]:
         inside the legend's box, for every legend and axes whose boxes meet.
     """
     r = renderer or fig.canvas.get_renderer()
-    legends = [(f"figure legend {k}", leg) for k, leg in enumerate(fig.legends)]
-    legends += [(f"axes {i} legend", a.get_legend()) for i, a in enumerate(fig.axes)
-                if a.get_legend() is not None]
+    legends = _legends(fig)
     out = []
     for i, a in enumerate(fig.axes):
         if not a.get_visible():
@@ -161,9 +173,7 @@ def legend_cover(fig, renderer=None) -> list[tuple[str, int, float]]:
             box = leg.get_window_extent(r)
             if not overlaps(box, frame, 0.0):
                 continue
-            inside = ((p[:, 0] >= box.x0) & (p[:, 0] <= box.x1)
-                      & (p[:, 1] >= box.y0) & (p[:, 1] <= box.y1))
-            out.append((name, i, float(np.mean(inside))))
+            out.append((name, i, float(np.mean(_inside(p, box)))))
     return out
 
 
@@ -187,9 +197,7 @@ def legend_hides_peaks(fig, renderer=None) -> list[tuple[str, int]]:
         Legend description and index of the axes in ``fig.axes`` whose curve it covers.
     """
     r = renderer or fig.canvas.get_renderer()
-    legends = [(f"figure legend {k}", leg) for k, leg in enumerate(fig.legends)]
-    legends += [(f"axes {i} legend", a.get_legend()) for i, a in enumerate(fig.axes)
-                if a.get_legend() is not None]
+    legends = _legends(fig)
     out = []
     for i, a in enumerate(fig.axes):
         if not a.get_visible():
@@ -206,9 +214,7 @@ def legend_hides_peaks(fig, renderer=None) -> list[tuple[str, int]]:
         p = np.concatenate(peaks)
         for name, leg in legends:
             box = leg.get_window_extent(r)
-            if leg.get_visible() and np.any(
-                    (p[:, 0] >= box.x0) & (p[:, 0] <= box.x1)
-                    & (p[:, 1] >= box.y0) & (p[:, 1] <= box.y1)):
+            if leg.get_visible() and np.any(_inside(p, box)):
                 out.append((name, i))
     return out
 
