@@ -13,8 +13,9 @@ problem in a file is collected and reported at once, each naming the file and th
     time_scale = "1/1000"                        # optional: s per unit of the time
     time_base = "grid"                           # optional: auto, stamps or grid (a
                                                  # logger's stamps; CLI --time-base)
-    t_start = 2.0                                # optional: a time window, s of the
-    t_end = 12.0                                 # record's clock (starting at rest)
+    t_start = 2.0                                # optional: keep the record from this
+                                                 # time on, s of the record's clock
+    t_end = 12.0                                 # optional: keep it up to this time, s
 
     [rig]
     springs_n_m = [774.0, 770.0, 396.0]   # a chain; or file = "my_rig.toml" (or a preset
@@ -30,28 +31,30 @@ problem in a file is collected and reported at once, each naming the file and th
     sigma_1 = { lo = 1e-7, hi = 1e-3, scale = "log" }   # noise: sigma_i (m), phi_i
 
     [likelihood]
-    noise = "ar1"               # or "white"
+    noise = "ar1"               # residual model: white, ar1, iar1, arP, ar(p1,...,pn),
+                                # ar:auto or process (docs/reference/noise.md)
     temperature = 1.0           # optional: generalised posterior L^(1/T), or "loro":
                                 # calibrated by leave-one-record-out coverage
 
     [records]                   # optional: several records, one physical system
     per_record = { g_v = "hierarchical", v0 = "hierarchical" }   # or "independent"
-    noise_per_record = false
+    noise_per_record = false    # true: each record its own noise parameters
     noise_scale = "none"        # or "response": each record's noise level sized by the
                                 # model's response to its input, or "power": by that
                                 # size to a sampled power in [0, 1] (docs/uncertainty.md)
 
     [crossval]                  # optional: leave-one-record-out check of the run
-    enabled = true
+    enabled = true              # run the check after the posterior run
     draws = 200                 # posterior draws per held-out prediction
+    walkers = 32                # walkers per fold (default [sampler] walkers)
     steps = 4000                # sampler steps per fold (default [sampler] steps)
 
     [sampler]
-    walkers = 32
-    steps = 5000
-    burn = 1000
-    thin = 5
-    seed = 1
+    walkers = 32                # emcee ensemble size
+    steps = 5000                # steps per walker
+    burn = 1000                 # steps discarded as burn-in (< steps)
+    thin = 5                    # keep every thin-th step after the burn-in
+    seed = 1                    # random seed: the same seed gives the same chain
     moves = "de"                # de, stretch, de-snooker, de-jump, walk, kde, "de:0.8,de-jump:0.2"
     restart = 500               # optional: re-centre the walkers on the best one at this
                                 # step (< burn), for walkers stuck in a negligible mode
@@ -64,9 +67,9 @@ problem in a file is collected and reported at once, each naming the file and th
 
     [outputs]
     dir = "impulses-free"       # relative to the output root; no "..", not absolute
-    plots = true
-    report = true
-    predictive_draws = 200
+    plots = true                # the run's figures
+    report = true               # report.html
+    predictive_draws = 200      # posterior draws of the posterior predictive
     ema = true                  # LSCE cross-check (bayesmodal.ema) in the report
     checkpoint_every_s = 5.0    # seconds between atomic checkpoint writes
     pointwise_loglik = true     # false leaves the pointwise log-likelihood out of
@@ -76,9 +79,9 @@ problem in a file is collected and reported at once, each naming the file and th
                                 # float64 checkpoint
 
     [evidence]                  # optional nested-sampling evidence (dynesty), slow
-    enabled = false
-    nlive = 250
-    dlogz = 0.5
+    enabled = false             # compute the Bayesian evidence of the model
+    nlive = 250                 # live points
+    dlogz = 0.5                 # stop when the remaining evidence is below this, in log
 
 Data paths are looked up relative to the config file, then ``$BAYESMODAL_DATA``, then
 ``../shared/data`` beside the repository.
