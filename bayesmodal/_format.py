@@ -28,17 +28,22 @@ _UNITS = (
 )
 
 
-def param_unit(name: str) -> str:
-    """Unit of a rig parameter (``"kg"`` for ``"m2"``), or ``""`` when not known.
+#: Units per unit of drive gain (N/V) of a rig where nothing absolute is known.
+PER_UNIT_GAIN = {"kg": "V s^2/m", "N/m": "V/m", "N s/m": "V s/m"}
+
+
+def param_unit(name: str, per_unit_gain: bool = False) -> str:
+    """Unit of a rig parameter (``"kg"`` for ``"m2"``), or ``""`` when not known;
+    ``per_unit_gain``: per N/V of drive gain (``"V s^2/m"`` for a mass).
 
     Examples
     --------
-    >>> param_unit("c12"), param_unit("cb"), param_unit("phi1")
-    ('N s/m', 's', '')
+    >>> param_unit("c12"), param_unit("cb"), param_unit("phi1"), param_unit("m1", True)
+    ('N s/m', 's', '', 'V s^2/m')
     """
     for pattern, unit in _UNITS:
         if re.fullmatch(pattern, name):
-            return unit
+            return PER_UNIT_GAIN.get(unit, unit) if per_unit_gain else unit
     return ""
 
 

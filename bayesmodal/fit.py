@@ -23,7 +23,8 @@ from ._errors import DataError, ModelError
 from .data import Experiment, check_identifiable
 from .metrics import fit_percent
 from .simulate import simulate_linear
-from .system import LinearModel
+from .system import LinearModel, param_kinds
+from .system import log_scale_mask as _log_mask
 
 __all__ = ["LSQResult", "fit_lsq", "default_start"]
 
@@ -99,29 +100,12 @@ class LSQResult:
         return identify(self)
 
 
-def param_kinds(model: LinearModel) -> tuple[str, ...]:
-    """Kind of each parameter: gain, mass, ground (damper), pair (damper), ca, cb, spring."""
-    out = []
-    for name in model.names:
-        if name == "g_v":
-            out.append("gain")
-        elif name in ("ca", "cb"):
-            out.append(name)
-        elif name[0] == "m" and name[1:].isdigit():
-            out.append("mass")
-        elif name[0] == "c" and name[1:].isdigit() and int(name[1:]) <= len(model.rig.carts):
-            out.append("ground")
-        elif name[0] == "c":
-            out.append("pair")
-        else:
-            out.append("spring")
-    return tuple(out)
-
-
 def default_start(model: LinearModel) -> np.ndarray:
     """A neutral starting point: g_v 5.25 N/V (nominal), masses 1 kg, small damping.
 
-    Carts of nominal mass start at their mass and unknown springs at their nominal stiffness.
+    Carts of nominal mass start at their mass and unknown springs at their nominal stiffness;
+    on a rig identified per unit of drive gain (``Rig.per_unit_gain``) masses, dampers and
+    springs start at these values divided by the nominal gain.
     """
     n = model.n_carts
     if model.rig.is_chain:
@@ -135,30 +119,20 @@ def default_start(model: LinearModel) -> np.ndarray:
                     if c.mass_kg is not None}
     springs = {s.name: s.stiffness_n_m for s in rig.springs}
     base = {"gain": 5.25, "ground": 1.0, "pair": 0.1, "ca": 1.0, "cb": 1e-4}
+    # per unit of drive gain: the nominal values divided by the nominal gain (the
+    # natural frequencies of the start are the nominal ones)
+    per_unit = 1.0 / base["gain"] if rig.per_unit_gain else 1.0
     out = []
     for name, kind in zip(model.names, param_kinds(model), strict=True):
         if kind == "mass":
-            out.append(nominal_mass.get(name, 1.0))
+            out.append(nominal_mass.get(name, 1.0) * per_unit)
         elif kind == "spring":
-            out.append(springs[name])
+            out.append(springs[name] * per_unit)
+        elif kind in ("ground", "pair", "ca"):
+            out.append(base[kind] * (per_unit if kind != "ca" else 1.0))
         else:
             out.append(base[kind])
     return np.array(out)
-
-
-def _log_mask(model: LinearModel) -> np.ndarray:
-    n = model.n_carts
-    if not model.rig.is_chain:
-        # positive scale parameters in log space; the dampers that may vanish stay linear
-        return np.array([k in ("gain", "mass", "ground", "ca", "spring")
-                         for k in param_kinds(model)])
-    mask = np.zeros(model.n_params, bool)
-    mask[: 1 + n] = True  # g_v and masses
-    if model.damping == "free":
-        mask[1 + n : 1 + 2 * n] = True  # absolute dampers are clearly non-zero on a rig
-    else:
-        mask[1 + n] = True  # ca
-    return mask
 
 
 INITIAL_STATES = ("rest", "estimate")

@@ -441,12 +441,19 @@ def steady_state(
     if reference not in _REFERENCES:
         raise ModelError(f"reference must be one of {_REFERENCES}, got {reference!r}")
     rig = Rig() if rig is None else rig
-    rig.require_chain("the static-gain analysis")  # the level-to-gain formulas assume it
+    chain = rig.is_chain and rig.n_carts >= 2
     e = experiment
-    if e.n_outputs != rig.n_carts:
-        raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")
-    if rig.n_carts < 2:
-        raise DataError("stiffness ratios need at least two carts")
+    if e.n_outputs != rig.n_outputs:
+        raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_outputs} "
+                        "sensors")
+    if not chain:
+        # the gain from the levels and the known springs: x / v = g_v C K^-1 d
+        unknown = [s.name for s in rig.springs if not s.known]
+        if unknown or not rig.drive:
+            raise ModelError(
+                "the static gain needs every spring known and a drive; "
+                f"{'springs ' + ', '.join(unknown) + ' are unknown' if unknown else 'no drive'}"
+                " (fit them with `bayesmodal lsq`, or give known = true)")
     p = find_plateaus(e, **plateau_options) if plateaus is None else plateaus
     on_idx, xs, vs = [], [], []
     for i in np.flatnonzero(p.on):
@@ -475,11 +482,20 @@ def steady_state(
     x_inf = np.array(xs)
     v_inf = np.array(vs)
     x_per_volt = x_inf / v_inf[:, None]
-    g_each, r_each = gains_from_levels(x_per_volt, rig.springs_n_m)
-    g, r = gains_from_levels(x_per_volt.mean(axis=0), rig.springs_n_m)
-    k = np.asarray(rig.springs_n_m)
-    nominal_r = k[-1] / k[:-1]
-    n = rig.n_carts
+    if chain:
+        g_each, r_each = gains_from_levels(x_per_volt, rig.springs_n_m)
+        g, r = gains_from_levels(x_per_volt.mean(axis=0), rig.springs_n_m)
+        k = np.asarray(rig.springs_n_m)
+        nominal_r = k[-1] / k[:-1]
+        n = rig.n_carts
+        ratio_names = tuple(f"k{n}/k{i + 1}" for i in range(n - 1))
+    else:
+        # least squares over the sensors of x / v = g_v a, a = C K^-1 d (m/N)
+        a = rig.output_matrix() @ np.linalg.solve(rig.stiffness_matrix(), rig.input_vector())
+        g_each = x_per_volt @ a / (a @ a)
+        g = float(x_per_volt.mean(axis=0) @ a / (a @ a))
+        r_each, r, nominal_r, ratio_names = (np.empty((len(xs), 0)), np.empty(0),
+                                             np.empty(0), ())
     return StaticResult(
         experiment=e,
         plateaus=p,
@@ -493,7 +509,7 @@ def steady_state(
         g_v_se=float(_se(g_each[:, None])[0]),
         ratios=r,
         ratios_se=_se(r_each),
-        ratio_names=tuple(f"k{n}/k{i + 1}" for i in range(n - 1)),
+        ratio_names=ratio_names,
         nominal_g_v=float(nominal_g_v),
         nominal_ratios=nominal_r,
         g_v_error_percent=float(100.0 * (g - nominal_g_v) / nominal_g_v),

@@ -267,6 +267,11 @@ class Rig:
         The damping model the description declares (``[dampers] proportional = true`` or
         ``false`` in TOML); ``LinearModel`` refuses another one.  None (default): not
         declared, chosen with the model.
+    ties : tuple of tuple of str
+        Groups of unknown parameters of one kind that share one value (``(("k1", "k2"),)``
+        for "you may assume k1 = k2", ``(("m1", "m2"),)`` for equal masses); the first
+        name of a group is the parameter, the others follow it.  ``ties = [["k1", "k2"]]``
+        in TOML.
     name : str
         Free-text label.
 
@@ -293,6 +298,7 @@ class Rig:
     clamped: tuple[str, ...] = ()
     gain_n_v: float | None = None
     damping: str | None = None
+    ties: tuple[tuple[str, ...], ...] = ()
     name: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
@@ -441,6 +447,22 @@ class Rig:
 
         if self.gain_n_v is not None:
             set_(self, "gain_n_v", _finite_positive(self.gain_n_v, "gain_n_v (N/V)"))
+        ties = self.ties or ()
+        if isinstance(ties, (str, bytes)) or not isinstance(ties, Sequence):
+            raise ModelError(f"ties must be a list of name lists, got {ties!r}")
+        groups, seen = [], set()
+        for g in ties:
+            if isinstance(g, (str, bytes)) or not isinstance(g, Sequence) or len(g) < 2:
+                raise ModelError(f"each tie is a list of at least two parameter names, e.g. "
+                                 f"[\"k1\", \"k2\"]; got {g!r}")
+            g = tuple(str(x) for x in g)
+            twice = [x for x in g if x in seen or g.count(x) > 1]
+            if twice:
+                raise ModelError(f"parameter {twice[0]!r} is in two ties (or twice in one); "
+                                 "merge them into one group")
+            seen |= set(g)
+            groups.append(g)
+        set_(self, "ties", tuple(groups))
         set_(self, "carts", carts)
         set_(self, "springs", springs)
         set_(self, "dampers", dampers)
@@ -494,7 +516,20 @@ class Rig:
             and [s.cart for s in self.sensors] == names
             and not self.clamped
             and self.gain_n_v is None
+            and not self.ties
         )
+
+    @property
+    def per_unit_gain(self) -> bool:
+        """True when nothing absolute is known (no known mass, spring or input gain) and a
+        motor drives the rig: the model then fixes the gain at 1 and every mass, damper
+        and spring is identified per unit of drive gain (kg per N/V = V s^2/m, N s/m per
+        N/V = V s/m, N/m per N/V = V/m).  Frequencies, damping ratios and mode shapes do
+        not depend on the scale."""
+        free = self.free_carts
+        known_mass = any(c.mass == "known" for c in self.carts if c.name in free)
+        known_spring = any(s.known and (s.a in free or s.b in free) for s in self.springs)
+        return bool(self.drive) and self.gain_n_v is None and not (known_mass or known_spring)
 
     def require_chain(self, what: str) -> None:
         """Raise ModelError unless the rig is the chain driven at cart 1 (``is_chain``).
@@ -612,7 +647,7 @@ def _layout(rig: Rig, damping: str) -> _Layout:
     names: list[str] = []
     positive: list[bool] = []
     gain = None
-    if rig.drive and rig.gain_n_v is None:
+    if rig.drive and rig.gain_n_v is None and not rig.per_unit_gain:
         gain = 0
         names.append("g_v")
         positive.append(True)
@@ -658,12 +693,60 @@ def _layout(rig: Rig, damping: str) -> _Layout:
     outputs = np.array([free.index(s.cart) for s in rig.sensors])
     if outputs.size == n and np.array_equal(outputs, np.arange(n)):
         outputs = None
+    if rig.ties:
+        names, positive, (gain, mass_idx, c_idx, k_idx) = _apply_ties(
+            rig, names, positive, (gain, mass_idx, c_idx, k_idx))
     return _Layout(
         names=tuple(names), gain=gain, mass_idx=np.array(mass_idx, int),
         mass_dof=np.array(mass_dof, int), masses0=masses0, k_idx=np.array(k_idx, int),
         k_pat=np.array(k_pat).reshape(-1, n, n), K0=K0, c_idx=np.array(c_idx, int),
         c_pat=np.array(c_pat).reshape(-1, n, n), positive=np.array(positive, bool),
         outputs=outputs)
+
+
+def _kind_of(name: str) -> str:
+    """``gain``, ``mass``, ``damper`` or ``spring`` of a linear parameter name."""
+    if name == "g_v":
+        return "gain"
+    if name[0] == "m" and name[1:].isdigit():
+        return "mass"
+    if name in ("ca", "cb") or (name[0] == "c" and name[1:].replace("_", "").isdigit()):
+        return "damper"
+    return "spring"
+
+
+def _apply_ties(rig: Rig, names: list, positive: list, index_lists: tuple):
+    """Merge each tie group into its first parameter: the names and positivity without the
+    followers, and every parameter index (``None``, an int or a list) mapped to the new
+    vector, a follower to its group's first parameter."""
+    head = {}
+    for g in rig.ties:
+        unknown = [x for x in g if x not in names]
+        if unknown:
+            springs = {s.name: s for s in rig.springs}
+            hint = (f"spring {unknown[0]} is known; only unknown springs (known = false) can "
+                    "be tied" if unknown[0] in springs else
+                    f"the model's parameters are {tuple(names)}")
+            raise ModelError(f"tie {list(g)}: {unknown[0]!r} is not a parameter ({hint})")
+        kinds = {_kind_of(x) for x in g}
+        if len(kinds) > 1:
+            raise ModelError(f"tie {list(g)} joins parameters of different kinds ({sorted(kinds)});"
+                             " tie masses with masses, springs with springs, dampers with "
+                             "dampers")
+        for x in g[1:]:
+            head[x] = g[0]
+    kept = [x for x in names if x not in head]
+    new = {x: kept.index(head.get(x, x)) for x in names}
+
+    def remap(idx):
+        if idx is None:
+            return None
+        if isinstance(idx, int):
+            return new[names[idx]]
+        return [new[names[j]] for j in idx]
+
+    pos = [p for x, p in zip(names, positive, strict=True) if x not in head]
+    return kept, pos, tuple(remap(i) for i in index_lists)
 
 
 def _check_scale(rig: Rig) -> None:
@@ -673,7 +756,7 @@ def _check_scale(rig: Rig) -> None:
     known_mass = any(c.mass == "known" for c in rig.carts if c.name in free)
     known_spring = any(s.known and (s.a in free or s.b in free) for s in rig.springs)
     known_gain = rig.gain_n_v is not None and bool(rig.drive)
-    if not (known_mass or known_spring or known_gain):
+    if not (known_mass or known_spring or known_gain or rig.per_unit_gain):
         raise ModelError(
             "masses, springs and input gain cannot be separated (all unknown: scaling them "
             "together gives the same motion); add a known mass (mass = \"known\", mass_kg), "
@@ -766,6 +849,18 @@ class LinearModel:
     @property
     def n_params(self) -> int:
         return len(self.names)
+
+    @property
+    def scale(self) -> str:
+        """``"absolute"``, or ``"per_unit_gain"`` when nothing absolute is known
+        (``Rig.per_unit_gain``: masses in V s^2/m, dampers in V s/m, springs in V/m)."""
+        return "per_unit_gain" if self.rig.per_unit_gain else "absolute"
+
+    @property
+    def tied(self) -> dict[str, str]:
+        """Each tied parameter that follows another: ``{"k2": "k1"}`` for ``ties =
+        [["k1", "k2"]]``."""
+        return {x: g[0] for g in self.rig.ties for x in g[1:]}
 
     def as_vector(self, params: dict[str, float]) -> np.ndarray:
         """Parameter vector, shape (n_params,), from a name-to-value mapping.
@@ -876,8 +971,12 @@ class LinearModel:
             C = theta[..., ia, None, None] * M + theta[..., ia + 1, None, None] * K
         else:
             C = np.einsum("...j,jab->...ab", theta[..., lay.c_idx], lay.c_pat)
-        g = theta[..., lay.gain] if lay.gain is not None else np.full(
-            batch, self.rig.gain_n_v if self.rig.gain_n_v is not None else 0.0)
+        if lay.gain is not None:
+            g = theta[..., lay.gain]
+        elif self.rig.per_unit_gain:
+            g = np.ones(batch)  # everything per unit of drive gain
+        else:
+            g = np.full(batch, self.rig.gain_n_v if self.rig.gain_n_v is not None else 0.0)
         b = g[..., None] * self.rig.input_vector()
         return M, C, K, b
 
@@ -889,14 +988,64 @@ class LinearModel:
         A : ndarray, shape (..., 2n, 2n), 1/s and 1/s^2 blocks
         B : ndarray, shape (..., 2n), m/(V s^2) in the acceleration block
         """
-        M, C, K, b = self.matrices(theta)
-        n = self.rig.n_carts
-        inv_m = 1.0 / np.diagonal(M, axis1=-2, axis2=-1)  # M is diagonal
-        batch = M.shape[:-2]
-        A = np.zeros(batch + (2 * n, 2 * n))
-        A[..., :n, n:] = np.eye(n)
-        A[..., n:, :n] = -inv_m[..., :, None] * K
-        A[..., n:, n:] = -inv_m[..., :, None] * C
-        B = np.zeros(batch + (2 * n,))
-        B[..., n:] = inv_m * b
-        return A, B
+        return state_space_from(*self.matrices(theta))
+
+
+def state_space_from(M, C, K, b) -> tuple[np.ndarray, np.ndarray]:
+    """State-space matrices of ``M x'' + C x' + K x = b v`` for state ``(x, x')``.
+
+    Parameters
+    ----------
+    M, C, K : ndarray, shape (..., n, n)
+        Mass (diagonal, kg), damping (N s/m) and stiffness (N/m) matrices.
+    b : ndarray, shape (..., n)
+        Force per volt, N/V.
+
+    Returns
+    -------
+    A : ndarray, shape (..., 2n, 2n), 1/s and 1/s^2 blocks
+    B : ndarray, shape (..., 2n), m/(V s^2) in the acceleration block
+    """
+    n = M.shape[-1]
+    inv_m = 1.0 / np.diagonal(M, axis1=-2, axis2=-1)  # M is diagonal
+    batch = M.shape[:-2]
+    A = np.zeros(batch + (2 * n, 2 * n))
+    A[..., :n, n:] = np.eye(n)
+    A[..., n:, :n] = -inv_m[..., :, None] * K
+    A[..., n:, n:] = -inv_m[..., :, None] * C
+    B = np.zeros(batch + (2 * n,))
+    B[..., n:] = inv_m * b
+    return A, B
+
+
+def param_kinds(model: LinearModel) -> tuple[str, ...]:
+    """Kind of each parameter: gain, mass, ground (damper), pair (damper), ca, cb, spring."""
+    out = []
+    for name in model.names:
+        if name == "g_v":
+            out.append("gain")
+        elif name in ("ca", "cb"):
+            out.append(name)
+        elif name[0] == "m" and name[1:].isdigit():
+            out.append("mass")
+        elif name[0] == "c" and name[1:].isdigit() and int(name[1:]) <= len(model.rig.carts):
+            out.append("ground")
+        elif name[0] == "c":
+            out.append("pair")
+        else:
+            out.append("spring")
+    return tuple(out)
+
+
+def log_scale_mask(model: LinearModel) -> np.ndarray:
+    """Parameters a fit moves on a log scale, shape (n_params,) bool: the positive scale
+    parameters (gain, masses, dampers to the frame, ``ca``, springs); the dampers across
+    two carts and ``cb``, which may vanish, stay linear."""
+    return np.array([k in ("gain", "mass", "ground", "ca", "spring")
+                     for k in param_kinds(model)])
+
+
+def damper_mask(model: LinearModel) -> np.ndarray:
+    """The free damping model's dampers (to the frame and across two carts), shape
+    (n_params,) bool."""
+    return np.array([k in ("ground", "pair") for k in param_kinds(model)])

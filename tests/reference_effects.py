@@ -17,6 +17,7 @@ from reference_sim import (
     MAX_STEP_FRACTION,
     RTOL,
     V_EPS,
+    driven,
     input_segments,
     n_linear,
     rig_matrices,
@@ -77,14 +78,15 @@ def simulate_linear_chain_ref(springs, theta_lin, u, dt, *, v_offset=0.0, v_dead
     M, C, K, b = rig_matrices(springs, theta_lin)
     n = M.shape[0]
     minv = 1.0 / np.diag(M)
-    g_v = b[0]
+    j = driven(springs)
+    g_v = b[j]  # signed by the drive's share
     v = input_chain_ref(u, v_offset=v_offset, v_dead=v_dead, width=width, v_sat=v_sat,
                         kappa=kappa)
 
     def rhs(z, vin):
         x, xd, f = z[:n], z[n : 2 * n], z[2 * n]
         force = -K @ x - C @ xd
-        force[0] += f if tau > 0 else g_v * vin
+        force[j] += f if tau > 0 else g_v * vin
         fdot = (g_v * vin - f) / tau if tau > 0 else 0.0
         return np.r_[xd, minv * force, fdot]
 

@@ -25,35 +25,82 @@ V_EPS = 1e-12  # m/s, velocity below which a reversing cart counts as stopped
 
 
 # ---------------------------------------------------------------------------- the rig
+class RefLayout:
+    """A rig assembled by hand for the references: carts ``0..n-1`` (the free ones; an end
+    at a clamped cart is the frame, ``-1``), springs ``(a, b, k)``, a damper from every
+    cart to the frame and one across every spring that joins two carts, the motor on cart
+    ``driven`` with ``share`` (``-1``: a reversed drive) and sensors on ``outputs``.
+
+    Parameter vector: ``g_v``, ``m_0..m_{n-1}``, the frame dampers ``c_0..c_{n-1}``, then
+    the dampers across the springs joining two carts, in spring order.
+    """
+
+    def __init__(self, n, springs, *, driven=0, share=1.0, outputs=None):
+        self.n = int(n)
+        self.springs = [(int(a), int(b), float(k)) for a, b, k in springs]
+        self.driven = int(driven)
+        self.share = float(share)
+        self.outputs = list(range(self.n)) if outputs is None else list(outputs)
+        self.pairs = [(a, b) for a, b, _ in self.springs if a >= 0 and b >= 0]
+        self.n_linear = 1 + 2 * self.n + len(self.pairs)
+
+    @property
+    def spring_ends(self):
+        """``(a, b)`` of each spring; its extension is ``x_b - x_a`` (frame: 0)."""
+        return [(a, b) for a, b, _ in self.springs]
+
+    def matrices(self, theta_lin):
+        n = self.n
+        th = np.asarray(theta_lin, float)
+        g_v, m, c_abs, c_rel = th[0], th[1 : 1 + n], th[1 + n : 1 + 2 * n], th[1 + 2 * n :]
+        K = np.zeros((n, n))
+        C = np.diag(c_abs).astype(float)
+        for a, b, k in self.springs:
+            for i in (a, b):
+                if i >= 0:
+                    K[i, i] += k
+            if a >= 0 and b >= 0:
+                K[a, b] -= k
+                K[b, a] -= k
+        for (a, b), c in zip(self.pairs, c_rel, strict=True):
+            C[a, a] += c
+            C[b, b] += c
+            C[a, b] -= c
+            C[b, a] -= c
+        b_vec = np.zeros(n)
+        b_vec[self.driven] = self.share * g_v
+        return np.diag(m), C, K, b_vec
+
+
+def chain_layout(springs) -> RefLayout:
+    """The chain: spring i joins cart i and i + 1, the last one cart n - 1 to the frame."""
+    k = np.asarray(springs, float)
+    n = k.size
+    return RefLayout(n, [(i, i + 1 if i < n - 1 else -1, k[i]) for i in range(n)])
+
+
+def layout_of(springs) -> RefLayout:
+    """A ``RefLayout`` as given, or the chain of the stiffnesses ``springs``."""
+    return springs if isinstance(springs, RefLayout) else chain_layout(springs)
+
+
 def rig_matrices(springs, theta_lin):
-    """M, C, K (n, n) and b (n,) of the chain with free damping.
+    """M, C, K (n, n) and b (n,) of the chain (or of a ``RefLayout``) with free damping.
 
     Cart i (0-based) is joined to cart i + 1 by spring k_i and damper c_{i,i+1}; the last
     spring joins the last cart to the frame; c_i are dampers to the frame; the motor force
     g_v v acts on cart 0.
     """
-    k = np.asarray(springs, float)
-    n = k.size
-    th = np.asarray(theta_lin, float)
-    g_v, m, c_abs, c_rel = th[0], th[1 : 1 + n], th[1 + n : 1 + 2 * n], th[1 + 2 * n :]
-    M = np.diag(m)
-    K = np.zeros((n, n))
-    C = np.diag(c_abs).astype(float)
-    for i in range(n - 1):
-        for mat, val in ((K, k[i]), (C, c_rel[i])):
-            mat[i, i] += val
-            mat[i + 1, i + 1] += val
-            mat[i, i + 1] -= val
-            mat[i + 1, i] -= val
-    K[n - 1, n - 1] += k[n - 1]
-    b = np.zeros(n)
-    b[0] = g_v
-    return M, C, K, b
+    return layout_of(springs).matrices(theta_lin)
 
 
 def n_linear(springs) -> int:
-    n = len(springs)
-    return 1 + n + n + (n - 1)
+    return layout_of(springs).n_linear
+
+
+def driven(springs) -> int:
+    """The cart the motor drives (0-based)."""
+    return layout_of(springs).driven
 
 
 def input_segments(u, dt, delay=0.0):
@@ -127,18 +174,19 @@ def simulate_linear_ref(springs, theta, u, dt):
 
 # ---------------------------------------------------------------------------- extensions
 def simulate_motor_lag_ref(springs, theta, u, dt):
-    """Motor force ``f' = (g_v v - f) / tau`` acting on cart 1."""
+    """Motor force ``f' = (g_v v - f) / tau`` acting on the driven cart."""
     p = n_linear(springs)
     M, C, K, b = rig_matrices(springs, theta[:p])
     tau = theta[p]
     n = M.shape[0]
     minv = 1.0 / np.diag(M)
-    g_v = b[0]
+    j = driven(springs)
+    g_v = b[j]  # signed by the drive's share
 
     def rhs(z, v):
         x, xd, f = z[:n], z[n : 2 * n], z[2 * n]
         force = -K @ x - C @ xd
-        force[0] += f
+        force[j] += f
         return np.r_[xd, minv * force, (g_v * v - f) / tau]
 
     return integrate_smooth(rhs, np.zeros(2 * n + 1), u, dt, n_out=n)
@@ -169,11 +217,18 @@ def simulate_cubic_ref(springs, theta, u, dt):
     k3 = np.asarray(theta[p:], float)
     n = M.shape[0]
 
+    ends = layout_of(springs).spring_ends
+
     def cubic(x):
-        ext = np.r_[x[1:] - x[:-1], -x[-1]]  # spring i: x_{i+1} - x_i, last: -x_n
-        g = k3 * ext**3
-        force = g.copy()
-        force[1:] -= g[:-1]
+        force = np.zeros(n)
+        for (a, b_end), k in zip(ends, k3, strict=True):
+            # spring from a to b: extension x_b - x_a (an end at the frame does not move)
+            e = (x[b_end] if b_end >= 0 else 0.0) - (x[a] if a >= 0 else 0.0)
+            g = k * e**3
+            if a >= 0:
+                force[a] += g
+            if b_end >= 0:
+                force[b_end] -= g
         return force
 
     return integrate_smooth(_linear_rhs(M, C, K, b, cubic), np.zeros(2 * n), u, dt, n_out=n)
@@ -292,7 +347,8 @@ def simulate_backlash_ref(springs, theta, u, dt, tau=0.0):
     gap, m_p = float(theta[p]), float(theta[p + 1])
     n = M.shape[0]
     m = np.diag(M).copy()
-    g_v = b[0]
+    j = driven(springs)
+    g_v = b[j]  # signed by the drive's share
     N = len(u)
     t_s = np.arange(N) * dt
     Y = np.empty((N, n))
@@ -306,21 +362,21 @@ def simulate_backlash_ref(springs, theta, u, dt, tau=0.0):
 
     def accel_engaged(z, v):
         F = -K @ z[:n] - C @ z[n : 2 * n]
-        F[0] += drive(z, v)
+        F[j] += drive(z, v)
         return F / m
 
     def contact_force(z, v):
-        return drive(z, v) - m_p * accel_engaged(z, v)[0]
+        return drive(z, v) - m_p * accel_engaged(z, v)[j]
 
     def rhs(t, z, v):
         x, xd = z[:n], z[n : 2 * n]
         if state["engaged"]:
             a = accel_engaged(z, v)
-            out = np.r_[xd, a, xd[0], a[0]]
+            out = np.r_[xd, a, xd[j], a[j]]
         else:
             F = -K @ x - C @ xd
             mm = m.copy()
-            mm[0] -= m_p
+            mm[j] -= m_p
             out = np.r_[xd, F / mm, z[2 * n + 1], drive(z, v) / m_p]
         return np.r_[out, (g_v * v - z[2 * n + 2]) / tau] if lag else out
 
@@ -332,10 +388,10 @@ def simulate_backlash_ref(springs, theta, u, dt, tau=0.0):
             return [opened]
 
         def hit_pos(t, z, *_):
-            return z[2 * n] - z[0] - half
+            return z[2 * n] - z[j] - half
 
         def hit_neg(t, z, *_):
-            return z[2 * n] - z[0] + half
+            return z[2 * n] - z[j] + half
         hit_pos.terminal, hit_pos.direction = True, 1.0
         hit_neg.terminal, hit_neg.direction = True, -1.0
         return [hit_pos, hit_neg]
@@ -363,10 +419,10 @@ def simulate_backlash_ref(springs, theta, u, dt, tau=0.0):
                 else:
                     hit = 0 if len(sol.t_events[0]) else 1
                     state["side"] = 1.0 if hit == 0 else -1.0
-                    vc = (m_p * z[2 * n + 1] + (m[0] - m_p) * z[n]) / m[0]
-                    z[n] = vc
+                    vc = (m_p * z[2 * n + 1] + (m[j] - m_p) * z[n + j]) / m[j]
+                    z[n + j] = vc
                     z[2 * n + 1] = vc
-                    z[2 * n] = z[0] + state["side"] * half
+                    z[2 * n] = z[j] + state["side"] * half
                     state["engaged"] = True
                     maybe_open(z, val)
             t = t_stop

@@ -20,6 +20,7 @@ from reference_sim import (
     MAX_STEP_FRACTION,
     RTOL,
     V_EPS,
+    driven,
     input_segments,
     n_linear,
     rig_matrices,
@@ -69,9 +70,11 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
     d = np.zeros(n)
     inside = [False]  # cart 1 in contact with the stop (it starts at rest, away from it)
 
+    j = driven(springs)  # the stop is on the driven cart
+
     def net(z, v):
         F = b * v - K @ z[:n] - C @ z[n:]
-        F[0] += _stop_force(z[0], side, x_stop, k_stop)
+        F[j] += _stop_force(z[j], side, x_stop, k_stop)
         return F
 
     def rhs(t, z, v):
@@ -96,7 +99,7 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
             out.append(e)
 
         def contact(t, z, *_):  # the kink of the stop force: restart the solver there
-            return side * z[0] - x_stop
+            return side * z[j] - x_stop
         contact.terminal = True
         contact.direction = -1.0 if inside[0] else 1.0  # the next release or contact
         return out + [contact]
@@ -156,6 +159,7 @@ def simulate_lugre_stop_ref(springs, theta, u, dt, *, side=1):
     fc, fs = np.asarray(theta[p : p + n], float), np.asarray(theta[p + n : p + 2 * n], float)
     s0, s1, vs = (float(theta[p + 2 * n + j]) for j in range(3))
     x_stop, k_stop = float(theta[p + 2 * n + 3]), float(theta[p + 2 * n + 4])
+    j = driven(springs)  # the stop is on the driven cart
 
     def rhs(t, z, v):
         x, xd, zb = z[:n], z[n : 2 * n], z[2 * n :]
@@ -164,13 +168,13 @@ def simulate_lugre_stop_ref(springs, theta, u, dt, *, side=1):
             relax = np.where(g > 0, s0 * np.abs(xd) * zb / g, 0.0)
         zdot = xd - relax
         force = b * v - K @ x - C @ xd - (s0 * zb + s1 * zdot)
-        force[0] += _stop_force(x[0], side, x_stop, k_stop)
+        force[j] += _stop_force(x[j], side, x_stop, k_stop)
         return np.r_[xd, minv * force, zdot]
 
     inside = [False]
 
     def contact(t, z, *_):
-        return side * z[0] - x_stop
+        return side * z[j] - x_stop
 
     t_s = np.arange(len(u)) * dt
     Y = np.empty((len(u), n))

@@ -9,6 +9,7 @@ input is constant.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 
@@ -560,31 +561,38 @@ def test_good_description_is_accepted():  # control for the table above
 
 
 def test_inseparable_scale_names_what_to_add():
+    # free decays only (no drive) and nothing known: no scale at all, refused with the fix
     rig = Rig(carts=(Cart("1"),), springs=(Spring("1", "frame", 500.0, known=False),),
-              drive=(Drive("1"),))
+              drive=())
     with pytest.raises(ModelError) as info:
         LinearModel(rig)
     msg = str(info.value)
     assert "known mass" in msg and "known spring" in msg and "static-gain" in msg
-    # each of the three fixes makes the model valid
-    LinearModel(Rig(carts=(Cart("1", "known", 1.0),), springs=rig.springs, drive=rig.drive))
-    LinearModel(Rig(carts=rig.carts, springs=(Spring("1", "frame", 500.0),), drive=rig.drive))
-    LinearModel(Rig(carts=rig.carts, springs=rig.springs, drive=rig.drive, gain_n_v=6.0))
+    # each of the three fixes makes the model absolute
+    driven = dataclasses.replace(rig, drive=(Drive("1"),))
+    for fixed in (Rig(carts=(Cart("1", "known", 1.0),), springs=rig.springs, drive=rig.drive),
+                  Rig(carts=rig.carts, springs=(Spring("1", "frame", 500.0),),
+                      drive=driven.drive),
+                  dataclasses.replace(driven, gain_n_v=6.0)):
+        assert LinearModel(fixed).scale == "absolute"
+    # with a drive and nothing known: per unit of drive gain (tests/test_rig_scale_ties.py)
+    assert LinearModel(driven).scale == "per_unit_gain"
 
 
-# ---------------------------------------------------------- extensions and the chain
-def test_extensions_refuse_other_layouts():
+# ---------------------------------------------------------- extensions on other layouts
+def test_extensions_take_other_layouts():
     from bayesmodal.discrepancy.effects import EXTENSIONS
 
     other = load_rig("ecp210-2cart-frame-at-drive")
+    t = np.arange(50) * DT
+    e = Experiment(t, np.ones(50), np.zeros((50, 2)) + t[:, None])
     for name, ext in EXTENSIONS.items():
-        ext.names(Rig((774.0, 770.0)))  # the two-cart chain is supported
-        with pytest.raises(ModelError, match="needs the chain rig"):
-            ext.names(other)
-        t = np.arange(50) * DT
-        e = Experiment(t, np.ones(50), np.zeros((50, 2)) + t[:, None])
-        with pytest.raises(ModelError, match=f"the {name} extension: needs the chain"):
-            Likelihood(LinearModel(other, "free"), [e], extension=name)
+        assert ext.unsupported(other) is None, name
+        lik = Likelihood(LinearModel(other, "free"), [e], extension=name)
+        assert lik.extension is ext
+    assert EXTENSIONS["coulomb_friction"].extension_names(other) == ("Fc1", "Fc2", "Fs1",
+                                                                     "Fs2")
+    assert EXTENSIONS["cubic_stiffness"].extension_names(other) == ("k3_1", "k3_2")
 
 
 # ------------------------------------------------------------------ CLI and config

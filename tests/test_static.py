@@ -83,6 +83,41 @@ def test_synthetic_steps_recover_gain_and_ratios_within_standard_errors():
     assert res.g_v_se < 2e-3 * 6.0
 
 
+@pytest.mark.parametrize("share", [1.0, -1.0])
+def test_gain_on_a_rig_other_than_the_chain(share):
+    """Two carts with the frame spring at the driven cart (and the reversed drive): the
+    gain from the levels and the known springs, x / v = g_v C K^-1 d, within 4 standard
+    errors; no stiffness ratios (they are the chain's)."""
+    import dataclasses
+
+    from bayesmodal.rigs import load_rig
+    from bayesmodal.system import Drive
+
+    rig = load_rig("ecp210-2cart-frame-at-drive")
+    rig = dataclasses.replace(rig, drive=(Drive("1", share),))
+    model = LinearModel(rig, "proportional")
+    dt = 0.005
+    t = np.arange(int(10 / dt) * 6) * dt
+    v = np.where((t % 10.0) < 5.0, 0.5, 0.0)
+    y = simulate_linear(model, np.array([6.0, 1.5, 1.3, 10.0, 1e-4]), v, dt)
+    e = Experiment(t, v, y + 20e-6 * np.random.default_rng(3).standard_normal(y.shape))
+    res = steady_state(e, rig=rig)
+    assert res.ratio_names == () and res.ratios.size == 0
+    assert np.isfinite(res.g_v_se) and 0 < res.g_v_se < 2e-3 * 6.0
+    assert abs(res.g_v - 6.0) < 4 * res.g_v_se
+
+
+def test_static_gain_needs_known_springs():
+    from bayesmodal.rigs import rig_from_dict
+
+    rig = rig_from_dict({"carts": [{"name": "1"}], "drive": {"carts": ["1"]},
+                         "springs": [{"between": ["1", "frame"], "stiffness_n_m": 500.0,
+                                      "known": False}]})
+    e = Experiment(np.arange(10) * 0.01, np.ones(10), np.ones((10, 1)))
+    with pytest.raises(ModelError, match="k1 are unknown"):
+        steady_state(e, rig=rig)
+
+
 def test_synthetic_steps_previous_reference_agrees():
     rig = Rig()
     e = _square_wave(rig, 6.0, seed=12)

@@ -46,6 +46,8 @@ def lsq_summary(res, names=None) -> dict:
     ``names`` in the messages)."""
     out = {
         "damping": res.model.damping,
+        "scale": res.model.scale,
+        "tied": res.model.tied,
         "parameters": res.params,
         "stderr": dict(zip(res.model.names, res.stderr.tolist(), strict=True)),
         "fit_percent": res.fit_percent[0].tolist() if len(res.fit_percent) == 1
@@ -81,13 +83,20 @@ def run(args) -> int:
 
 def format_lsq(summary: dict, res, names: list[str]) -> str:
     """Text of ``bayesmodal lsq``: estimates with units and standard errors."""
-    lines = [f"damping: {summary['damping']}",
-             "parameters (estimate +- standard error; white-noise Gauss-Newton errors, "
-             "optimistic for correlated residuals):"]
+    per_unit = summary.get("scale") == "per_unit_gain"
+    lines = [f"damping: {summary['damping']}"]
+    if per_unit:
+        lines.append("scale: per unit of drive gain (no mass, spring or gain is known): "
+                     "masses in V s^2/m, dampers in V s/m, springs in V/m; frequencies, "
+                     "damping ratios and mode shapes are absolute")
+    lines.append("parameters (estimate +- standard error; white-noise Gauss-Newton errors, "
+                 "optimistic for correlated residuals):")
     for k, v in summary["parameters"].items():
         # every parameter is >= 0: damping coefficients may end on that bound
-        lines.append(f"  {k:>4s} = " + estimate(v, summary["stderr"][k], unit=param_unit(k),
-                                                lower=0.0))
+        lines.append(f"  {k:>4s} = " + estimate(v, summary["stderr"][k],
+                                                unit=param_unit(k, per_unit), lower=0.0))
+    for follower, head in summary.get("tied", {}).items():
+        lines.append(f"  {follower:>4s} = {head} (tied in the rig description)")
     for name, row in zip(names, np.atleast_2d(res.fit_percent), strict=True):
         lines.append(f"fit percent, {name}: {percent(row)} (carts 1..{len(row)})")
     lines.append(f"RMS residual: {values(1e3 * np.asarray(res.sigma_m), unit='mm', digits=3)}")

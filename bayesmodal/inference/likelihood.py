@@ -543,7 +543,8 @@ def resolve_extension(extension, model: LinearModel):
     ModelError
         For an unknown name, an object that is not an ``Extension``, a model whose
         damping is not free (every extension is built on ``LinearModel(rig, "free")``), or
-        a rig other than the chain driven at cart 1 (``Rig.is_chain``).
+        an effect the rig cannot carry (``Extension.unsupported``: e.g. backlash on a rig
+        whose motor drives two carts).
     """
     if extension is None:
         return None
@@ -559,7 +560,9 @@ def resolve_extension(extension, model: LinearModel):
         raise ModelError(
             f"the {ext.name} extension is built on the free-damping model; got "
             f"{model.damping!r} damping (use LinearModel(rig, 'free'))")
-    model.rig.require_chain(f"the {ext.name} extension")
+    why = ext.unsupported(model.rig)
+    if why:
+        raise ModelError(why)
     return ext
 
 

@@ -5,6 +5,8 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
 
     name = "ECP 210, two carts, frame spring at the driven cart"
     clamped = []                        # optional
+    ties = [["k1", "k2"]]               # optional: unknown parameters that share one
+                                        # value (equal springs, equal masses)
 
     [[carts]]
     name = "1"
@@ -31,6 +33,9 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
     cart = "1"
     unit = "count"                      # "m" | "mm" | "count"
     m_per_unit = 4.4125e-06
+
+With no known mass, spring or gain the rig is identified per unit of drive gain
+(``Rig.per_unit_gain``).
 
 The presets ship as package data (``bayesmodal/rigs/*.toml``); ``load_rig`` accepts a
 preset name or a path.  ``ecp210-3cart`` is ``Rig()``, the layout of the reference report.
@@ -67,7 +72,7 @@ PRESETS = ("ecp210-1cart", "ecp210-2cart", "ecp210-2cart-frame-at-drive", "ecp21
 #: The layout of the reference report (equal to ``Rig()``).
 DEFAULT_PRESET = "ecp210-3cart"
 
-_TOP = {"name", "clamped", "carts", "springs", "dampers", "drive", "sensors"}
+_TOP = {"name", "clamped", "carts", "springs", "dampers", "drive", "sensors", "ties"}
 _CART = {"name", "mass", "mass_kg"}
 _SPRING = {"name", "between", "stiffness_n_m", "known", "prior_sd_n_m"}
 _DAMPERS = {"ground", "pairs", "proportional"}
@@ -94,6 +99,13 @@ def _tables(value, where: str) -> list:
     if not isinstance(value, list):
         raise ModelError(f"{where} must be an array of tables ([[{where}]]), got {value!r}")
     return value
+
+
+def _ties(value, where: str) -> tuple[tuple[str, ...], ...]:
+    if not isinstance(value, list) or not all(isinstance(g, list) for g in value):
+        raise ModelError(f"{where}: ties must be a list of name lists, e.g. ties = "
+                         f"[[\"k1\", \"k2\"]], got {value!r}")
+    return tuple(tuple(str(x) for x in g) for g in value)
 
 
 def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
@@ -184,7 +196,8 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                    dampers=None if dampers is None else tuple(dampers), drive=drive,
                    sensors=None if sensors is None else tuple(sensors),
                    clamped=_names(d.get("clamped", []), f"{where}: clamped"),
-                   gain_n_v=gain, damping=damping, name=str(d.get("name", "")))
+                   gain_n_v=gain, damping=damping, ties=_ties(d.get("ties", []), where),
+                   name=str(d.get("name", "")))
     except ModelError as exc:
         msg = str(exc)
         raise ModelError(msg if msg.startswith(where) else f"{where}: {msg}") from None
@@ -218,6 +231,8 @@ def rig_to_dict(rig: Rig) -> dict:
             d["drive"]["gain_n_v"] = rig.gain_n_v
     d["sensors"] = [{"cart": s.cart, "unit": s.unit, "m_per_unit": s.m_per_unit}
                     for s in rig.sensors]
+    if rig.ties:
+        d["ties"] = [list(g) for g in rig.ties]
     return d
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ...data import Experiment
 from ...simulate import simulate_linear
-from ...system import LinearModel, Rig
+from ...system import LinearModel, Rig, damper_mask
 from ..effects import Extension
 from ..effects.fit import extension_residuals, root_weights
 
@@ -84,7 +84,8 @@ DAMPER_FLOOR = 0.1
 def floor_dampers(rig: Rig, theta_lin: np.ndarray, floor: float = DAMPER_FLOOR) -> np.ndarray:
     """The linear parameters with every damper raised to at least ``floor`` N s/m."""
     th = np.array(theta_lin, float)
-    th[1 + rig.n_carts:] = np.maximum(th[1 + rig.n_carts:], floor)
+    dampers = damper_mask(LinearModel(rig, "free"))
+    th[dampers] = np.maximum(th[dampers], floor)
     return th
 
 
@@ -111,7 +112,7 @@ def best_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
     cands = []
     for f in DAMPER_SCALES:
         base = np.array(theta_lin, float)
-        base[1 + rig.n_carts:] *= f
+        base[damper_mask(LinearModel(rig, "free"))] *= f
         base = floor_dampers(rig, base)
         cands.append(np.concatenate([np.broadcast_to(base, (len(grid), p)), grid], axis=1))
     cands = np.concatenate(cands)

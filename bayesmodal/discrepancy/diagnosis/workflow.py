@@ -41,6 +41,8 @@ from ...metrics import fit_percent
 from ...simulate import simulate_linear
 from ...system import LinearModel, Rig
 from ..effects import EXTENSIONS, Extension, fit_extension_lsq, get_extension
+from ..effects._base import cart_numbers
+from ..effects._linear import kernel_order
 from ..effects.fit import WEIGHTINGS
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
 from .forward import REFINES, RESIDUAL_BASED, Cause, forward_select, loro_gain
@@ -97,14 +99,23 @@ def _outcomes(cal: NullCalibration, exps, diags_per_exp) -> tuple[list[TestOutco
 
 
 def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | None]:
+    """The carts (by number) or springs (by their place in ``rig.springs``, 1-based) where
+    the effect acts, and a label."""
     loc = ext.location_of(rig, theta)
     if loc.kind == "input" or loc.index is None:
         return None, loc.label
+    order = kernel_order(rig)
+    if loc.kind == "spring":
+        def number(i):
+            return order.spring_index[i] + 1
+    else:
+        def number(i):
+            return cart_numbers(rig)[i]
     if loc.kind == "drive":
-        return [loc.index + 1], loc.label
+        return [number(loc.index)], loc.label
     s = np.abs(np.asarray(loc.strength, float))
     if ext.name == "cubic_stiffness":
-        s = s / np.asarray(rig.springs_n_m, float)
+        s = s / np.asarray(rig.springs_n_m, float)[list(order.spring_index)]
     elif ext.name == "coulomb_friction":
         # the kinetic level acts whenever a cart slides and is well identified; a static
         # level on a cart without kinetic friction only matters while it sticks and can
@@ -118,9 +129,9 @@ def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | 
         fc = np.maximum(w[:n], w[n : 2 * n])
         if fc.max() > 0:
             s = fc
-    idx = [int(i) + 1 for i in np.flatnonzero(s >= LOCATION_FRACTION * s.max())] \
-        if s.max() > 0 else [loc.index + 1]
-    if len(idx) == 1 and idx[0] != loc.index + 1:
+    idx = [number(int(i)) for i in np.flatnonzero(s >= LOCATION_FRACTION * s.max())] \
+        if s.max() > 0 else [number(loc.index)]
+    if len(idx) == 1 and idx[0] != number(loc.index):
         return idx, f"{loc.kind} {idx[0]}"
     kind = "carts" if loc.kind == "cart" else "springs"
     label = loc.label if len(idx) == 1 else f"{kind} {', '.join(map(str, idx))}"
@@ -273,9 +284,9 @@ def diagnose(
     for e in exps:
         if not isinstance(e, Experiment):
             raise DataError(f"expected Experiment objects, got {type(e).__name__}")
-        if e.n_outputs != rig.n_carts:
+        if e.n_outputs != rig.n_outputs:
             raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has "
-                            f"{rig.n_carts} carts")
+                            f"{rig.n_outputs} sensors")
     tr = _train_indices(train, len(exps))
     held = tuple(i for i in range(len(exps)) if i not in tr)
     cands = tuple(DEFAULT_CANDIDATES if candidates is None else candidates)
@@ -283,6 +294,13 @@ def diagnose(
     if unknown or not cands:
         raise ConfigError(f"unknown candidate extension(s) {unknown}; known: "
                           f"{sorted(EXTENSIONS)}")
+    # effects this rig cannot carry (e.g. backlash where the motor drives two carts):
+    # refused when asked for by name, left out of the default catalogue with a note
+    why = {c: EXTENSIONS[c].unsupported(rig) for c in cands}
+    if candidates is not None and any(why.values()):
+        raise ConfigError(next(w for w in why.values() if w))
+    skipped = [c for c in cands if why[c]]
+    cands = tuple(c for c in cands if not why[c])
     if weights is not None and weights not in WEIGHTINGS:
         raise ConfigError(f"weights must be None or one of {WEIGHTINGS}, got {weights!r}")
     rng = np.random.default_rng(rng)
@@ -337,6 +355,8 @@ def diagnose(
                     heldout_fit_percent_before=hb, heldout_fit_percent_after=hb)
     gain.update(delta_elpd=None, delta_elpd_se=None, criterion=None)
     notes: list[str] = []
+    if skipped:
+        notes.append(f"left out (this rig cannot carry them): {', '.join(skipped)}")
     base = dict(
         statistic=t_max, threshold=cal.threshold, p_value=p_mc, tests=tuple(tests),
         experiments=tuple(e.name for e in exps), train=tr, n_null=cal.n_null,

@@ -1,8 +1,11 @@
 """Model extensions: named simulators of effects the linear rig model leaves out.
 
-Each extension adds its own parameters after the nine free-damping linear parameters and
-reduces to the linear model at its ``null`` values.  The registry ``EXTENSIONS`` maps a
-name to a ready-to-use instance:
+Each extension adds its own parameters after the free-damping linear parameters and
+reduces to the linear model at its ``null`` values.  Every extension works on every rig
+description: per-cart parameters for each free cart, per-spring ones for each spring
+with a free end, and the effects at the driven cart (backlash, end stop, motor lag)
+where the motor drives exactly one cart (``Extension.unsupported`` says why not).  The
+registry ``EXTENSIONS`` maps a name to a ready-to-use instance:
 
 ============================  ===============================  =====================
 name                          parameters (after the linear)    acts at
@@ -10,7 +13,7 @@ name                          parameters (after the linear)    acts at
 ``coulomb_friction``          ``Fc1..Fcn, Fs1..Fsn`` (N)       each cart
 ``motor_lag``                 ``tau_s`` (s)                    motor input
 ``input_delay``               ``delay_s`` (s)                  motor input
-``backlash``                  ``gap_m`` (m), ``m_p`` (kg)      drive of cart 1
+``backlash``                  ``gap_m`` (m), ``m_p`` (kg)      the driven cart
 ``cubic_stiffness``           ``k3_1..k3_n`` (N/m^3)           each spring
 ``input_saturation``          ``v_sat`` (V)                    motor input
 ``input_offset``              ``v_offset`` (V)                 motor input
@@ -20,7 +23,7 @@ name                          parameters (after the linear)    acts at
                               (N s/m), ``v_stribeck`` (m/s)
 ``coulomb_directional``       ``Fcp_i, Fcn_i, Fs_i`` (N)       each cart
 ``amplitude_gain``            ``kappa_per_V`` (1/V)            motor input
-``end_stop``                  ``x_stop`` (m), ``k_stop``       travel of cart 1
+``end_stop``                  ``x_stop`` (m), ``k_stop``       the driven cart
                               (N/m)
 ============================  ===============================  =====================
 

@@ -15,8 +15,9 @@ import numpy as np
 
 from ..._errors import DataError, ModelError
 from ...system import LinearModel, Rig
+from ._linear import kernel_order, outputs_from_kernel, state_to_kernel
 
-__all__ = ["ParamSpec", "EffectLocation", "Extension"]
+__all__ = ["ParamSpec", "EffectLocation", "Extension", "cart_numbers"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,15 @@ class EffectLocation:
     strength: np.ndarray
 
 
+def cart_numbers(rig: Rig) -> tuple[int, ...]:
+    """The 1-based cart number of each degree of freedom (``m<i>``, ``Fc<i>``), in order.
+
+    On a rig with clamped carts the numbers skip them: cart 2 clamped of three gives
+    ``(1, 3)``.
+    """
+    return tuple(rig.cart_index(c) for c in rig.free_carts)
+
+
 def check_input(u: np.ndarray, dt: float) -> tuple[np.ndarray, float]:
     """Validate a ZOH input ``u`` (N,) V and a sample interval ``dt`` s."""
     u = np.ascontiguousarray(u, dtype=float)
@@ -110,6 +120,23 @@ class Extension(ABC):
     #: effects.
     input_stage: float | None = None
 
+    #: What the effect needs on the rig: ``""`` (any rig), ``"drive"`` (a motor on at least
+    #: one cart: every input-side effect needs one) or ``"one_drive"`` (a motor on exactly one cart:
+    #: the effects at the driven cart, its end stop, backlash and lagged motor force).
+    needs: str = ""
+
+    def unsupported(self, rig: Rig) -> str | None:
+        """Why the effect cannot act on ``rig`` (one line with the fix), None if it can."""
+        driven = [d.cart for d in rig.drive if d.share != 0.0]
+        if (self.needs == "drive" or self.side == "input") and not driven:
+            return (f"{self.name} acts on the motor input, and this rig has no drive; "
+                    "describe the motor in [drive] or leave the effect out")
+        if self.needs == "one_drive" and len(driven) != 1:
+            return (f"{self.name} acts at the driven cart, and this rig's motor drives "
+                    f"{'no cart' if not driven else 'carts ' + ', '.join(driven)}; "
+                    "describe a rig whose [drive] has exactly one cart, or leave it out")
+        return None
+
     def transform_input(self, v: np.ndarray, theta_ext: np.ndarray) -> np.ndarray:
         """The voltage after a memoryless input-side effect, one row per parameter set.
 
@@ -131,8 +158,6 @@ class Extension(ABC):
     @staticmethod
     def linear_model(rig: Rig) -> LinearModel:
         """The underlying free-damping linear model."""
-        # the simulators hard-wire the chain driven at cart 1 (see _nl_kernels)
-        rig.require_chain("model extensions (bayesmodal.discrepancy.effects)")
         return LinearModel(rig, "free")
 
     @abstractmethod
@@ -248,6 +273,9 @@ class Extension(ABC):
             raise ModelError(
                 f"theta must have shape (n_params,) or (nb, n_params), got {theta.shape}"
             )
+        why = self.unsupported(rig)
+        if why:
+            raise ModelError(why)
         theta = self.check(rig, theta)
         u, dt = check_input(u, dt)
         nb = theta.shape[0]
@@ -260,12 +288,21 @@ class Extension(ABC):
                 raise DataError(f"x0 must have shape ({s},) or ({nb}, {s}), got {x0.shape}")
             x0b = np.ascontiguousarray(np.broadcast_to(x0, (nb, s)))
         lin, ext = self.split(rig, theta)
-        y = self._simulate(rig, np.ascontiguousarray(lin), np.ascontiguousarray(ext), u, dt, x0b)
+        order = kernel_order(rig)
+        y = self._simulate(rig, np.ascontiguousarray(lin), np.ascontiguousarray(ext), u, dt,
+                           state_to_kernel(order, x0b))
+        y = outputs_from_kernel(order, y)
         return y[0] if single else y
 
     @abstractmethod
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0) -> np.ndarray:
-        """Batched simulation; validated inputs, returns shape (nb, N, n)."""
+        """Batched simulation; validated inputs, returns shape (nb, N, n).
+
+        ``x0`` and the returned positions are in the kernels' order of the degrees of
+        freedom (``_linear.kernel_order``: the driven cart first), ``theta_lin`` and
+        ``theta_ext`` in the rig's; per-cart parameters are reordered with
+        ``_linear.to_kernel``.
+        """
 
     # ------------------------------------------------------------------ location
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -74,7 +74,7 @@ def lagged_system(rig, theta_lin: np.ndarray, tau: np.ndarray | None):
     lag = tau > 0.0
     A[:, s, s] = -1.0
     B[~lag, :s] = p.B[~lag]
-    A[lag, n, s] = p.inv_mass[lag, 0]  # the lagged force drives cart 1
+    A[lag, n, s] = p.inv_mass[lag, 0]  # the lagged force drives the driven cart (first)
     A[lag, s, s] = -1.0 / tau[lag]
     B[lag, s] = p.b[lag, 0] / tau[lag]
     return A, B

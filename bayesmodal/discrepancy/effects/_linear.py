@@ -1,17 +1,117 @@
-"""Shared pieces of the extension simulators: the linear rig's matrices for a batch."""
+"""Shared pieces of the extension simulators: the linear rig's matrices for a batch, in
+the order of degrees of freedom the compiled kernels take.
+
+The kernels put the driven cart first: the end stop, the backlash of the rack-pinion and
+the lagged motor force all act on degree of freedom 0.  On any rig with one driven cart
+the simulators therefore reorder the degrees of freedom (``kernel_order``: the driven cart
+first, the others in the rig's order), run the kernel, and put the positions back in the
+rig's order.  Reordering is exact (it only moves numbers), and on the chain driven at
+cart 1 it is the identity, so nothing is moved at all.
+"""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import LinearModel, Rig
+from ..._errors import ModelError
+from ...system import LinearModel, Rig, state_space_from
+
+
+@dataclass(frozen=True)
+class KernelOrder:
+    """How the kernels' degrees of freedom map to a rig's.
+
+    Attributes
+    ----------
+    perm : ndarray of int, shape (n,)
+        Kernel degree of freedom ``k`` is the rig's degree of freedom ``perm[k]``.
+    inverse : ndarray of int, shape (n,)
+        Rig degree of freedom ``i`` is the kernel's ``inverse[i]``.
+    identity : bool
+        True when ``perm`` is ``0, 1, ..., n - 1`` (nothing to move).
+    driven : int or None
+        The rig's degree of freedom the motor drives, None when it drives none or several.
+    outputs : ndarray of int or None
+        Rig degree of freedom of each sensor, None when every one is measured in order.
+    springs : tuple of (int, int)
+        Each spring with a free end as kernel degrees of freedom ``(a, b)``, its extension
+        ``x_b - x_a``; ``-1`` for an end at the frame or a clamped cart.
+    spring_index : tuple of int
+        Position of each of those springs in ``rig.springs``.
+    """
+
+    perm: np.ndarray
+    inverse: np.ndarray
+    identity: bool
+    driven: int | None
+    outputs: np.ndarray | None
+    springs: tuple[tuple[int, int], ...]
+    spring_index: tuple[int, ...]
+
+
+@functools.lru_cache(maxsize=64)
+def kernel_order(rig: Rig) -> KernelOrder:
+    """The kernels' order of a rig's degrees of freedom: the driven cart first."""
+    free = rig.free_carts
+    n = len(free)
+    driven = [free.index(d.cart) for d in rig.drive if d.share != 0.0]
+    d = driven[0] if len(driven) == 1 else None
+    perm = np.arange(n) if d is None else np.r_[d, [i for i in range(n) if i != d]]
+    inverse = np.argsort(perm)
+    outputs = np.array([free.index(s.cart) for s in rig.sensors])
+    if outputs.size == n and np.array_equal(outputs, np.arange(n)):
+        outputs = None
+    springs, index = [], []
+    for i, s in enumerate(rig.springs):
+        ends = tuple(int(inverse[free.index(e)]) if e in free else -1 for e in (s.a, s.b))
+        if ends != (-1, -1):
+            springs.append(ends)
+            index.append(i)
+    return KernelOrder(perm, inverse, bool(np.array_equal(perm, np.arange(n))), d, outputs,
+                       tuple(springs), tuple(index))
+
+
+def require_one_drive(rig: Rig, what: str) -> int:
+    """The driven degree of freedom; ModelError unless the motor drives exactly one cart."""
+    d = kernel_order(rig).driven
+    if d is None:
+        carts = [dr.cart for dr in rig.drive if dr.share != 0.0]
+        raise ModelError(
+            f"{what} acts at the driven cart, and this rig's motor drives "
+            f"{'no cart' if not carts else 'carts ' + ', '.join(carts)}; describe a rig "
+            "whose [drive] has exactly one cart")
+    return d
+
+
+def to_kernel(order: KernelOrder, a: np.ndarray, axis: int = -1) -> np.ndarray:
+    """``a`` with its axis of degrees of freedom in kernel order (a copy if moved)."""
+    return a if order.identity else np.take(a, order.perm, axis=axis)
+
+
+def state_to_kernel(order: KernelOrder, x0: np.ndarray) -> np.ndarray:
+    """States ``(x, x')`` of shape (nb, 2n) in kernel order."""
+    if order.identity:
+        return x0
+    n = order.perm.size
+    return np.ascontiguousarray(x0[:, np.r_[order.perm, n + order.perm]])
+
+
+def outputs_from_kernel(order: KernelOrder, y: np.ndarray) -> np.ndarray:
+    """Kernel positions (nb, N, n) as the rig's sensor outputs (nb, N, n_outputs)."""
+    if not order.identity:
+        y = y[..., order.inverse]
+    if order.outputs is not None:
+        y = y[..., order.outputs]
+    return y
 
 
 @dataclass(frozen=True)
 class LinearParts:
-    """Matrices of the free-damping linear model for a batch of parameter sets.
+    """Matrices of the free-damping linear model for a batch of parameter sets, in kernel
+    order (``kernel_order``).
 
     Attributes
     ----------
@@ -45,12 +145,27 @@ class LinearParts:
 
 
 def linear_parts(rig: Rig, theta_lin: np.ndarray) -> LinearParts:
-    """Matrices of ``LinearModel(rig, "free")`` for ``theta_lin`` of shape (nb, n_lin)."""
+    """Matrices of ``LinearModel(rig, "free")`` for ``theta_lin`` of shape (nb, n_lin), in
+    kernel order."""
     model = LinearModel(rig, "free")
     M, C, K, b = model.matrices(theta_lin)
-    A, B = model.state_space(theta_lin)
-    n = rig.n_carts
-    nb = theta_lin.shape[0]
+    order = kernel_order(rig)
+    if order.identity:
+        A, B = model.state_space(theta_lin)
+    else:
+        p = order.perm
+        M, C, K = (a[:, p][:, :, p] for a in (M, C, K))
+        b = b[:, p]
+        A, B = state_space_from(M, C, K, b)
+    return parts_from(M, C, K, b, A, B)
+
+
+def parts_from(M, C, K, b, A=None, B=None) -> LinearParts:
+    """``LinearParts`` of matrices already in kernel order (``A, B`` built if not given)."""
+    if A is None:
+        A, B = state_space_from(M, C, K, b)
+    n = M.shape[-1]
+    nb = M.shape[0]
     inv_m = 1.0 / np.diagonal(M, axis1=-2, axis2=-1)
     F = np.zeros((nb, 2 * n, n))
     F[:, n:, :] = inv_m[:, :, None] * np.eye(n)

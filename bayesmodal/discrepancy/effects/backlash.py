@@ -22,10 +22,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
+from ...system import LinearModel, Rig
 from ..kernels import backlash_run, expm_batched, zoh
-from ._base import EffectLocation, Extension, ParamSpec
-from ._linear import linear_parts
+from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
+from ._linear import kernel_order, linear_parts, parts_from, require_one_drive
+
+
+def _driven_mass(rig: Rig, theta_lin: np.ndarray) -> np.ndarray:
+    """Mass of the driven cart with the motor, kg, shape (...,)."""
+    d = require_one_drive(rig, "backlash")
+    return LinearModel(rig, "free").matrices(theta_lin)[0][..., d, d]
 
 
 @dataclass(frozen=True)
@@ -47,6 +53,7 @@ class Backlash(Extension):
     n_sub: int = 2
 
     name = "backlash"
+    needs = "one_drive"
     description = "gap gap_m in the rack-pinion drive of cart 1 (motor mass m_p, plastic contact)"
     exact = False
     validity_rule = "linear part admissible, gap_m >= 0, 0 < m_p < m1"
@@ -62,30 +69,31 @@ class Backlash(Extension):
     def _valid_extension(self, rig, theta_lin, theta_ext):
         gap, m_p = theta_ext[..., 0], theta_ext[..., 1]
         ok = np.isfinite(gap) & np.isfinite(m_p) & (gap >= 0) & (m_p > 0)
-        return ok & (m_p < theta_lin[..., 1])
+        return ok & (m_p < _driven_mass(rig, theta_lin))
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
         h = dt / self.n_sub
         gap = np.ascontiguousarray(theta_ext[:, 0])
         m_p = np.ascontiguousarray(theta_ext[:, 1])
-        engaged = linear_parts(rig, theta_lin)
+        engaged = linear_parts(rig, theta_lin)  # the driven cart first
         Ae, Be = zoh(engaged.A, engaged.B[..., None], h)
-        # disengaged: cart 1 without the motor mass, no drive force
-        free = theta_lin.copy()
-        free[:, 1] -= m_p
-        free[:, 0] = 1.0  # unused: no input in this mode
-        cart = linear_parts(rig, free)
+        # disengaged: the driven cart without the motor mass, no drive force
+        M = engaged.M.copy()
+        M[:, 0, 0] -= m_p
+        cart = parts_from(M, engaged.C, engaged.K, np.zeros_like(engaged.b))
         Adis = expm_batched(cart.A * h)
         return backlash_run(
-            Ae, Be[..., 0], Adis, engaged.net_force[:, 0, :], theta_lin[:, 1], m_p,
-            theta_lin[:, 0], gap, u, int(self.n_sub), h, x0,
+            Ae, Be[..., 0], Adis, engaged.net_force[:, 0, :], engaged.M[:, 0, 0], m_p,
+            engaged.b[:, 0], gap, u, int(self.n_sub), h, x0,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
-        """Always the drive of cart 1; strength is the gap, m."""
+        """Always the drive of the driven cart; strength is the gap, m."""
         theta = self.check(rig, np.asarray(theta, dtype=float))
         gap = self.split(rig, theta)[1][0]
-        return EffectLocation("drive", 0, "rack-pinion drive of cart 1", np.array([gap]))
+        d = kernel_order(rig).driven
+        return EffectLocation("drive", d, f"rack-pinion drive of cart {cart_numbers(rig)[d]}",
+                              np.array([gap]))
 
     def opt_bounds(self, rig):
         return np.array([0.0, 1e-3]), np.array([np.inf, np.inf])

@@ -159,6 +159,10 @@ class Combined(Extension):
         f = next((e for e in self.effects if getattr(e, "plant_force", False)), None)
         return None if f is self.plant else f
 
+    def unsupported(self, rig: Rig) -> str | None:
+        """The first of the effects' reasons not to act on ``rig``, or None."""
+        return next((why for e in self.effects if (why := e.unsupported(rig))), None)
+
     # ------------------------------------------------------------------ parameters
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         specs = tuple(p for e in self.effects for p in e.specs(rig))

@@ -26,8 +26,23 @@ import numpy as np
 
 from ...system import Rig
 from ..kernels import coulomb_run, zoh
-from ._base import EffectLocation, Extension, ParamSpec
-from ._linear import linear_parts
+from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
+from ._linear import kernel_order, linear_parts, to_kernel
+
+
+def _per_cart(rig: Rig, theta_ext: np.ndarray, k: int) -> list[np.ndarray]:
+    """The first ``k`` per-cart blocks of ``theta_ext`` (nb, >= k n), each (nb, n) in the
+    kernels' order of the carts."""
+    n = rig.n_carts
+    order = kernel_order(rig)
+    return [np.ascontiguousarray(to_kernel(order, theta_ext[:, j * n : (j + 1) * n]))
+            for j in range(k)]
+
+
+def cart_location(rig: Rig, strength: np.ndarray) -> EffectLocation:
+    """The cart with the largest ``strength`` (n,), labelled with its number."""
+    i = int(np.argmax(strength))
+    return EffectLocation("cart", i, f"cart {cart_numbers(rig)[i]}", strength.copy())
 
 
 @dataclass(frozen=True)
@@ -70,16 +85,16 @@ class CoulombFriction(Extension):
     validity_rule = "linear part admissible, 0 <= Fc_i <= Fs_i, finite"
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
-        n = rig.n_carts
+        carts = cart_numbers(rig)
         kinetic = tuple(
-            ParamSpec(f"Fc{i + 1}", "N", (0.0, 2.0), 0.0,
-                      f"kinetic (Coulomb) friction force on sliding cart {i + 1}", 0.1)
-            for i in range(n)
+            ParamSpec(f"Fc{i}", "N", (0.0, 2.0), 0.0,
+                      f"kinetic (Coulomb) friction force on sliding cart {i}", 0.1)
+            for i in carts
         )
         static = tuple(
-            ParamSpec(f"Fs{i + 1}", "N", (0.0, 3.0), 0.0,
-                      f"static friction (break-away force) of cart {i + 1}, >= Fc{i + 1}", 0.1)
-            for i in range(n)
+            ParamSpec(f"Fs{i}", "N", (0.0, 3.0), 0.0,
+                      f"static friction (break-away force) of cart {i}, >= Fc{i}", 0.1)
+            for i in carts
         )
         return kinetic + static
 
@@ -89,7 +104,6 @@ class CoulombFriction(Extension):
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all((fc >= 0) & (fs >= fc), axis=-1)
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
-        n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, Fh, Rh = zoh(parts.A, parts.force_inputs, h, ramp=True)
@@ -98,7 +112,7 @@ class CoulombFriction(Extension):
         Bh, Bd = (np.einsum("bij,bj->bi", F, parts.b) for F in (Fh, Fd))
         return coulomb_run(
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
-            theta_ext[:, :n], theta_ext[:, n:], u, int(self.n_sub), h, x0,
+            *_per_cart(rig, theta_ext, 2), u, int(self.n_sub), h, x0,
             adaptive=self.adaptive, input_stages=input_stages, stop=stop,
         )
 
@@ -106,8 +120,7 @@ class CoulombFriction(Extension):
         """The cart with the largest static friction ``Fs_i``."""
         theta = self.check(rig, np.asarray(theta, dtype=float))
         fs = self.split(rig, theta)[1][rig.n_carts :]
-        i = int(np.argmax(fs))
-        return EffectLocation("cart", i, f"cart {i + 1}", fs.copy())
+        return cart_location(rig, fs)
 
     # optimise (Fc, Fs - Fc) >= 0 so that the box bounds keep Fs >= Fc
     def to_opt(self, rig, theta_ext):

@@ -20,9 +20,9 @@ import numpy as np
 
 from ...system import Rig
 from ..kernels import coulomb_run, zoh
-from ._base import EffectLocation, ParamSpec
+from ._base import EffectLocation, ParamSpec, cart_numbers
 from ._linear import linear_parts
-from .coulomb import CoulombFriction
+from .coulomb import CoulombFriction, _per_cart, cart_location
 
 
 @dataclass(frozen=True)
@@ -47,18 +47,17 @@ class DirectionalCoulombFriction(CoulombFriction):
     validity_rule = "linear part admissible, 0 <= Fcp_i, Fcn_i <= Fs_i, finite"
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
-        n = rig.n_carts
-        fwd = tuple(ParamSpec(f"Fcp{i + 1}", "N", (0.0, 2.0), 0.0,
-                              f"kinetic friction on cart {i + 1} sliding forwards (x' > 0)", 0.1)
-                    for i in range(n))
-        bwd = tuple(ParamSpec(f"Fcn{i + 1}", "N", (0.0, 2.0), 0.0,
-                              f"kinetic friction on cart {i + 1} sliding backwards (x' < 0)",
+        fwd = tuple(ParamSpec(f"Fcp{i}", "N", (0.0, 2.0), 0.0,
+                              f"kinetic friction on cart {i} sliding forwards (x' > 0)", 0.1)
+                    for i in cart_numbers(rig))
+        bwd = tuple(ParamSpec(f"Fcn{i}", "N", (0.0, 2.0), 0.0,
+                              f"kinetic friction on cart {i} sliding backwards (x' < 0)",
                               0.1)
-                    for i in range(n))
-        static = tuple(ParamSpec(f"Fs{i + 1}", "N", (0.0, 3.0), 0.0,
-                                 f"static friction of cart {i + 1}, >= Fcp{i + 1}, Fcn{i + 1}",
+                    for i in cart_numbers(rig))
+        static = tuple(ParamSpec(f"Fs{i}", "N", (0.0, 3.0), 0.0,
+                                 f"static friction of cart {i}, >= Fcp{i}, Fcn{i}",
                                  0.1)
-                       for i in range(n))
+                       for i in cart_numbers(rig))
         return fwd + bwd + static
 
     def _valid_extension(self, rig, theta_lin, theta_ext):
@@ -68,18 +67,16 @@ class DirectionalCoulombFriction(CoulombFriction):
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all(ok, axis=-1)
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
-        n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, Fh, Rh = zoh(parts.A, parts.force_inputs, h, ramp=True)
         Ad, Fd, Rd = zoh(parts.A, parts.force_inputs, dt, ramp=True)
         Bh, Bd = (np.einsum("bij,bj->bi", F, parts.b) for F in (Fh, Fd))
-        e = theta_ext
+        fwd, bwd, static = _per_cart(rig, theta_ext, 3)
         return coulomb_run(
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
-            np.ascontiguousarray(e[:, :n]), np.ascontiguousarray(e[:, 2 * n :]), u,
-            int(self.n_sub), h, x0, adaptive=self.adaptive,
-            Fc_backward=np.ascontiguousarray(e[:, n : 2 * n]), input_stages=input_stages,
+            fwd, static, u, int(self.n_sub), h, x0, adaptive=self.adaptive,
+            Fc_backward=bwd, input_stages=input_stages,
             stop=stop,
         )
 
@@ -87,8 +84,7 @@ class DirectionalCoulombFriction(CoulombFriction):
         """The cart with the largest static friction ``Fs_i``."""
         theta = self.check(rig, np.asarray(theta, dtype=float))
         fs = self.split(rig, theta)[1][2 * rig.n_carts :]
-        i = int(np.argmax(fs))
-        return EffectLocation("cart", i, f"cart {i + 1}", fs.copy())
+        return cart_location(rig, fs)
 
     # optimise (Fcp, Fcn, Fs - max(Fcp, Fcn)) >= 0 so that box bounds keep Fs admissible
     def to_opt(self, rig, theta_ext):

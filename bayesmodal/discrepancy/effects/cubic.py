@@ -15,17 +15,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
+from ...system import FRAME, Rig
 from ..kernels import cubic_run, zoh
 from ._base import EffectLocation, Extension, ParamSpec
-from ._linear import linear_parts
+from ._linear import kernel_order, linear_parts
 
 
 def spring_label(rig: Rig, i: int) -> str:
-    """``"spring 1 (cart 1 - cart 2)"``; the last spring joins the last cart to the frame."""
-    n = rig.n_carts
-    other = f"cart {i + 2}" if i < n - 1 else "frame"
-    return f"spring {i + 1} (cart {i + 1} - {other})"
+    """``"spring 1 (cart 1 - cart 2)"``: the ``i``-th spring with a free end (0-based),
+    numbered as in ``rig.springs``, with its ends."""
+    j = kernel_order(rig).spring_index[i]
+    s = rig.springs[j]
+    ends = [e if e == FRAME else f"cart {e}" for e in (s.a, s.b)]
+    return f"spring {j + 1} ({ends[0]} - {ends[1]})"
+
+
+def n_springs(rig: Rig) -> int:
+    """Number of springs with at least one free end (each has a ``k3_i``)."""
+    return len(kernel_order(rig).springs)
 
 
 @dataclass(frozen=True)
@@ -52,9 +59,9 @@ class CubicStiffness(Extension):
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         return tuple(
-            ParamSpec(f"k3_{i + 1}", "N/m^3", (-2e5, 2e5), 0.0,
+            ParamSpec(f"k3_{j + 1}", "N/m^3", (-2e5, 2e5), 0.0,
                       f"cubic stiffness of {spring_label(rig, i)}", 2e4)
-            for i in range(rig.n_carts)
+            for i, j in enumerate(kernel_order(rig).spring_index)
         )
 
     def _valid_extension(self, rig, theta_lin, theta_ext):
@@ -65,21 +72,23 @@ class CubicStiffness(Extension):
         h = dt / self.n_sub
         Ah, F0h, F1h = zoh(p.A, p.force_inputs, h, ramp=True)
         Bh = np.einsum("bij,bj->bi", F0h, p.b)  # the motor is a force on the carts
-        return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0, stop=stop)
+        return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0, stop=stop,
+                         springs=kernel_order(rig).springs)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The spring with the largest relative cubic stiffness ``|k3_i| / k_i``."""
         theta = self.check(rig, np.asarray(theta, dtype=float))
         k3 = self.split(rig, theta)[1]
-        rel = np.abs(k3) / np.asarray(rig.springs_n_m)
+        k = np.asarray(rig.springs_n_m)[list(kernel_order(rig).spring_index)]
+        rel = np.abs(k3) / k
         i = int(np.argmax(rel))
         return EffectLocation("spring", i, spring_label(rig, i), k3.copy())
 
     def opt_bounds(self, rig):
-        n = rig.n_carts
+        n = n_springs(rig)
         return np.full(n, -np.inf), np.full(n, np.inf)
 
     def start_grid(self, rig: Rig) -> np.ndarray:
         """Zero, and equal hardening or softening on all springs."""
-        n = rig.n_carts
+        n = n_springs(rig)
         return np.array([np.full(n, v) for v in (0.0, 2e4, -2e4, 1e5, -1e5)])

@@ -30,8 +30,8 @@ import numpy as np
 from ...system import Rig
 from ..kernels import cubic_run, zoh
 from ..kernels.stop import checked_side
-from ._base import EffectLocation, Extension, ParamSpec
-from ._linear import linear_parts
+from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
+from ._linear import kernel_order, linear_parts
 
 #: Plant-side effects whose kernels take the end stop's force next to their own.
 STOP_KERNELS = ("coulomb_friction", "coulomb_directional", "lugre_friction",
@@ -64,6 +64,7 @@ class EndStop(Extension):
     validity_rule = "linear part admissible, x_stop > 0, k_stop >= 0, finite"
     #: a force that the kernels of ``STOP_KERNELS`` add to their own (``Combined``)
     plant_force = True
+    needs = "one_drive"
 
     def __post_init__(self) -> None:
         checked_side(self.side)
@@ -72,7 +73,8 @@ class EndStop(Extension):
         where = "positive" if self.side > 0 else "negative"
         return (
             ParamSpec("x_stop", "m", (0.005, 0.06), 0.03,
-                      f"distance from rest at which cart 1 meets its stop ({where} travel)",
+                      f"distance from rest at which the driven cart meets its stop ({where} "
+                      "travel)",
                       0.003),
             ParamSpec("k_stop", "N/m", (0.0, 2e4), 0.0,
                       "stiffness of the stop (0: no stop)", 500.0),
@@ -99,13 +101,16 @@ class EndStop(Extension):
                          stop=self.stop_args(theta_ext))
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
-        """Cart 1, at the end of its travel on the stop's side; strength ``k_stop``."""
+        """The driven cart, at the end of its travel on the stop's side; strength
+        ``k_stop``."""
         theta = self.check(rig, np.asarray(theta, dtype=float))
         ext = self.split(rig, theta)[1]
         where = "positive" if self.side > 0 else "negative"
+        d = kernel_order(rig).driven
         strength = np.zeros(rig.n_carts)
-        strength[0] = ext[1]
-        return EffectLocation("cart", 0, f"cart 1 (stop beyond {where} travel)", strength)
+        strength[d] = ext[1]
+        return EffectLocation("cart", d, f"cart {cart_numbers(rig)[d]} (stop beyond {where} "
+                              "travel)", strength)
 
     def opt_bounds(self, rig):
         return np.array([1e-3, 0.0]), np.array([np.inf, np.inf])

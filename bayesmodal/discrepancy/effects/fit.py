@@ -35,7 +35,7 @@ from ..._errors import ConfigError, DataError, ModelError
 from ...data import Experiment
 from ...fit import LSQResult, barrier_residuals, fit_lsq
 from ...metrics import fit_percent
-from ...system import Rig
+from ...system import LinearModel, Rig, damper_mask, log_scale_mask
 from ._base import Extension
 
 __all__ = ["ExtensionFit", "fit_extension_lsq", "extension_fit_at", "extension_residuals",
@@ -352,12 +352,13 @@ def fit_extension_lsq(
         r = admissible_residuals(ext, rig, theta, experiments)
         return r if root_w is None else r * root_w
 
+    dampers = damper_mask(LinearModel(rig, "free"))
     if theta0 is None:
         grid = ext.start_grid(rig)
         lin_starts = []
         for f in damper_scales:
             th = np.array(linear.theta, dtype=float)
-            th[1 + rig.n_carts :] *= float(f)
+            th[dampers] *= float(f)
             lin_starts.append(th)
         lin_starts = np.array(lin_starts)
         cands = np.concatenate([np.repeat(lin_starts, len(grid), axis=0),
@@ -370,8 +371,7 @@ def fit_extension_lsq(
         starts = [ext.check(rig, np.asarray(theta0, dtype=float))]
 
     # optimiser coordinates: log for positive linear parameters, scaled linear otherwise
-    log_mask = np.zeros(p_lin, bool)
-    log_mask[: 1 + 2 * rig.n_carts] = True
+    log_mask = log_scale_mask(LinearModel(rig, "free"))
     lin_scale = np.where(log_mask, 1.0, np.maximum(np.abs(linear.theta), 1e-3))
     ext_scale = np.array([sp.scale for sp in specs])
     lo_e, hi_e = ext.opt_bounds(rig)

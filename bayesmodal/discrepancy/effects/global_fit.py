@@ -38,7 +38,7 @@ from scipy.optimize import differential_evolution
 from ..._errors import ConfigError
 from ...data import Experiment
 from ...fit import LSQResult, fit_lsq
-from ...system import Rig
+from ...system import LinearModel, Rig, damper_mask
 from ._base import Extension
 from .fit import (
     ExtensionFit,
@@ -79,14 +79,15 @@ def is_stick_slip(ext: Extension) -> bool:
 def search_box(ext: Extension, rig: Rig, theta_lin: np.ndarray) -> np.ndarray:
     """The box of the global search, shape (n_params, 2) (module docstring)."""
     theta_lin = np.asarray(theta_lin, dtype=float)
-    n = rig.n_carts
+    dampers = damper_mask(LinearModel(rig, "free"))
     box = np.empty((theta_lin.size, 2))
-    box[: 1 + n] = theta_lin[: 1 + n, None] * np.array(MASS_BOX)[None]
-    box[1 + n:, 0] = 0.0
+    # the gain, the masses and the unknown springs: a factor either way
+    box[~dampers] = theta_lin[~dampers, None] * np.array(MASS_BOX)[None]
+    box[dampers, 0] = 0.0
     # one range for every damper: a linear fit that compensates friction sets some
     # dampers to zero and inflates others (measured: c1 21 N s/m, c2 = c3 = 0, against
     # 2.9, 1.8 and 2.1 in the data), so its own damper values bound nothing
-    box[1 + n:, 1] = DAMPER_BOX * np.max(np.abs(theta_lin[1 + n:])) + DAMPER_PAD
+    box[dampers, 1] = DAMPER_BOX * np.max(np.abs(theta_lin[dampers])) + DAMPER_PAD
     rows = []
     for sp in ext.specs(rig):
         lo, hi = sp.bounds

@@ -30,8 +30,9 @@ import numpy as np
 
 from ...system import Rig
 from ..kernels import lugre_run, zoh
-from ._base import EffectLocation, Extension, ParamSpec
+from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
 from ._linear import linear_parts
+from .coulomb import _per_cart, cart_location
 
 
 @dataclass(frozen=True)
@@ -70,15 +71,14 @@ class LuGreFriction(Extension):
                      "v_stribeck > 0, finite")
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
-        n = rig.n_carts
         kinetic = tuple(
-            ParamSpec(f"Fc{i + 1}", "N", (0.0, 2.0), 0.0,
-                      f"Coulomb friction force on cart {i + 1} sliding fast", 0.1)
-            for i in range(n))
+            ParamSpec(f"Fc{i}", "N", (0.0, 2.0), 0.0,
+                      f"Coulomb friction force on cart {i} sliding fast", 0.1)
+            for i in cart_numbers(rig))
         static = tuple(
-            ParamSpec(f"Fs{i + 1}", "N", (0.0, 3.0), 0.0,
-                      f"static friction level of cart {i + 1} (v -> 0), >= Fc{i + 1}", 0.1)
-            for i in range(n))
+            ParamSpec(f"Fs{i}", "N", (0.0, 3.0), 0.0,
+                      f"static friction level of cart {i} (v -> 0), >= Fc{i}", 0.1)
+            for i in cart_numbers(rig))
         return kinetic + static + (
             ParamSpec("sigma0", "N/m", (1e3, 1e5), 2e4,
                       "bristle stiffness: slope of friction against pre-sliding travel", 5e3),
@@ -103,8 +103,9 @@ class LuGreFriction(Extension):
         Ah, Fh = zoh(parts.A, parts.force_inputs, h)
         Bh = np.einsum("bij,bj->bi", Fh, parts.b)  # the motor is a force on the carts
         e = theta_ext
-        return lugre_run(Ah, Bh, Fh, parts.net_force, parts.b, parts.inv_mass, e[:, :n],
-                         e[:, n : 2 * n], e[:, 2 * n], e[:, 2 * n + 1], e[:, 2 * n + 2], u,
+        fc, fs = _per_cart(rig, e, 2)
+        return lugre_run(Ah, Bh, Fh, parts.net_force, parts.b, parts.inv_mass, fc,
+                         fs, e[:, 2 * n], e[:, 2 * n + 1], e[:, 2 * n + 2], u,
                          int(self.n_sub), h, x0, input_stages=input_stages,
                          stop=stop)
 
@@ -113,8 +114,7 @@ class LuGreFriction(Extension):
         theta = self.check(rig, np.asarray(theta, dtype=float))
         n = rig.n_carts
         fs = self.split(rig, theta)[1][n : 2 * n]
-        i = int(np.argmax(fs))
-        return EffectLocation("cart", i, f"cart {i + 1}", fs.copy())
+        return cart_location(rig, fs)
 
     # optimise (Fc, Fs - Fc) >= 0 so that the box bounds keep Fs >= Fc
     def to_opt(self, rig, theta_ext):

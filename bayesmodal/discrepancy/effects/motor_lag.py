@@ -35,6 +35,7 @@ class MotorLag(Extension):
     exact = True
     side = "input"
     input_stage = 3
+    needs = "one_drive"  # the lagged force acts on the driven cart
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         return (ParamSpec("tau_s", "s", (0.0, 0.05), 0.0,

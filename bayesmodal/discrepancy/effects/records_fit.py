@@ -39,7 +39,7 @@ from ..._errors import ConfigError, DataError, ModelError
 from ...data import Experiment
 from ...fit import fit_lsq
 from ...metrics import fit_percent
-from ...system import LinearModel, Rig
+from ...system import LinearModel, Rig, log_scale_mask
 from ._base import Extension
 from ._input import linear_lanes_run
 
@@ -248,10 +248,10 @@ def fit_records_lsq(
 
     # optimiser coordinates, per parameter of one record's vector
     log_mask = np.zeros(P, bool)
-    log_mask[: 1 + 2 * rig.n_carts] = True
+    log_mask[:p_lin] = log_scale_mask(LinearModel(rig, "free"))
     scale = np.ones(P)
     lo, hi = np.full(P, -np.inf), np.full(P, np.inf)
-    lin_rel = np.arange(1 + 2 * rig.n_carts, p_lin)
+    lin_rel = np.flatnonzero(~log_mask[:p_lin])
     scale[lin_rel] = np.maximum(np.abs(theta0[0, lin_rel]), 1e-3)
     lo[lin_rel] = 0.0
     if ext is not None:

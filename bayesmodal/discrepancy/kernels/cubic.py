@@ -19,54 +19,84 @@ from .stop import checked_side, stop_force_lines
 
 
 # cubic spring stiffness (and the end stop)
-def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0) -> list[str]:
-    # spring i joins cart i and i + 1 (the last one joins cart n - 1 to the frame); its
-    # extension is d_i = x_{i+1} - x_i (or -x_{n-1}) and it pulls cart i with k3_i d_i^3
-    # and cart i + 1 with -k3_i d_i^3
+def chain_springs(n: int) -> tuple[tuple[int, int], ...]:
+    """The chain's springs: spring ``i`` joins cart ``i`` and ``i + 1``, the last one joins
+    cart ``n - 1`` to the frame (``-1``)."""
+    return tuple((i, i + 1 if i < n - 1 else -1) for i in range(n))
+
+
+def checked_springs(springs, n: int) -> tuple[tuple[int, int], ...]:
+    """``springs`` as a tuple of integer pairs in ``-1..n-1`` (only these reach generated
+    source), each with at least one end on a cart."""
+    out = tuple((int(a), int(b)) for a, b in springs)
+    for a, b in out:
+        if not (-1 <= a < n and -1 <= b < n) or a == b:
+            raise ValueError(f"spring ends must be distinct carts 0..{n - 1} or -1, got "
+                             f"{(a, b)}")
+    return out
+
+
+def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0,
+                       springs=None) -> list[str]:
+    # spring i joins carts a and b (-1: the frame or a clamped cart); its extension is
+    # d_i = x_b - x_a and it pulls cart a with k3_i d_i^3 and cart b with -k3_i d_i^3.
+    # The chain (default): a = i, b = i + 1, the last spring to the frame.
+    springs = chain_springs(n) if springs is None else springs
     lines = []
-    for i in range(n):
-        d = f"({src}{i + 1} - {src}{i})" if i < n - 1 else f"(-{src}{i})"
+    for i, (a, b) in enumerate(springs):
+        if a >= 0 and b >= 0:
+            d = f"({src}{b} - {src}{a})"
+        else:
+            d = f"({src}{b})" if a < 0 else f"(-{src}{a})"
         lines += [f"{t}e{i} = {d}", f"{t}c{i} = k3_{i} * e{i} * e{i} * e{i}"]
-    for i in range(n):
-        lines.append(f"{t}{dst}{i} = c{i}" + (f" - c{i - 1}" if i > 0 else ""))
+    for j in range(n):
+        plus = [f"c{i}" for i, (a, _) in enumerate(springs) if a == j]
+        minus = [f"c{i}" for i, (_, b) in enumerate(springs) if b == j]
+        terms = (plus[0] if plus else ("-" + minus.pop(0) if minus else "0.0"))
+        terms += "".join(f" + {c}" for c in plus[1:]) + "".join(f" - {c}" for c in minus)
+        lines.append(f"{t}{dst}{j} = {terms}")
     if stop:
         lines += stop_force_lines(t, src, dst, stop, "xq", "kq")
     return lines
 
 
 @functools.lru_cache(maxsize=16)
-def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0):
+def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0, springs=None):
     """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``;
-    ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``)."""
+    ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``);
+    ``springs``: the springs' ends (``cubic_run``), default the chain's."""
     stop = checked_side(stop) if stop else 0
-    s, w = 2 * n, width
+    chain = springs is None or tuple(springs) == chain_springs(n)
+    springs = chain_springs(n) if chain else checked_springs(springs, n)
+    s, w, q = 2 * n, width, len(springs)
     R, C = range(s), range(n)
-    rows = [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", n)]
+    rows = [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", q)]
     P = _Rows("P", w, rows + ([("xq", 1), ("kq", 1)] if stop else []))
     X = _Rows("X", w, [("x", s)])
     L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = "                "
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
-    L += [f"{t}k3_{i} = {P('k3', i)}" for i in C]
+    L += [f"{t}k3_{i} = {P('k3', i)}" for i in range(q)]
     if stop:
         L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
-    L += _cubic_force_lines(t, n, "x", "f", stop)
+    L += _cubic_force_lines(t, n, "x", "f", stop, springs)
     for r in R:
         prods = ([(P('A', r * s + j), f"x{j}") for j in R]
                  + [(P('p', r * n + j), f"f{j}") for j in C])
         L.append(f"{t}y{r} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
-    L += _cubic_force_lines(t, n, "y", "g", stop)
+    L += _cubic_force_lines(t, n, "y", "g", stop, springs)
     for r in R:
         prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
         L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
     tag = f" stop{stop:+d}" if stop else ""
+    tag += "" if chain else " springs=" + ",".join(f"{a}:{b}" for a, b in springs)
     if per_lane:
         return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane{tag}>")
     return _compile(L, f"<bayesmodal cubic n={n} w={w}{tag}>")
 
 
-def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None):
+def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None):
     """Cubic spring forces ``k3_i d_i^3`` by the exponential Runge-Kutta scheme ETD2RK.
 
     Predictor with the force held over the sub-step (``F0h``), corrector with the force
@@ -79,7 +109,7 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None):
     Bh : ndarray, shape (nb, s)
     F0h, F1h : ndarray, shape (nb, s, n)
         Response to a held and to a ramped force on each cart over a sub-step.
-    k3 : ndarray, shape (nb, n)
+    k3 : ndarray, shape (nb, n_springs)
         Cubic stiffness of each spring, N/m^3.
     u : ndarray, shape (N,)
     n_sub : int
@@ -87,14 +117,19 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None):
     stop : tuple (side, x_stop, k_stop), optional
         An end stop on cart 1 (``kernels.stop``): side +1 or -1, ``x_stop`` (nb,) m and
         ``k_stop`` (nb,) N/m; its force enters with the spring forces.
+    springs : tuple of (int, int), optional
+        Ends ``(a, b)`` of each spring (carts ``0..n-1``, ``-1`` for the frame), its
+        extension ``x_b - x_a``; default the chain's (``chain_springs``).
 
     Returns
     -------
     ndarray, shape (nb, N, n)
     """
-    n = k3.shape[1]
+    n = x0.shape[1] // 2
     params = [Ah, Bh, F0h, F1h, k3]
     kernel = functools.partial(cubic_kernel, n)
+    if springs is not None and tuple(springs) != chain_springs(n):
+        kernel = functools.partial(kernel, springs=checked_springs(springs, n))
     if stop is not None:
         side, xq, kq = stop
         params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]

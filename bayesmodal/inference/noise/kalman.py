@@ -226,7 +226,7 @@ def discretize_process_noise(model, theta_mech: np.ndarray, q: np.ndarray,
     n = model.n_carts
     s = 2 * n
     nb = A.shape[0]
-    masses = theta_mech[:, 1 : 1 + n]
+    masses = np.diagonal(model.matrices(theta_mech)[0], axis1=-2, axis2=-1)
     # ZOH: expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, 1]]
     Z = np.zeros((nb, s + 1, s + 1))
     Z[:, :s, :s] = A * dt
