@@ -1,8 +1,8 @@
 """bayesmodal: Bayesian identification of vibrating mass-spring-damper rigs."""
 
 from ._errors import ConfigError, DataError, ModelError
-from .simulate import discretize_zoh, simulate_linear
-from .system import LinearModel, Rig
+from .model.simulate import discretize_zoh, simulate_linear
+from .model.system import LinearModel, Rig
 
 __version__ = "0.1.0"
 

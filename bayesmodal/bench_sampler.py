@@ -95,8 +95,8 @@ def bench_sampler(n_samples: int = 7400, n_walkers: int = 32, n_steps: int = 100
     from .inference.likelihood import Likelihood, simulate_noise
     from .inference.priors import default_priors
     from .inference.sampling import LogPosterior
-    from .simulate import simulate_linear
-    from .system import LinearModel, Rig
+    from .model.simulate import simulate_linear
+    from .model.system import LinearModel, Rig
 
     rng = np.random.default_rng(rng)
     model = LinearModel(Rig(), "free")

@@ -24,7 +24,7 @@ problem in a file is collected and reported at once, each naming the file and th
 
     [model]
     damping = "free"            # or "proportional"
-    extensions = []             # names from bayesmodal.discrepancy.effects
+    extensions = []             # names from bayesmodal.model.effects
 
     [priors]                    # per-parameter overrides: [lo, hi] bounds of a uniform prior
     m1 = [0.5, 3.0]             # or { lo = 0.5, hi = 3.0, scale = "log" }
@@ -98,7 +98,7 @@ from pathlib import Path, PurePosixPath
 
 from ._errors import ConfigError
 from .data import ECP_M_PER_COUNT, in_data_root
-from .system import DAMPING_MODELS, ECP210_SPRINGS_N_M
+from .model.system import DAMPING_MODELS, ECP210_SPRINGS_N_M
 
 __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
 
@@ -228,8 +228,8 @@ class RunConfig:
 
     def make_rig(self):
         """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
-        from .rigs import rig_from_dict  # noqa: PLC0415
-        from .system import Rig  # noqa: PLC0415
+        from .model.rigs import rig_from_dict  # noqa: PLC0415
+        from .model.system import Rig  # noqa: PLC0415
 
         if self.rig is None:
             return Rig(self.springs_n_m)
@@ -498,7 +498,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     kw["damping"] = damping
     exts = values.get(("model", "extensions"), [])
     try:
-        from .discrepancy.effects import EXTENSIONS  # noqa: PLC0415 - optional catalogue
+        from .model.effects import EXTENSIONS  # noqa: PLC0415 - optional catalogue
 
         known = tuple(EXTENSIONS)
     except ImportError:
@@ -673,11 +673,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
 
 def _check_prior_names(priors, kw, err) -> None:
-    from .system import LinearModel, Rig  # noqa: PLC0415
+    from .model.system import LinearModel, Rig  # noqa: PLC0415
 
     try:
         if kw.get("rig") is not None:
-            from .rigs import rig_from_dict  # noqa: PLC0415
+            from .model.rigs import rig_from_dict  # noqa: PLC0415
 
             rig = rig_from_dict(kw["rig"])
         else:
@@ -689,7 +689,7 @@ def _check_prior_names(priors, kw, err) -> None:
     allowed = set(model.names) | {f"sigma_{i + 1}" for i in range(n)} | {
         f"phi_{i + 1}" for i in range(n)}
     try:
-        from .discrepancy.effects import EXTENSIONS  # noqa: PLC0415
+        from .model.effects import EXTENSIONS  # noqa: PLC0415
 
         for e in kw.get("extensions", ()):
             if e in EXTENSIONS:
@@ -752,7 +752,7 @@ def _parse_rig(table, values, kw, base: Path, err) -> None:
     if not (inline or "file" in table):
         return
     from ._errors import ModelError  # noqa: PLC0415
-    from .rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict  # noqa: PLC0415
+    from .model.rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict  # noqa: PLC0415
 
     try:
         if inline:

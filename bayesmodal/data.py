@@ -31,6 +31,7 @@ import numpy as np
 
 from . import _channels, _ecp_export, _readers, _window
 from ._errors import DataError
+from .model.system import ECP_M_PER_COUNT
 from .reading import ReadOptions, choose_time_base, drive_sign
 
 __all__ = [
@@ -47,8 +48,6 @@ __all__ = [
     "check_identifiable",
 ]
 
-#: Metres per encoder count of the ECP 210 rig (0.0706 m per 16000 counts).
-ECP_M_PER_COUNT = 0.0706 / 16000
 
 #: Largest file the loaders read, bytes.  Raise with ``max_bytes=`` or BAYESMODAL_MAX_BYTES.
 MAX_FILE_BYTES = 200 * 1024 * 1024

@@ -143,8 +143,8 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     --------
     >>> from bayesmodal.data import Experiment
     >>> from bayesmodal.fit import fit_lsq
-    >>> from bayesmodal.simulate import simulate_linear
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.simulate import simulate_linear
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> truth = np.array([6.2, 1.5, 1.4, 1.1, 1.5, 1e-4])
     >>> t = np.arange(2000) * 0.005
@@ -156,7 +156,7 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     >>> verdict.identified, verdict.reason.split(" (")[0]
     (False, 'the drive gain g_v is indistinguishable from its bound 0')
     """
-    from .fit import _log_mask, param_kinds
+    from .fit.linear import _log_mask, param_kinds
 
     model = result.model
     theta = np.asarray(result.theta, float)

@@ -29,7 +29,7 @@ import numpy as np
 
 from ._errors import DataError
 from .data import Experiment, data_root, load_experiment
-from .fit import LSQResult, fit_lsq
+from .fit.linear import LSQResult, fit_lsq
 from .metrics import fit_percent
 from .modal import (
     ComplexModes,
@@ -43,9 +43,9 @@ from .modal import (
     transfer_function,
     undamped_modes,
 )
-from .simulate import simulate_linear
+from .model.simulate import simulate_linear
+from .model.system import LinearModel, Rig
 from .static import StaticResult, steady_state
-from .system import LinearModel, Rig
 
 __all__ = [
     "EXPERIMENTS",

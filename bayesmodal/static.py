@@ -47,7 +47,7 @@ import numpy as np
 
 from ._errors import DataError, ModelError
 from .data import Experiment
-from .system import Rig
+from .model.system import Rig
 
 __all__ = [
     "NOMINAL_G_V",

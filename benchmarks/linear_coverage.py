@@ -65,8 +65,8 @@ def make_experiment(cfg: Config, noise: str, seed: int):
     """One synthetic record: two voltage pulses, ZOH simulation plus a noise draw."""
     from bayesmodal.data import Experiment
     from bayesmodal.inference import simulate_noise
-    from bayesmodal.simulate import simulate_linear
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.simulate import simulate_linear
+    from bayesmodal.model.system import LinearModel, Rig
 
     model = LinearModel(Rig(), cfg.damping)
     t = np.arange(cfg.n_samples) * cfg.dt

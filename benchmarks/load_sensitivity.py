@@ -54,7 +54,7 @@ def main(argv=None) -> int:
         rig_input,
         time_per_call,
     )
-    from bayesmodal.discrepancy.effects import get_extension
+    from bayesmodal.model.effects import get_extension
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=5)

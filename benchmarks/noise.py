@@ -40,8 +40,8 @@ from bayesmodal.inference.noise import (  # noqa: E402
     WhiteNoise,
     kalman_loglik,
 )
-from bayesmodal.simulate import simulate_linear  # noqa: E402
-from bayesmodal.system import LinearModel, Rig  # noqa: E402
+from bayesmodal.model.simulate import simulate_linear  # noqa: E402
+from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
 
 def best_time(fn, *, n_calls: int = 15, min_time_s: float = 0.3) -> float:

@@ -40,7 +40,7 @@ from bayesmodal.inference import sample_posterior  # noqa: E402
 from bayesmodal.inference.laplace import hessian_fd  # noqa: E402
 from bayesmodal.inference.moves import SnookerMove  # noqa: E402
 from bayesmodal.inference.records import RecordLayout, RecordsLikelihood  # noqa: E402
-from bayesmodal.system import LinearModel, Rig  # noqa: E402
+from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
 MODEL = LinearModel(Rig(rt.SPRINGS), "free")
 LAYOUT = RecordLayout({"g_v": "hierarchical", "v0": "hierarchical"})

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, save_csv
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 TABLE3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
 SEED = 20161

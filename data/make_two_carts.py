@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from bayesmodal.data import Experiment, save_csv
-from bayesmodal.rigs import load_rig
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel
+from bayesmodal.model.rigs import load_rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel
 
 HERE = Path(__file__).resolve().parent
 RIG = HERE / "two_carts_rig.toml"

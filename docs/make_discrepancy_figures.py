@@ -27,12 +27,12 @@ import numpy as np
 
 from bayesmodal.data import find_data, load_experiment
 from bayesmodal.discrepancy.checks import RESIDUAL_DIAGNOSTICS, linear_residuals
-from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq
-from bayesmodal.discrepancy.effects.fit import extension_residuals
 from bayesmodal.fit import fit_lsq
+from bayesmodal.fit.effects import extension_residuals
 from bayesmodal.metrics import fit_percent
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDS = ("data_impulses", "data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow")
@@ -261,7 +261,7 @@ def posterior_part(recs: dict, runs_dir: Path) -> dict:
 def numerics_part(recs: dict, theta: np.ndarray) -> dict:
     """The friction fit at ``theta`` on the impulses with 1 to 16 sub-steps per sample and
     with the independent event-driven reference simulator of ``tests/reference_sim.py``."""
-    from bayesmodal.discrepancy.effects import CoulombFriction
+    from bayesmodal.model.effects import CoulombFriction
 
     e = recs["data_impulses"]
     out = {f"n_sub_{k}": np.round(fit_percent(

@@ -7,7 +7,7 @@ Run from the repository root::
     python docs/make_discrepancy_table.py --no-loro   # joint fits only
 
 Each model is fitted to the four records jointly by least squares
-(``bayesmodal.discrepancy.effects.records_fit.fit_records_lsq``: shared physics, the
+(``bayesmodal.fit.records.fit_records_lsq``: shared physics, the
 parameters named per record fitted per record, cost the sum over records and carts of the
 squared fit deficit), each started from the previous step's estimate.  Leave-one-record-out
 fits the same chain of steps on three records alone and predicts the fourth with the
@@ -30,14 +30,14 @@ import numpy as np
 from scipy.signal import butter, filtfilt, hilbert
 
 from bayesmodal.data import ECP_M_PER_COUNT, find_data, load_experiment
-from bayesmodal.discrepancy.effects import get_extension
-from bayesmodal.discrepancy.effects.records_fit import (
+from bayesmodal.fit.records import (
     fit_records_lsq,
     new_record_theta,
     simulate_model,
 )
 from bayesmodal.metrics import fit_percent
-from bayesmodal.system import Rig
+from bayesmodal.model.effects import get_extension
+from bayesmodal.model.system import Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDS = ("data_impulses", "data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow")

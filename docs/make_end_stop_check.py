@@ -30,10 +30,10 @@ import numpy as np
 from _measured import measured_records  # docs/_measured.py (run as docs/<script>.py)
 
 from bayesmodal.data import Experiment
-from bayesmodal.discrepancy.effects import get_extension
-from bayesmodal.discrepancy.effects.records_fit import fit_records_lsq, simulate_model
+from bayesmodal.fit.records import fit_records_lsq, simulate_model
 from bayesmodal.metrics import fit_percent
-from bayesmodal.system import Rig
+from bayesmodal.model.effects import get_extension
+from bayesmodal.model.system import Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The models compared, by their step label in discrepancy_table.json.

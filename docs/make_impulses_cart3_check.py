@@ -38,9 +38,9 @@ from pathlib import Path
 import numpy as np
 from _measured import measured_records  # docs/_measured.py (run as docs/<script>.py)
 
-from bayesmodal.discrepancy.effects import get_extension
-from bayesmodal.discrepancy.effects.records_fit import fit_records_lsq
-from bayesmodal.system import Rig
+from bayesmodal.fit.records import fit_records_lsq
+from bayesmodal.model.effects import get_extension
+from bayesmodal.model.system import Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE_LABEL = "+ end stop of cart 1"

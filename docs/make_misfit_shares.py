@@ -28,7 +28,7 @@ from bayesmodal.inference.records import (  # noqa: E402
     parse_layout,
     records_start,
 )
-from bayesmodal.system import LinearModel, Rig  # noqa: E402
+from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
 
 def _rms(a: np.ndarray) -> float:

@@ -6,7 +6,7 @@
 Each page is built from the registry or table the package runs on, so it cannot drift
 from the code:
 
-- ``effects.md``: ``bayesmodal.discrepancy.effects.EXTENSIONS`` (each effect's
+- ``effects.md``: ``bayesmodal.model.effects.EXTENSIONS`` (each effect's
   description, where it acts and its ``ParamSpec`` list, on the three-cart preset);
 - ``noise.md``: the noise-model spellings, resolved by
   ``bayesmodal.inference.records.resolve_noise`` and checked against the run
@@ -72,13 +72,13 @@ EFFECTS_PRESET = "ecp210-3cart"
 
 
 def effects_page() -> str:
-    from bayesmodal.discrepancy.effects import EXTENSIONS
-    from bayesmodal.rigs import load_rig
+    from bayesmodal.model.effects import EXTENSIONS
+    from bayesmodal.model.rigs import load_rig
 
     rig = load_rig(EFFECTS_PRESET)
     linear = next(iter(EXTENSIONS.values())).linear_model(rig).names
     out = [HEADER, "# Effects catalogue\n\n",
-           "The model extensions of `bayesmodal.discrepancy.effects.EXTENSIONS`, the names "
+           "The model extensions of `bayesmodal.model.effects.EXTENSIONS`, the names "
            "`[model] extensions`, `bayesmodal diagnose --candidates` and `get_extension` "
            "accept.  Each adds its parameters after the linear model's "
            f"({', '.join(f'`{n}`' for n in linear)}"

@@ -36,11 +36,11 @@ from pathlib import Path
 import numpy as np
 from _measured import RECORDS, measured_records  # docs/_measured.py (run as docs/<script>.py)
 
-from bayesmodal.discrepancy.effects import fit_extension_lsq, get_extension
-from bayesmodal.discrepancy.effects.records_fit import fit_records_lsq
 from bayesmodal.fit import fit_lsq
+from bayesmodal.fit.records import fit_records_lsq
 from bayesmodal.metrics import fit_percent
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import fit_extension_lsq, get_extension
+from bayesmodal.model.system import LinearModel, Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 DIAGNOSIS = ROOT / "docs/figures/diagnose_four_records_split_spread.json"

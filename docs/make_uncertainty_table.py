@@ -52,7 +52,7 @@ def single_record_baseline(exps, steps: int, seed: int) -> dict:
     """Yesterday's setup: the impulse record alone, AR(1), predicting the other records."""
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.predictive import predict_new_record, score_samples
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     t0 = time.perf_counter()
     run = sample_posterior(exps[:1], LinearModel(Rig(), "free"), noise="ar1", n_walkers=32,

@@ -21,7 +21,7 @@ settings.register_profile("nightly", max_examples=1000, deadline=None, database=
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 from bayesmodal.data import data_root, find_data, load_experiment  # noqa: E402
-from bayesmodal.system import LinearModel, Rig  # noqa: E402
+from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
 #: Report Table 3 (free damping), in LinearModel("free").names order.
 TABLE3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])

@@ -44,8 +44,8 @@ from reference_sim import (
 from reference_stop import simulate_stop_ref
 
 from bayesmodal.data import Experiment
-from bayesmodal.rigs import load_rig
-from bayesmodal.system import Rig
+from bayesmodal.model.rigs import load_rig
+from bayesmodal.model.system import Rig
 
 CASES = ("none", "coulomb_friction", "input_offset", "drive_deadband", "end_stop",
          "cubic_stiffness", "backlash", "coulomb_friction+input_offset",

@@ -87,7 +87,7 @@ def make_replicate(rng, n: int = 2000):
 def true_modes():
     """Undamped natural frequencies (rad/s) and modal damping ratios of the truth."""
     from bayesmodal.inference.propagate import propagate_modes
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     ms = propagate_modes(LinearModel(Rig(SPRINGS), "free"), np.r_[MU_GV, PHYSICS][None],
                          methods=("eig",))
@@ -112,7 +112,7 @@ def replicate(seed: int, *, n_samples: int = 2000, steps: int = 3000, walkers: i
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.propagate import propagate_modes
     from bayesmodal.inference.records import RecordLayout
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     rng = np.random.default_rng(seed)
     recs, truth = make_replicate(rng, n_samples)

@@ -29,8 +29,8 @@ from ecp_export_writer import ECP_DT, write_export
 
 from bayesmodal import DataError
 from bayesmodal.data import MAX_FILE_BYTES, Experiment, load_experiment, save_csv
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 TABLE = Path(__file__).resolve().parents[1] / "docs" / "bad_inputs.md"
 THETA = [6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.0, 0.0]

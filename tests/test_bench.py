@@ -17,7 +17,7 @@ from bayesmodal.bench import (
     rig_input,
 )
 from bayesmodal.cli import main
-from bayesmodal.discrepancy.effects import EXTENSIONS
+from bayesmodal.model.effects import EXTENSIONS
 
 
 def test_bench_extensions_reports_every_extension_against_the_same_run():

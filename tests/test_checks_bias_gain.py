@@ -19,7 +19,7 @@ from bayesmodal.discrepancy.checks import (
     linear_residuals,
 )
 from bayesmodal.fit import fit_lsq
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 MODEL = LinearModel(Rig(), "free")
 

@@ -9,7 +9,7 @@ import pytest
 from scipy.linalg import eigh
 
 from bayesmodal.cli import main
-from bayesmodal.system import Rig
+from bayesmodal.model.system import Rig
 
 EPS = np.finfo(float).eps
 MASSES = np.array([1.565, 1.461, 1.146])  # report Table 3

@@ -1,12 +1,12 @@
 """The generated kernels' conditional expressions as branch-free ``select`` calls
-(bayesmodal.discrepancy.kernels._codegen.branch_free): the same values as Python's
+(bayesmodal.model.kernels._codegen.branch_free): the same values as Python's
 ``a if c else b``, and left alone where evaluating both operands is not safe."""
 
 import ast
 
 import numpy as np
 
-from bayesmodal.discrepancy.kernels._codegen import _compile, branch_free
+from bayesmodal.model.kernels._codegen import _compile, branch_free
 
 LINES = [
     "def kernel(x, flags, out, idx):",

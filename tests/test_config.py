@@ -177,7 +177,7 @@ def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatc
     since 25 Nov 2026), in the run configuration and in the sampler's own hash, so a run
     sampled with 8 sub-steps does not resume into the new target; others keep theirs."""
     import bayesmodal.config as config
-    from bayesmodal.discrepancy.effects import get_extension
+    from bayesmodal.model.effects import get_extension
 
     def cfg(exts):
         model = {**_toml(GOOD)["model"], "damping": "free", "extensions": exts}

@@ -236,8 +236,8 @@ def test_crossval_takes_a_rig_description(tmp_path):
     from bayesmodal.cli import build_parser
     from bayesmodal.cli._crossval import spec_from_args
     from bayesmodal.inference.records import RecordsLikelihood
-    from bayesmodal.rigs import load_rig
-    from bayesmodal.system import LinearModel
+    from bayesmodal.model.rigs import load_rig
+    from bayesmodal.model.system import LinearModel
 
     args = build_parser().parse_args(["crossval", "a.csv", "b.csv", "--rig", "ecp210-2cart"])
     spec = spec_from_args(args)

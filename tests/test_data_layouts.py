@@ -17,9 +17,9 @@ import scipy.io
 
 from bayesmodal import ConfigError, DataError
 from bayesmodal.data import ECP_M_PER_COUNT, ReadOptions, load_experiment
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.reading import parse_columns, parse_scale, regularise_time
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 DT = 0.00442  # s, an ECP servo period; not a whole number of milliseconds
 N = 1500

@@ -20,10 +20,10 @@ from bayesmodal import ConfigError, ModelError
 from bayesmodal.data import ECP_M_PER_COUNT
 from bayesmodal.discrepancy.diagnosis import diagnose
 from bayesmodal.discrepancy.diagnosis.forward import REFINES, loro_gain
-from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq, get_extension
-from bayesmodal.discrepancy.effects.fit import extension_fit_at
 from bayesmodal.fit import fit_lsq
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.fit.effects import extension_fit_at
+from bayesmodal.model.effects import EXTENSIONS, fit_extension_lsq, get_extension
+from bayesmodal.model.system import LinearModel, Rig
 
 N_NULL = 19
 N_SAMPLES = 2400
@@ -211,7 +211,7 @@ def test_final_causes_take_location_and_parameters_from_the_final_fit():
 
     from bayesmodal.discrepancy.diagnosis.forward import Cause
     from bayesmodal.discrepancy.diagnosis.workflow import _final_causes
-    from bayesmodal.discrepancy.effects import get_extension
+    from bayesmodal.model.effects import get_extension
 
     rig = Rig()
     model = LinearModel(rig, "free")
@@ -377,8 +377,8 @@ def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
 
     from bayesmodal.discrepancy.diagnosis import workflow
     from bayesmodal.discrepancy.diagnosis.forward import Cause
-    from bayesmodal.discrepancy.effects import get_extension
     from bayesmodal.metrics import fit_percent
+    from bayesmodal.model.effects import get_extension
 
     h = make_case("input_offset", 20000, N_SAMPLES)
     e = h.experiment

@@ -25,7 +25,7 @@ from bayesmodal.discrepancy.diagnosis import (
     quantise,
 )
 from bayesmodal.fit import fit_lsq
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 N_NULL = 19
 #: Record length (12 s) and one seed per case (the failure message prints the drawn sizes).
@@ -211,10 +211,10 @@ def test_profiled_ar1_terms_match_the_likelihood_module():
 
 def test_best_starts_are_the_cheapest_grid_points_in_order():
     from bayesmodal.discrepancy.diagnosis.starts import best_start, best_starts
-    from bayesmodal.discrepancy.effects import EXTENSIONS
-    from bayesmodal.discrepancy.effects.fit import extension_residuals
     from bayesmodal.fit import fit_lsq
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.fit.effects import extension_residuals
+    from bayesmodal.model.effects import EXTENSIONS
+    from bayesmodal.model.system import LinearModel, Rig
 
     h = make("coulomb_friction", 3, n_samples=800)
     rig = Rig()

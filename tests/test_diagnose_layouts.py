@@ -14,7 +14,7 @@ from hidden_layouts import layout_rig, make_layout_case
 
 from bayesmodal import ConfigError
 from bayesmodal.discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
-from bayesmodal.system import Drive
+from bayesmodal.model.system import Drive
 
 #: (layout, case, seed)
 CASES = [("two_frame_at_drive", "none", 1), ("two_frame_at_drive", "coulomb_friction", 1),

@@ -29,8 +29,8 @@ from bayesmodal.discrepancy.checks import (
     whiteness,
 )
 from bayesmodal.fit import fit_lsq
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.plots.diagnostics import plot_diagnostic, plot_residuals, plot_stick
-from bayesmodal.system import LinearModel, Rig
 
 matplotlib.use("Agg")
 

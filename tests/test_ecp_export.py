@@ -20,8 +20,8 @@ from ecp_export_writer import ECP_DT, M_PER_COUNT, write_export
 from bayesmodal import DataError
 from bayesmodal.cli import main
 from bayesmodal.data import load_experiment
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 THETA = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.01, 0.01])
 N = 1200

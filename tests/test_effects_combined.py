@@ -15,10 +15,10 @@ from reference_sim import RTOL, simulate_coulomb_ref
 
 from bayesmodal import ConfigError, ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, save_csv
-from bayesmodal.discrepancy.effects import EXTENSIONS, Combined, get_extension
-from bayesmodal.discrepancy.effects.lugre import LuGreFriction
 from bayesmodal.inference import Likelihood
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import EXTENSIONS, Combined, get_extension
+from bayesmodal.model.effects.lugre import LuGreFriction
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 DT = 0.005
@@ -231,8 +231,8 @@ def test_least_squares_fit_of_a_combination_recovers_truth_within_its_standard_e
     Gaussian noise; the estimate lies within 4 Gauss-Newton standard errors (from the
     finite-difference Jacobian at the estimate) of the truth, and the fit's cost is not
     above the cost at the truth (the optimum, not merely a point near it)."""
-    from bayesmodal.discrepancy.effects import fit_extension_lsq
-    from bayesmodal.discrepancy.effects.fit import extension_residuals
+    from bayesmodal.fit.effects import extension_residuals
+    from bayesmodal.model.effects import fit_extension_lsq
 
     ext = get_extension("input_offset+drive_deadband")
     N = 2400
@@ -260,8 +260,8 @@ def test_least_squares_fit_of_a_combination_recovers_truth_within_its_standard_e
 
 
 def test_kernel_input_stages_are_checked_before_any_code_is_generated():
-    from bayesmodal.discrepancy.kernels.coulomb import coulomb_kernel
-    from bayesmodal.discrepancy.kernels.lugre import lugre_kernel
+    from bayesmodal.model.kernels.coulomb import coulomb_kernel
+    from bayesmodal.model.kernels.lugre import lugre_kernel
 
     for kernel in (coulomb_kernel, lugre_kernel):
         with pytest.raises(ValueError, match="unknown input stage 'magic'"):

@@ -10,10 +10,10 @@ from reference_sim import simulate_backlash_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT as COUNT
-from bayesmodal.discrepancy.effects import EXTENSIONS, Combined, get_extension
-from bayesmodal.discrepancy.effects._input import held_average
 from bayesmodal.inference.propagate import propagate_modes
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import EXTENSIONS, Combined, get_extension
+from bayesmodal.model.effects._input import held_average
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 DT = 0.005

@@ -16,8 +16,8 @@ from scipy import stats
 
 from bayesmodal import ConfigError
 from bayesmodal.discrepancy.diagnosis.forward import _lpd
-from bayesmodal.discrepancy.effects import fit_extension_lsq, get_extension
-from bayesmodal.discrepancy.effects.global_fit import (
+from bayesmodal.fit import fit_lsq
+from bayesmodal.fit.global_search import (
     DAMPER_BOX,
     DAMPER_PAD,
     fit_extension_global,
@@ -25,8 +25,8 @@ from bayesmodal.discrepancy.effects.global_fit import (
     pruned_starts,
     search_box,
 )
-from bayesmodal.fit import fit_lsq
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import fit_extension_lsq, get_extension
+from bayesmodal.model.system import LinearModel, Rig
 
 CASE, SEED = "coulomb_friction+drive_deadband", 1
 

@@ -21,10 +21,10 @@ from reference_sim import REFERENCES, RTOL, RefLayout, simulate_linear_ref
 from reference_stop import simulate_stop_ref
 
 from bayesmodal import ModelError
-from bayesmodal.discrepancy.effects import EXTENSIONS
-from bayesmodal.rigs import load_rig
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import Cart, Drive, LinearModel, Rig, Sensor, Spring
+from bayesmodal.model.effects import EXTENSIONS
+from bayesmodal.model.rigs import load_rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import Cart, Drive, LinearModel, Rig, Sensor, Spring
 
 DT = 0.005
 COUNT = 4.4125e-06  # m per encoder count: the effects must show at this resolution

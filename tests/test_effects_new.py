@@ -16,15 +16,15 @@ from reference_sim import RTOL
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT
-from bayesmodal.discrepancy.effects import (
+from bayesmodal.model.effects import (
     DriveDeadband,
     InputOffset,
     LuGreFriction,
     get_extension,
 )
-from bayesmodal.discrepancy.effects.deadband import deadband
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects.deadband import deadband
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 DT = 0.005
@@ -166,7 +166,7 @@ def test_lugre_lane_blocks_equal_single_runs():
     and state packed block by block (``kernels.lugre.LANE_BLOCK``): every set of a batch
     of 40 (a 64-lane kernel, the second block padded) gives its single run bit for bit,
     through the shared input, the fused input stages and a per-lane input."""
-    from bayesmodal.discrepancy.kernels.lugre import LANE_BLOCK, lugre_run
+    from bayesmodal.model.kernels.lugre import LANE_BLOCK, lugre_run
 
     u = _input()
     rng = np.random.default_rng(11)
@@ -187,8 +187,8 @@ def test_lugre_lane_blocks_equal_single_runs():
             y_staged[j], both.simulate(RIG, np.r_[lin[j], own[j], stages[j]], u, DT))
     # a per-lane input (one row per set) through the kernel driver, the rig's matrices as
     # LuGreFriction._simulate builds them
-    from bayesmodal.discrepancy.effects._linear import linear_parts
-    from bayesmodal.discrepancy.kernels import zoh
+    from bayesmodal.model.effects._linear import linear_parts
+    from bayesmodal.model.kernels import zoh
 
     parts = linear_parts(RIG, lin)
     h = DT / ext.n_sub

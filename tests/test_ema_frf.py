@@ -24,7 +24,7 @@ from bayesmodal.ema import (
     welch_frf,
     zoh_factor,
 )
-from bayesmodal.simulate import simulate_state_space
+from bayesmodal.model.simulate import simulate_state_space
 
 # a single-DOF oscillator: m = 2 kg, k = 800 N/m, c = 4 N s/m (omega_n 20 rad/s, zeta 0.05)
 M_KG, K_N_M, C_NS_M = 2.0, 800.0, 4.0

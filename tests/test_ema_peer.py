@@ -10,8 +10,8 @@ from conftest import TABLE3
 
 from bayesmodal.data import Experiment
 from bayesmodal.ema import frf_from_experiment, identify
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 
 def _pyema():

@@ -28,8 +28,8 @@ from bayesmodal.ema import (
     step_increments,
 )
 from bayesmodal.modal import complex_modes
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 THETA_3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
 RIG3 = LinearModel(Rig(), "free")

@@ -14,8 +14,8 @@ from bayesmodal.ema import METHODS, frf_from_experiment, identify, mac_estimates
 from bayesmodal.ema.frf import peak_prominence
 from bayesmodal.fit import fit_lsq
 from bayesmodal.modal import complex_modes
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 #: Sensor noise of the simulated test, m (about 23 encoder counts; the response peaks at
 #: about 3 cm).

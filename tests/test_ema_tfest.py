@@ -8,7 +8,7 @@ from conftest import TABLE3
 
 from bayesmodal._errors import DataError
 from bayesmodal.ema import FRF, tfest
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 
 def rig_frf(w, theta=TABLE3):

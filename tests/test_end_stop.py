@@ -10,14 +10,14 @@ from reference_stop import simulate_coulomb_stop_ref, simulate_stop_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT
-from bayesmodal.discrepancy.effects import (
+from bayesmodal.model.effects import (
     Combined,
     CoulombFriction,
     EndStop,
     get_extension,
 )
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 DT = 0.005
@@ -172,7 +172,7 @@ def test_stop_with_lugre_friction_matches_the_stiff_reference():
     from reference_effects import LUGRE_RTOL
     from reference_stop import simulate_lugre_stop_ref
 
-    from bayesmodal.discrepancy.effects import LuGreFriction
+    from bayesmodal.model.effects import LuGreFriction
 
     lugre = np.array([0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005])
     theta = np.r_[TABLE3, lugre, STOP]

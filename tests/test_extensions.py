@@ -12,7 +12,8 @@ from reference_stop import simulate_stop_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
-from bayesmodal.discrepancy.effects import (
+from bayesmodal.metrics import fit_percent
+from bayesmodal.model.effects import (
     EXTENSIONS,
     Backlash,
     CoulombFriction,
@@ -21,9 +22,8 @@ from bayesmodal.discrepancy.effects import (
     fit_extension_lsq,
     get_extension,
 )
-from bayesmodal.metrics import fit_percent
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 DT = 0.005
@@ -108,8 +108,8 @@ def test_batch_equals_single_and_shapes(name):
 
 
 def test_kernel_width_vectorises_batches_above_four_sets():
-    from bayesmodal.discrepancy.kernels import MAX_WIDTH, padded_width
-    from bayesmodal.discrepancy.kernels._codegen import MIN_VECTOR_WIDTH, SCALAR_MAX
+    from bayesmodal.model.kernels import MAX_WIDTH, padded_width
+    from bayesmodal.model.kernels._codegen import MIN_VECTOR_WIDTH, SCALAR_MAX
 
     for nb in range(1, 3 * MAX_WIDTH):
         w = padded_width(nb)
@@ -253,8 +253,8 @@ def test_a_vanishing_motor_lag_converges_to_the_linear_model(name):
     encoder count down to ``INSTANT_LAG dt``, and exactly the linear model below it.
     Before the threshold, the hold of the stiff lag state was 1.5 mm off at 1e-14 s (a
     least-squares fit on the measured records went there)."""
-    from bayesmodal.discrepancy.effects import get_extension
-    from bayesmodal.discrepancy.effects._input import INSTANT_LAG
+    from bayesmodal.model.effects import get_extension
+    from bayesmodal.model.effects._input import INSTANT_LAG
 
     ext = get_extension(name)
     t = np.arange(2000) * DT
@@ -361,7 +361,7 @@ def test_kernel_blocks_are_aligned_to_a_vector():
     """Parameter, state, per-lane input and output blocks start on ALIGN_BYTES (an
     AVX-512 vector), whatever numpy's allocator gives: unaligned rows make every vector
     load straddle two cache lines."""
-    from bayesmodal.discrepancy.kernels._codegen import (
+    from bayesmodal.model.kernels._codegen import (
         ALIGN_BYTES,
         _pack,
         _pack_input,

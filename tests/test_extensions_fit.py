@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from hidden_effects import make
 
-from bayesmodal.discrepancy.effects import EXTENSIONS, fit_extension_lsq
-from bayesmodal.discrepancy.effects.fit import extension_residuals
 from bayesmodal.fit import fit_lsq
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.fit.effects import extension_residuals
+from bayesmodal.model.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 
@@ -62,7 +62,7 @@ def test_experiment_weights_scale_each_records_share_of_the_cost(record):
     the negative control (weights 1, 1) differs from the first record alone by the second
     record's own cost.  The fit reports the cost function at its estimate."""
     from bayesmodal._errors import ConfigError
-    from bayesmodal.discrepancy.effects.fit import extension_cost
+    from bayesmodal.fit.effects import extension_cost
 
     ext = EXTENSIONS["coulomb_friction"]
     other = make("coulomb_friction", seed=9, n_samples=1000).experiment
@@ -109,7 +109,7 @@ def test_spread_weights_are_the_inverse_spreads_times_their_mean(record):
     A record that does not move is an error naming the record, not a division by zero."""
     from bayesmodal._errors import ConfigError, DataError
     from bayesmodal.data import Experiment
-    from bayesmodal.discrepancy.effects.fit import experiment_weights, record_weights
+    from bayesmodal.fit.effects import experiment_weights, record_weights
 
     big = _scaled(record, 3.0, "big")
     w = record_weights([record, big])
@@ -131,7 +131,7 @@ def test_spread_weighted_cost_sums_each_records_pooled_misfit(record):
     record's pooled fraction explained (``1 - |y_r - yhat_r| / |y_r - mean y_r|`` over all
     its outputs): a record three times as large counts as much as the small one, where
     the unweighted cost (the control) is dominated by it, at a batch of parameter sets."""
-    from bayesmodal.discrepancy.effects.fit import extension_cost
+    from bayesmodal.fit.effects import extension_cost
 
     ext = EXTENSIONS["coulomb_friction"]
     lin = fit_lsq(record, LinearModel(RIG, "free"))
@@ -161,7 +161,7 @@ def test_spread_weighted_cost_sums_each_records_pooled_misfit(record):
 def test_one_record_weighted_by_spread_fits_bit_for_bit_as_unweighted(record):
     """Negative control: with one record the ``"spread"`` weight is exactly 1, so the fit
     (and the global search) are those of the unweighted cost, bit for bit."""
-    from bayesmodal.discrepancy.effects.global_fit import fit_extension_global
+    from bayesmodal.fit.global_search import fit_extension_global
 
     ext = EXTENSIONS["coulomb_friction"]
     lin = fit_lsq(record, LinearModel(RIG, "free"))
@@ -179,7 +179,7 @@ def test_inadmissible_parameter_sets_get_a_barrier_not_an_error(record):
     """Backlash needs ``m_p < m1``, a rule the optimiser's box cannot state: a trial
     point beyond it gets residuals far above any admissible row's, and admissible rows
     are exactly ``extension_residuals``."""
-    from bayesmodal.discrepancy.effects.fit import admissible_residuals
+    from bayesmodal.fit.effects import admissible_residuals
 
     ext = EXTENSIONS["backlash"]
     lin = fit_lsq(record, LinearModel(RIG, "free"))

@@ -20,9 +20,9 @@ from instrument_writers import write_tdms, write_uff58
 from bayesmodal import DataError
 from bayesmodal.cli import main
 from bayesmodal.data import load_experiment
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.reading import ReadOptions
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 pytest.importorskip("pyuff")
 pytest.importorskip("nptdms")

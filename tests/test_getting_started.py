@@ -18,8 +18,8 @@ import numpy as np
 from bayesmodal.cli import main
 from bayesmodal.data import load_experiment
 from bayesmodal.fit import fit_lsq
-from bayesmodal.rigs import load_rig
-from bayesmodal.system import LinearModel
+from bayesmodal.model.rigs import load_rig
+from bayesmodal.model.system import LinearModel
 
 REPO = Path(__file__).resolve().parents[1]
 PAGE = REPO / "docs" / "getting_started.md"

@@ -19,8 +19,8 @@ from conftest import run_cli as _cli
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.fit import fit_lsq
 from bayesmodal.identified import MAX_RELATIVE_STDERR, identify
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 #: g_v, m1..m3, c1..c3, c12, c23 (N/V, kg, N s/m): near the report's Table 3
 THETA = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.01, 0.01])

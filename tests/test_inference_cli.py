@@ -10,8 +10,8 @@ import pytest
 from bayesmodal.cli import main
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.inference import simulate_noise
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 pytestmark = pytest.mark.filterwarnings("ignore::bayesmodal.inference.ConvergenceWarning")
 

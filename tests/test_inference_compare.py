@@ -19,8 +19,8 @@ from bayesmodal.inference import (
     to_inference_data,
 )
 from bayesmodal.inference.compare import Evidence
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 
 def _gauss(mu, sd):

@@ -13,7 +13,6 @@ from conftest import EPS, zoh_rtol
 from hidden_effects import make
 
 from bayesmodal._errors import ConfigError, ModelError
-from bayesmodal.discrepancy.effects import EXTENSIONS
 from bayesmodal.inference import (
     Likelihood,
     default_priors,
@@ -25,8 +24,9 @@ from bayesmodal.inference import (
     summary_dict,
     to_inference_data,
 )
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import EXTENSIONS
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 N_SAMPLES = 2000  # four pulses and a 0.5 V step
 
@@ -192,7 +192,7 @@ def truth_runs(friction_data):
     model, which reaches the truth's basin on this record (cost 1.6e-8 m^2); the
     four-sub-step fit from the linear fit, or from diagnose's grid start, stops in a local
     optimum 25000 times costlier that a 1500-step chain does not leave."""
-    from bayesmodal.discrepancy.effects import CoulombFriction, fit_extension_lsq
+    from bayesmodal.model.effects import CoulombFriction, fit_extension_lsq
 
     e = friction_data.experiment
     ext = EXTENSIONS["coulomb_friction"]

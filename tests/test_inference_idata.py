@@ -22,8 +22,8 @@ from bayesmodal.inference import (
     to_inference_data,
     write_run,
 )
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 TRUTH = np.array([6.2, 1.57, 1.46, 1.14, 1.6, 1e-4])
 

@@ -103,7 +103,7 @@ def test_draws_have_the_covariance():
 def test_init_is_validated():
     from bayesmodal.data import Experiment
     from bayesmodal.inference import sample_posterior
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     t = np.arange(200) * 0.005
     y = np.zeros((200, 3))
@@ -173,7 +173,7 @@ def test_laplace_start_recovers_known_truth():
     """
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.records import RecordLayout
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     recs, truth = _offset_records(seed=11)
     kw = dict(noise="white", extension="input_offset", warn=False, rng=5, n_walkers=44,
@@ -212,7 +212,7 @@ def test_records_start_finds_each_records_gain():
     the shared start itself is off by more than that for both."""
     from bayesmodal.inference.records import GAIN_GRID, RecordLayout, RecordsLikelihood
     from bayesmodal.inference.records import records_start as start
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     recs, truth = _offset_records(seed=2)
     lik = RecordsLikelihood(LinearModel(Rig(), "free"), recs, "white", "input_offset",

@@ -10,8 +10,8 @@ from scipy import stats
 from bayesmodal._errors import ConfigError, DataError
 from bayesmodal.data import Experiment
 from bayesmodal.inference.likelihood import Likelihood, ar1_terms, simulate_noise, white_terms
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 THETA_P = np.array([6.2, 1.57, 1.46, 1.14, 1.6, 1e-4])
 

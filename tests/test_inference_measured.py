@@ -22,7 +22,7 @@ import pytest
 
 from bayesmodal.fit import fit_lsq
 from bayesmodal.inference import credible_interval, propagate_modes, sample_posterior
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 pytestmark = pytest.mark.slow
 

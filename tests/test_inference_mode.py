@@ -11,12 +11,12 @@ from reference_effects import simulate_lugre_ref
 from scipy import stats
 
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
-from bayesmodal.discrepancy.effects import EXTENSIONS, get_extension
 from bayesmodal.inference.likelihood import Likelihood
 from bayesmodal.inference.mode import _OptCoordinates, posterior_mode
 from bayesmodal.inference.priors import default_priors
 from bayesmodal.inference.sampling import LogPosterior
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.effects import EXTENSIONS, get_extension
+from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()
 DT = 0.005

@@ -125,7 +125,7 @@ def test_normal_truncation_is_normalised():
 
 
 def _model(damping):
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.system import LinearModel, Rig
 
     return LinearModel(Rig(), damping)
 

@@ -15,7 +15,7 @@ from bayesmodal.inference.propagate import (
     propagate_modes,
 )
 from bayesmodal.modal import proportional_modal_damping, undamped_modes
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 
 def _draws(model, centre, n=500, rel=0.02, seed=0):

@@ -17,8 +17,8 @@ from bayesmodal.inference.records import (
     records_start,
 )
 from bayesmodal.inference.sampling import LogPosterior
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 EPS = np.finfo(float).eps
 MODEL = LinearModel(Rig(), "free")

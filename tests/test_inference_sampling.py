@@ -18,8 +18,8 @@ from bayesmodal.inference import (
     sample_posterior,
     simulate_noise,
 )
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 TRUTH = np.array([6.2, 1.57, 1.46, 1.14, 1.6, 1e-4])  # proportional damping
 SIGMA = np.array([2e-5, 2e-5, 2e-5])

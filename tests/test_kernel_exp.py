@@ -1,4 +1,4 @@
-"""The generated kernels' exponentials (bayesmodal.discrepancy.kernels._exp) against long
+"""The generated kernels' exponentials (bayesmodal.model.kernels._exp) against long
 double numpy: accuracy, values at 0 and at the clip, continuity across the range
 reduction's pieces, and the minimax coefficients' derivation."""
 
@@ -7,8 +7,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from bayesmodal.discrepancy.kernels._codegen import _compile
-from bayesmodal.discrepancy.kernels._exp import (
+from bayesmodal.model.kernels._codegen import _compile
+from bayesmodal.model.kernels._exp import (
     EXP_CLIP,
     LOG2E,
     Q_COEFFS,

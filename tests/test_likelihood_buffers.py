@@ -10,12 +10,12 @@ import pickle
 import numpy as np
 import pytest
 
-from bayesmodal._resid_kernels import ar1_sums, ar1_sums_affine, ar1_sums_lanes
 from bayesmodal.data import Experiment
 from bayesmodal.inference.likelihood import Likelihood, loglik_from_sums
 from bayesmodal.inference.records import DEFAULT_LAYOUT, RecordLayout, RecordsLikelihood
-from bayesmodal.simulate import LinearSimulator, simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model._resid_kernels import ar1_sums, ar1_sums_affine, ar1_sums_lanes
+from bayesmodal.model.simulate import LinearSimulator, simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 MODEL = LinearModel(Rig(), "free")
 THETA = np.array([5.5, 1.5, 1.45, 1.15, 3.0, 2.0, 1.5, 0.5, 0.5])

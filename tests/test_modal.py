@@ -45,7 +45,7 @@ from bayesmodal.modal import (
     transfer_function,
     undamped_modes,
 )
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 METHODS = [undamped_modes, rayleigh_modes, matrix_iteration]
 METHOD_IDS = ["eigen", "rayleigh", "iteration"]

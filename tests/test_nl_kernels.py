@@ -8,10 +8,10 @@ from reference_sim import REFERENCES
 from scipy.linalg import expm
 
 from bayesmodal.data import ECP_M_PER_COUNT as COUNT
-from bayesmodal.discrepancy.effects import EXTENSIONS
-from bayesmodal.discrepancy.effects._linear import linear_parts
-from bayesmodal.discrepancy.kernels import expm_batched, zoh
-from bayesmodal.system import Rig
+from bayesmodal.model.effects import EXTENSIONS
+from bayesmodal.model.effects._linear import linear_parts
+from bayesmodal.model.kernels import expm_batched, zoh
+from bayesmodal.model.system import Rig
 
 RIG = Rig()
 DT = 0.005
@@ -202,7 +202,7 @@ def _friction_draws(n, rng):
 def _count_kernel_calls(monkeypatch) -> list:
     """Patch the friction kernel to record what each call returns: (packed groups that
     took a sample again in sub-steps, samples a group at rest skipped)."""
-    import bayesmodal.discrepancy.kernels.coulomb as nk
+    import bayesmodal.model.kernels.coulomb as nk
 
     returned = []
     compiled = nk.coulomb_kernel

@@ -199,8 +199,8 @@ def test_measured_residuals_are_not_low_order_ar(impulses):
     """docs/noise_models.md: on the rig the order choice runs into the cap, with a warning,
     and AR(p) at the Burg start beats AR(1) at its moment start."""
     from bayesmodal.inference.noise import AR1Noise
-    from bayesmodal.simulate import simulate_linear
-    from bayesmodal.system import LinearModel, Rig
+    from bayesmodal.model.simulate import simulate_linear
+    from bayesmodal.model.system import LinearModel, Rig
 
     table3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
     r = impulses.y_m - simulate_linear(LinearModel(Rig(), "free"), table3, impulses.v_volt,

@@ -10,8 +10,8 @@ from bayesmodal.data import Experiment
 from bayesmodal.inference.likelihood import Likelihood, ar1_terms, white_terms
 from bayesmodal.inference.noise import AR1Noise, ARpNoise, NoiseModel, WhiteNoise
 from bayesmodal.inference.priors import default_priors, noise_names
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 EPS = np.finfo(float).eps
 THETA_P = np.array([6.2, 1.57, 1.46, 1.14, 1.6, 1e-4])

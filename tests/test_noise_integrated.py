@@ -9,8 +9,8 @@ from scipy import stats
 from bayesmodal.data import Experiment
 from bayesmodal.inference.noise import AR1Noise, IntegratedAR1Noise
 from bayesmodal.inference.records import RecordLayout, RecordsLikelihood, resolve_noise
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 EPS = np.finfo(float).eps
 

@@ -20,8 +20,8 @@ from bayesmodal.inference.noise.kalman import (
     solve_filter_dare,
     steady_state_filter,
 )
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 EPS = np.finfo(float).eps
 DT = 0.005

@@ -20,8 +20,8 @@ from conftest import zoh_rtol
 from bayesmodal.data import Experiment
 from bayesmodal.inference import Likelihood, LogPosterior, LogUniform, default_priors
 from bayesmodal.modal import ConvergenceError, matrix_iteration, rayleigh_modes, undamped_modes
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 # (id, springs N/m, masses kg, free damping: absolute c_i then relative c_i,i+1 in N s/m)
 EDGES = {

@@ -18,9 +18,9 @@ from bayesmodal.inference import (
     to_inference_data,
 )
 from bayesmodal.inference.idata import predictive_quantum, with_pointwise_loglik
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs.checkpoint import AtomicCheckpoint
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 TRUTH = np.array([6.2, 1.57, 1.46, 1.14, 1.6, 1e-4])
 EPS32 = np.finfo(np.float32).eps

@@ -19,7 +19,7 @@ from bayesmodal.data import Experiment
 from bayesmodal.inference import sample_posterior
 from bayesmodal.inference.laplace import laplace_approximation
 from bayesmodal.inference.sampling import LogPosterior
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 N = 1500
 

@@ -20,8 +20,8 @@ from hypothesis.extra import numpy as hnp
 
 from bayesmodal import DataError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, load_experiment, save_csv
-from bayesmodal.simulate import simulate_linear, simulate_state_space
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear, simulate_state_space
+from bayesmodal.model.system import LinearModel, Rig
 
 FINITE = {"allow_nan": False, "allow_infinity": False}
 

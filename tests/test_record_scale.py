@@ -12,8 +12,8 @@ from bayesmodal.inference.idata import likelihood_from_idata, to_inference_data
 from bayesmodal.inference.predictive import predict_new_record
 from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
 from bayesmodal.inference.sampling import sample_posterior
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 EPS = np.finfo(float).eps
 MODEL = LinearModel(Rig(), "free")

@@ -1,5 +1,5 @@
 """Joint least squares of several records with per-record parameters, and its
-leave-one-record-out check (bayesmodal.discrepancy.effects.records_fit)."""
+leave-one-record-out check (bayesmodal.fit.records)."""
 
 import importlib.util
 import json
@@ -14,15 +14,15 @@ from reference_sim import RTOL
 
 from bayesmodal import ConfigError, DataError
 from bayesmodal.data import Experiment
-from bayesmodal.discrepancy.effects import get_extension
-from bayesmodal.discrepancy.effects.records_fit import (
+from bayesmodal.fit.records import (
     fit_records_lsq,
     loro_lsq,
     new_record_theta,
     simulate_model,
 )
 from bayesmodal.metrics import fit_percent
-from bayesmodal.system import Rig
+from bayesmodal.model.effects import get_extension
+from bayesmodal.model.system import Rig
 
 RIG = Rig()
 DT = 0.005

@@ -46,8 +46,8 @@ def test_committed_page_is_generated(name):
 
 
 def test_every_effect_and_parameter_is_listed():
-    from bayesmodal.discrepancy.effects import EXTENSIONS
-    from bayesmodal.rigs import load_rig
+    from bayesmodal.model.effects import EXTENSIONS
+    from bayesmodal.model.rigs import load_rig
 
     page = ref.effects_page()
     rig = load_rig(ref.EFFECTS_PRESET)
@@ -94,7 +94,7 @@ def test_generator_follows_the_registries(monkeypatch):
     writing a page that misses it."""
     from bayesmodal import ConfigError
     from bayesmodal.config import _SCHEMA
-    from bayesmodal.discrepancy.effects import EXTENSIONS
+    from bayesmodal.model.effects import EXTENSIONS
 
     monkeypatch.setitem(EXTENSIONS, "extra_effect", EXTENSIONS["motor_lag"])
     assert "\n## extra_effect\n" in ref.effects_page()

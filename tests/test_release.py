@@ -21,8 +21,8 @@ from bayesmodal import ConfigError, DataError
 from bayesmodal._release import final_rest, find_release
 from bayesmodal.cli import main
 from bayesmodal.data import Experiment, load_experiment, save_csv
+from bayesmodal.model.system import Cart, Drive, LinearModel, Rig, Spring
 from bayesmodal.reading import ReadOptions
-from bayesmodal.system import Cart, Drive, LinearModel, Rig, Spring
 
 K1 = 396.0
 GAIN = 6.2

@@ -19,9 +19,9 @@ from conftest import (
 
 from bayesmodal.data import ECP_M_PER_COUNT
 from bayesmodal.metrics import fit_percent
-from bayesmodal.simulate import simulate_linear, simulate_state_space
+from bayesmodal.model.simulate import simulate_linear, simulate_state_space
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.static import NOMINAL_G_V, steady_state
-from bayesmodal.system import LinearModel, Rig
 
 K_NOM = Rig().stiffness_matrix()
 M_T3 = np.diag(TABLE3[1:4])

@@ -26,9 +26,16 @@ from bayesmodal.data import Experiment, save_csv
 from bayesmodal.fit import fit_lsq
 from bayesmodal.inference import Likelihood
 from bayesmodal.metrics import fit_percent
-from bayesmodal.rigs import PRESETS, load_rig, rig_from_dict, rig_from_toml, rig_to_toml, save_rig
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import (
+from bayesmodal.model.rigs import (
+    PRESETS,
+    load_rig,
+    rig_from_dict,
+    rig_from_toml,
+    rig_to_toml,
+    save_rig,
+)
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import (
     Cart,
     Damper,
     Drive,
@@ -356,7 +363,7 @@ def test_free_decays_need_something_absolute():
 
 
 # -------------------------------------------------- the 'done when' two-cart record
-#: ftol of the reference fit, and of fit_lsq (bayesmodal/fit.py).
+#: ftol of the reference fit, and of fit_lsq (bayesmodal/fit/linear.py).
 REF_FTOL, LSQ_FTOL = 1e-14, 1e-12
 
 
@@ -581,7 +588,7 @@ def test_inseparable_scale_names_what_to_add():
 
 # ---------------------------------------------------------- extensions on other layouts
 def test_extensions_take_other_layouts():
-    from bayesmodal.discrepancy.effects import EXTENSIONS
+    from bayesmodal.model.effects import EXTENSIONS
 
     other = load_rig("ecp210-2cart-frame-at-drive")
     t = np.arange(50) * DT

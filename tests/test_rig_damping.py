@@ -12,9 +12,9 @@ import pytest
 
 from bayesmodal._errors import ConfigError, ModelError
 from bayesmodal.data import Experiment, save_csv
-from bayesmodal.rigs import load_rig, rig_from_dict, rig_from_toml, rig_to_dict, rig_to_toml
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel
+from bayesmodal.model.rigs import load_rig, rig_from_dict, rig_from_toml, rig_to_dict, rig_to_toml
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel
 
 TWO = load_rig("ecp210-2cart")
 

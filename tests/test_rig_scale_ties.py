@@ -16,9 +16,9 @@ from bayesmodal import ModelError
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.fit import fit_lsq
 from bayesmodal.modal import modal_summary
-from bayesmodal.rigs import rig_from_toml, rig_to_toml
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel
+from bayesmodal.model.rigs import rig_from_toml, rig_to_toml
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel
 
 DT = 0.005
 G_V = 6.0

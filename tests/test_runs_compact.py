@@ -194,9 +194,9 @@ def test_small_run_folder_is_compacted_and_reproduces_its_summary(tmp_path):
     from bayesmodal.data import Experiment, save_csv
     from bayesmodal.inference import load_idata, posterior_matrix, priors_from_idata
     from bayesmodal.inference.likelihood import simulate_noise
+    from bayesmodal.model.simulate import simulate_linear
+    from bayesmodal.model.system import LinearModel, Rig
     from bayesmodal.runs import rerun_run, run_config
-    from bayesmodal.simulate import simulate_linear
-    from bayesmodal.system import LinearModel, Rig
 
     model = LinearModel(Rig(), "free")
     dt, n = 0.005, 500

@@ -26,8 +26,8 @@ import pytest
 from bayesmodal.cli import main
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.inference import load_idata, simulate_noise
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 
 STEPS = 500
 

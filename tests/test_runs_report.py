@@ -14,11 +14,11 @@ import pytest
 
 from bayesmodal.data import Experiment
 from bayesmodal.inference import Likelihood, simulate_noise
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs.crosscheck import predictive_coverage
 from bayesmodal.runs.report import render_report
 from bayesmodal.runs.verdict import COVERAGE_TOLERANCE, coverage_status, run_verdict
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 TRUTH = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.0, 0.0])
 

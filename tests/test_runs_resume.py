@@ -21,10 +21,10 @@ import pytest
 from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.inference import load_idata, simulate_noise
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs import RunLockedError, checkpoint_iteration, prepare_run, run_config
 from bayesmodal.runs.runner import execute_run
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 STEPS = 3000
 

@@ -27,9 +27,9 @@ from bayesmodal.cli import main
 from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, file_sha256, save_csv
 from bayesmodal.inference import load_idata, propagate_modes, save_idata, simulate_noise
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs.verdict import run_verdict
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 TRUTH = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.0, 0.0])
 

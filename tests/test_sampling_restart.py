@@ -12,9 +12,9 @@ import pytest
 from bayesmodal._errors import ConfigError
 from bayesmodal.data import Experiment
 from bayesmodal.inference import sample_posterior
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs.checkpoint import AtomicCheckpoint
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 MODEL = LinearModel(Rig(), "proportional")
 THETA = np.array([6.2, 1.5, 1.4, 1.1, 1.5, 1e-4])

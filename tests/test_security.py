@@ -16,9 +16,9 @@ from bayesmodal import ConfigError
 from bayesmodal.cli import main
 from bayesmodal.config import load_config, parse_config
 from bayesmodal.data import Experiment, save_csv
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs import default_out_dir, render_report
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = sorted([*(REPO / "bayesmodal").rglob("*.py"), *(REPO / "scripts").rglob("*.py"),
@@ -33,12 +33,12 @@ FORBIDDEN_CALLS = {"eval", "pickle.load", "pickle.loads", "cPickle.load", "dill.
 FORBIDDEN_MODULES = {"pickle", "cPickle", "dill", "shelve", "marshal", "cloudpickle"}
 #: Modules allowed to call exec: they compile numba kernels from source text that the
 #: package writes itself from integer sizes (no configuration or data string reaches it).
-EXEC_ALLOWED = {"_kernels.py", "discrepancy/kernels/_codegen.py"}
+EXEC_ALLOWED = {"model/_kernels.py", "model/kernels/_codegen.py"}
 #: Modules that call ``_compile`` of the modules above with generated kernel lines.
-COMPILE_CALLERS = ("discrepancy/kernels/backlash.py", "discrepancy/kernels/coulomb.py",
-                   "discrepancy/kernels/cubic.py",
-                   "discrepancy/kernels/linear_input.py",
-                   "discrepancy/kernels/lugre.py", "inference/noise/kalman.py")
+COMPILE_CALLERS = ("model/kernels/backlash.py", "model/kernels/coulomb.py",
+                   "model/kernels/cubic.py",
+                   "model/kernels/linear_input.py",
+                   "model/kernels/lugre.py", "inference/noise/kalman.py")
 
 
 def _name(node) -> str:

@@ -9,9 +9,9 @@ from conftest import TABLE3, measured
 from bayesmodal import ConfigError
 from bayesmodal.cli import main
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, save_csv
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.segments import rest_mask, split_at_rest, split_records
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 DT = 0.005
 #: Pulse onsets, samples: 3 V for 10 samples, then 12 s without drive.

@@ -6,8 +6,8 @@ import scipy.signal as ss
 from conftest import EPS, TABLE3, solve_tol, zoh_rtol
 
 from bayesmodal import DataError, ModelError
-from bayesmodal.simulate import discretize_zoh, simulate_linear, simulate_state_space
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.simulate import discretize_zoh, simulate_linear, simulate_state_space
+from bayesmodal.model.system import LinearModel, Rig
 
 
 def _sdof(m, c, k, g):
@@ -193,7 +193,7 @@ def test_nonzero_initial_state_matches_lsim():
 
 
 def test_simulator_buffer_is_reused_and_results_stable():
-    from bayesmodal.simulate import LinearSimulator
+    from bayesmodal.model.simulate import LinearSimulator
 
     model = LinearModel(Rig(), "free")
     u = np.random.default_rng(5).normal(size=400)
@@ -221,7 +221,7 @@ def test_bench_reports_speedup_against_lsim_in_same_run():
 def test_second_order_path_matches_general_path(n_carts):
     # run_second_order (compiled QEP modal form) against run (LAPACK eig / expm) on random
     # systems, with initial conditions, a mix of light and heavy damping in one batch.
-    from bayesmodal.simulate import LinearSimulator
+    from bayesmodal.model.simulate import LinearSimulator
 
     rng = np.random.default_rng(10 + n_carts)
     rig = Rig(tuple(rng.uniform(200, 900, n_carts)))

@@ -21,9 +21,9 @@ from scipy.integrate import solve_ivp
 
 from bayesmodal.cli import main
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment, load_experiment
+from bayesmodal.model.simulate import LinearSimulator, simulate_linear, step_groups
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.reading import ReadOptions
-from bayesmodal.simulate import LinearSimulator, simulate_linear, step_groups
-from bayesmodal.system import LinearModel, Rig
 
 MODEL = LinearModel(Rig(), "proportional")
 TRUTH = np.array([6.2, 1.5, 1.4, 1.1, 1.5, 1e-4])  # g_v, m1..m3, ca, cb

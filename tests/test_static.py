@@ -6,7 +6,8 @@ from conftest import EPS, solve_tol
 
 from bayesmodal import DataError, ModelError
 from bayesmodal.data import Experiment
-from bayesmodal.simulate import simulate_linear
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.static import (
     NOMINAL_G_V,
     find_plateaus,
@@ -14,7 +15,6 @@ from bayesmodal.static import (
     static_levels,
     steady_state,
 )
-from bayesmodal.system import LinearModel, Rig
 
 #: Report Table 2 (from data): k3/k1, k3/k2 and g_v.
 TABLE2_RATIOS = np.array([0.4900, 0.5227])
@@ -90,8 +90,8 @@ def test_gain_on_a_rig_other_than_the_chain(share):
     errors; no stiffness ratios (they are the chain's)."""
     import dataclasses
 
-    from bayesmodal.rigs import load_rig
-    from bayesmodal.system import Drive
+    from bayesmodal.model.rigs import load_rig
+    from bayesmodal.model.system import Drive
 
     rig = load_rig("ecp210-2cart-frame-at-drive")
     rig = dataclasses.replace(rig, drive=(Drive("1", share),))
@@ -108,7 +108,7 @@ def test_gain_on_a_rig_other_than_the_chain(share):
 
 
 def test_static_gain_needs_known_springs():
-    from bayesmodal.rigs import rig_from_dict
+    from bayesmodal.model.rigs import rig_from_dict
 
     rig = rig_from_dict({"carts": [{"name": "1"}], "drive": {"carts": ["1"]},
                          "springs": [{"between": ["1", "frame"], "stiffness_n_m": 500.0,

@@ -26,7 +26,7 @@ from bayesmodal.inference import (
     sample_posterior,
 )
 from bayesmodal.inference.sampling import LogPosterior
-from bayesmodal.system import LinearModel, Rig
+from bayesmodal.model.system import LinearModel, Rig
 
 N_SAMPLES = 1500
 

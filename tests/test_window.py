@@ -17,9 +17,9 @@ from bayesmodal import ConfigError, DataError
 from bayesmodal._window import motion_at_start
 from bayesmodal.cli import main
 from bayesmodal.data import Experiment, load_experiment, save_csv
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.reading import ReadOptions
-from bayesmodal.simulate import simulate_linear
-from bayesmodal.system import LinearModel, Rig
 
 THETA = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.01, 0.01])
 DT = 0.01

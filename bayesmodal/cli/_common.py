@@ -9,8 +9,8 @@ from pathlib import Path
 from .._errors import DataError
 from .._json import to_jsonable
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
+from ..model.system import Rig
 from ..reading import TIME_BASES, ReadOptions, parse_columns, parse_scale
-from ..system import Rig
 
 
 def add_data_args(p, *, many: bool = False) -> None:
@@ -91,7 +91,7 @@ def load_data(paths, args) -> list[Experiment]:
 
 def add_rig_argument(p) -> None:
     """Add ``--rig FILE``: a TOML rig description or a preset name (docs/rigs.md)."""
-    from ..rigs import PRESETS
+    from ..model.rigs import PRESETS
 
     p.add_argument("--rig", metavar="FILE", default=None,
                    help="rig description: a TOML file or a preset (" + ", ".join(PRESETS)
@@ -100,7 +100,7 @@ def add_rig_argument(p) -> None:
 
 def load_rig(args) -> Rig:
     """The rig of ``--rig`` (``Rig()`` when the option is absent or not given)."""
-    from ..rigs import load_rig as _load
+    from ..model.rigs import load_rig as _load
 
     source = getattr(args, "rig", None)
     return Rig() if source is None else _load(source)

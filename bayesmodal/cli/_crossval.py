@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ..config import NOISE_SCALES
-from ..system import Rig
+from ..model.system import Rig
 from ._common import (
     add_data_args,
     add_rig_argument,

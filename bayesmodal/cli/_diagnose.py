@@ -23,7 +23,7 @@ def _indices(text: str) -> list[int]:
 def _candidates(text: str) -> list[str]:
     """``--candidates``: names, or ``+name,...`` to add to the default candidates."""
     from ..discrepancy.diagnosis import DEFAULT_CANDIDATES
-    from ..discrepancy.effects import EXTENSIONS
+    from ..model.effects import EXTENSIONS
 
     extra = text.startswith("+")
     names = [s.strip() for s in text.lstrip("+").split(",") if s.strip()]

@@ -6,9 +6,9 @@ import numpy as np
 
 from .._errors import IdentificationError
 from .._format import estimate, param_unit, percent, values
-from ..fit import fit_lsq
+from ..fit.linear import fit_lsq
 from ..identified import identify
-from ..system import LinearModel
+from ..model.system import LinearModel
 from ._common import (
     add_data_args,
     add_initial_state_argument,

@@ -9,7 +9,7 @@ import numpy as np
 from .._errors import ConfigError
 from .._format import param_unit, sig
 from ..modal import ConvergenceError, modal_report, rayleigh_modes, transfer_function
-from ..system import LinearModel, Rig
+from ..model.system import LinearModel, Rig
 from ._common import add_rig_argument, damping_of, load_rig, print_json
 
 #: Report Table 3 (free damping) and Table 4 (proportional damping), the defaults.

@@ -80,7 +80,7 @@ def add_sampler_args(p) -> None:
 def sample_to_dir(exps, args, damping: str, out: Path):
     """Sample one model into ``out``; return (summary, idata) (shared with ``compare``)."""
     from ..inference import sample_posterior, to_inference_data, write_run
-    from ..system import LinearModel
+    from ..model.system import LinearModel
 
     model = LinearModel(load_rig(args), damping)
     for e in exps:  # checked before the output folder is made

@@ -1,21 +1,18 @@
-"""What the model gets wrong: effects, residual checks and the diagnosis that links them.
+"""What the model gets wrong: residual checks and the diagnosis that links them to the
+effects of ``bayesmodal.model.effects``.
 
-Three parts, one workflow:
+Two parts, one workflow:
 
 ``checks``
     Residual diagnostics of a fitted model (whiteness, spectrum, amplitude dependence,
     stick near velocity reversals, input correlation, decay, gain per record, ...): each
     returns a statistic, a calibrated null and the locations where the residual deviates.
-``effects``
-    The catalogue of model extensions (friction laws, input offset, dead band, saturation,
-    lag, delay, backlash, cubic springs, amplitude-dependent gain) and their combinations,
-    each a frozen description with priors and a compiled simulator (``kernels``).
 ``diagnosis``
     The workflow ``diagnose``: run the checks, rank the candidate effects, fit the best one,
     check again on the extended model.
 
-``kernels`` holds the compiled (numba) simulators the effects run on.
+The effects themselves (the catalogue of model extensions and their compiled simulators)
+live in ``bayesmodal.model.effects``, their fits in ``bayesmodal.fit``.
 
-Import from the parts, e.g. ``from bayesmodal.discrepancy.diagnosis import diagnose`` or
-``from bayesmodal.discrepancy.effects import get_extension``.
+Import from the parts, e.g. ``from bayesmodal.discrepancy.diagnosis import diagnose``.
 """

@@ -57,7 +57,7 @@ class CrossvalSpec:
     springs_n_m : tuple of float, optional
         The rig's springs (default: the ECP 210's).
     rig : Rig, optional
-        A rig description (``bayesmodal.rigs``); overrides ``springs_n_m``.
+        A rig description (``bayesmodal.model.rigs``); overrides ``springs_n_m``.
     init : {"ball", "laplace"}
         How each fold's walkers start (``sample_posterior(init=...)``).
     moves : str
@@ -103,7 +103,7 @@ class CrossvalSpec:
         d = asdict(self)
         d["layout"] = self.layout.to_dict()
         if self.rig is not None:
-            from ..rigs import rig_to_dict
+            from ..model.rigs import rig_to_dict
 
             d["rig"] = rig_to_dict(self.rig)
         return d
@@ -228,7 +228,7 @@ class CrossvalResult:
 
 
 def _model(spec: CrossvalSpec):
-    from ..system import LinearModel, Rig
+    from ..model.system import LinearModel, Rig
 
     if spec.rig is not None:
         return LinearModel(spec.rig, spec.damping)
@@ -273,7 +273,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     seed = spec.seed + (0 if heldout is None else 1000 * (heldout + 1))
     noise = spec.noise
     if noise == "ar:auto":  # orders from the training records only
-        from ..fit import fit_lsq
+        from ..fit.linear import fit_lsq
         from .records import choose_noise
 
         noise = choose_noise(train, model, fit_lsq(train, model))
@@ -317,7 +317,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
 
 def _own_lsq(spec: CrossvalSpec, exps: Sequence[Experiment]) -> dict:
     """Each record's own least-squares estimates of g_v, omega and zeta."""
-    from ..fit import fit_lsq
+    from ..fit.linear import fit_lsq
     from .propagate import propagate_modes
 
     model = _model(spec)

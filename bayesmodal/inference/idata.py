@@ -337,7 +337,7 @@ def extension_from_idata(idata):
     name = idata.posterior.attrs.get("extension", "")
     if not name:
         return None
-    from ..discrepancy.effects import get_extension
+    from ..model.effects import get_extension
 
     return get_extension(str(name))
 
@@ -348,18 +348,18 @@ def model_from_idata(idata):
     For a run with a model extension this is its linear (free-damping) part, whose
     parameters come first in the run's parameter vector.
     """
-    from ..system import LinearModel, Rig
+    from ..model.system import LinearModel, Rig
 
     a = idata.posterior.attrs
     if "rig_toml" in a:  # a rig other than the chain
-        from ..rigs import rig_from_toml
+        from ..model.rigs import rig_from_toml
 
         return LinearModel(rig_from_toml(a["rig_toml"], where="idata"), a["damping"])
     return LinearModel(Rig(tuple(json.loads(a["springs_n_m"]))), a["damping"])
 
 
 def _rig_toml(rig) -> str:
-    from ..rigs import rig_to_toml
+    from ..model.rigs import rig_to_toml
 
     return rig_to_toml(rig)
 

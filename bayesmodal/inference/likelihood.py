@@ -28,7 +28,7 @@ Impossible parameter sets (non-positive masses or g_v, negative damping, ``sigma
 are never simulated and never raise, so an MCMC walker that strays there is simply
 rejected.
 
-Model extensions: with ``extension`` (a name in ``bayesmodal.discrepancy.effects.EXTENSIONS`` or an
+Model extensions: with ``extension`` (a name in ``bayesmodal.model.effects.EXTENSIONS`` or an
 ``Extension``) the model output is ``Extension.simulate`` of the free-damping model plus
 the extension's parameters (e.g. Coulomb friction), for all parameter sets of a batch in
 one call; the parameter vector is ``extension.names(rig)`` followed by the noise
@@ -45,10 +45,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
-from .._resid_kernels import ar1_sums
 from ..data import Experiment
-from ..simulate import LinearSimulator, simulate_linear
-from ..system import LinearModel
+from ..model._resid_kernels import ar1_sums
+from ..model.simulate import LinearSimulator, simulate_linear
+from ..model.system import LinearModel
 from .priors import noise_names
 
 __all__ = [
@@ -272,7 +272,7 @@ class Likelihood:
         All with ``model.n_carts`` outputs; they share the mechanical and noise parameters.
     noise : {"ar1", "white"}
     extension : str or Extension, optional
-        A model extension (name in ``bayesmodal.discrepancy.effects.EXTENSIONS`` or an instance);
+        A model extension (name in ``bayesmodal.model.effects.EXTENSIONS`` or an instance);
         requires ``model`` with free damping.  None (default) is the linear model.
     initial_state : {"rest", "estimate"}
         ``"rest"`` (default): every record starts at rest.  ``"estimate"``: the initial
@@ -289,7 +289,7 @@ class Likelihood:
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> t = np.arange(400) * 0.005
     >>> v = 3.0 * (t < 0.05)
@@ -325,7 +325,7 @@ class Likelihood:
         if self.noise not in NOISE_MODELS:
             raise ConfigError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
         if self.initial_state != "rest":
-            from ..fit import check_records
+            from ..fit.linear import check_records
 
             check_records(self.model, exps, self.initial_state)
             if self.extension is not None:
@@ -548,13 +548,13 @@ def resolve_extension(extension, model: LinearModel):
     """
     if extension is None:
         return None
-    from ..discrepancy.effects import Extension, get_extension
+    from ..model.effects import Extension, get_extension
 
     ext = (get_extension(extension) if isinstance(extension, (str, list, tuple))
            else extension)
     if not isinstance(ext, Extension):
         raise ModelError(
-            "extension must be a name in bayesmodal.discrepancy.effects.EXTENSIONS or an "
+            "extension must be a name in bayesmodal.model.effects.EXTENSIONS or an "
             f"Extension, got {type(extension).__name__}")
     if model.damping != "free":
         raise ModelError(

@@ -243,7 +243,7 @@ class PriorSet:
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> ps = default_priors(LinearModel(Rig(), "proportional"), noise="white")
     >>> ps.names[-3:]
     ('sigma_1', 'sigma_2', 'sigma_3')
@@ -419,7 +419,7 @@ def default_priors(
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> ps = default_priors(LinearModel(Rig(), "free"), noise="white",
     ...                     extension="coulomb_friction")
     >>> ps.names[9:12], ps.priors[9]
@@ -470,7 +470,7 @@ def default_priors(
 
 def _layout_priors(model, add) -> None:
     """Default priors of a non-chain rig, by parameter kind (the chain's values)."""
-    from ..fit import param_kinds
+    from ..fit.linear import param_kinds
 
     springs = {s.name: s for s in model.rig.springs}
     for nm, kind in zip(model.names, param_kinds(model), strict=True):

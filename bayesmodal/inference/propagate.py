@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ModelError
-from ..system import LinearModel
+from ..model.system import LinearModel
 
 __all__ = [
     "ModalSamples",
@@ -104,7 +104,7 @@ def propagate_modes(
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> draws = np.array([[6.2, 1.56, 1.46, 1.14, 1.6, 1e-4]] * 4)
     >>> ms = propagate_modes(model, draws)

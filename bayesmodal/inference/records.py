@@ -45,10 +45,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import ConfigError, DataError
-from .._resid_kernels import ar1_sums, ar1_sums_affine
 from ..data import Experiment
-from ..simulate import simulate_linear
-from ..system import LinearModel
+from ..model._resid_kernels import ar1_sums, ar1_sums_affine
+from ..model.simulate import simulate_linear
+from ..model.system import LinearModel
 from .likelihood import (
     Likelihood,
     SimulatorCache,
@@ -277,7 +277,7 @@ class RecordsLikelihood:
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> t = np.arange(200) * 0.005
     >>> exps = [Experiment(t, 3.0 * (t < 0.05), np.zeros((200, 3)), name=n) for n in "ab"]
     >>> lik = RecordsLikelihood(LinearModel(Rig(), "proportional"), exps, "white")

@@ -14,7 +14,7 @@ backend therefore continues exactly as the uninterrupted run would have.
 
 Model extensions (``extension="coulomb_friction"`` etc.) sample the free-damping
 parameters, the extension's parameters and the noise parameters jointly; the walkers start
-around ``bayesmodal.discrepancy.effects.fit_extension_lsq`` and every half-ensemble is one batched
+around ``bayesmodal.model.effects.fit_extension_lsq`` and every half-ensemble is one batched
 ``Extension.simulate`` call per experiment.
 """
 
@@ -37,9 +37,9 @@ from .._errors import ConfigError
 from .._progress import progress_bar
 from ..config import extension_revisions
 from ..data import Experiment
-from ..fit import LSQResult, fit_lsq
+from ..fit.linear import LSQResult, fit_lsq
 from ..identified import require_identified
-from ..system import LinearModel
+from ..model.system import LinearModel
 from .likelihood import Likelihood, as_experiments
 from .mode import posterior_mode
 from .moves import default_moves
@@ -564,7 +564,7 @@ def sample_posterior(
     warn : bool
         Emit a ``ConvergenceWarning`` when the checks fail.
     extension : str or Extension, optional
-        Sample a model extension (a name in ``bayesmodal.discrepancy.effects.EXTENSIONS`` or an
+        Sample a model extension (a name in ``bayesmodal.model.effects.EXTENSIONS`` or an
         instance) on top of ``model``, which must have free damping.  Parameter names are
         ``extension.names(model.rig)`` followed by the noise names.
     restart : int, optional
@@ -626,8 +626,8 @@ def sample_posterior(
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
-    >>> from bayesmodal.simulate import simulate_linear
+    >>> from bayesmodal.model.system import LinearModel, Rig
+    >>> from bayesmodal.model.simulate import simulate_linear
     >>> model = LinearModel(Rig(), "proportional")
     >>> t = np.arange(600) * 0.005
     >>> v = 3.0 * (t < 0.05)
@@ -713,7 +713,7 @@ def sample_posterior(
         else:
             theta_mech = model.check(theta_mech)
     else:
-        from ..discrepancy.effects import ExtensionFit, fit_extension_lsq
+        from ..fit.effects import ExtensionFit, fit_extension_lsq
 
         if start is None or isinstance(start, LSQResult):
             start = fit_extension_lsq(list(exps), ext, model.rig, linear=start)
@@ -878,6 +878,6 @@ def _burn_in_step(name: str, step, burn: int) -> int | None:
 
 
 def _rig_dict(rig) -> dict:
-    from ..rigs import rig_to_dict
+    from ..model.rigs import rig_to_dict
 
     return rig_to_dict(rig)

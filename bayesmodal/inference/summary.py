@@ -89,8 +89,8 @@ _UNITS = {"g_v": "N/V", "ca": "1/s", "cb": "s"}
 
 
 def _extension_units() -> dict[str, str]:
-    from ..discrepancy.effects import EXTENSIONS
-    from ..system import Rig
+    from ..model.effects import EXTENSIONS
+    from ..model.system import Rig
 
     return {p.name: p.unit for ext in EXTENSIONS.values() for p in ext.specs(Rig())}
 

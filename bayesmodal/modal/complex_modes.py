@@ -130,7 +130,7 @@ def state_space_modes(model, theta) -> ComplexModes:
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> cm = state_space_modes(model, [6.223, 1.565, 1.461, 1.146, 1.528, 8.583e-05])
     >>> cm.zeta.round(3)

@@ -48,7 +48,7 @@ def transfer_function(model, theta, omega_rad_s, *, input: str = "voltage") -> n
     Examples
     --------
     >>> import numpy as np
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> H = transfer_function(model, [6.223, 1.565, 1.461, 1.146, 1.528, 8.583e-05], [0.0])
     >>> np.round(H.real * 1e3, 4)  # static gain K^-1 b, mm/V (report eq. 13)

@@ -29,7 +29,7 @@ def modal_summary(model, theta) -> dict:
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> s = modal_summary(LinearModel(Rig(), "proportional"),
     ...                   [6.223, 1.565, 1.461, 1.146, 1.528, 8.583e-05])
     >>> [round(w, 3) for w in s["omega_rad_s"]]

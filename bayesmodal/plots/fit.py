@@ -92,7 +92,7 @@ def plot_lsq_fit(result, experiment: Experiment, *, axes=None, title: str | None
     -------
     ndarray of matplotlib.axes.Axes, shape (n_outputs,)
     """
-    from ..simulate import simulate_linear
+    from ..model.simulate import simulate_linear
 
     y_hat = simulate_linear(result.model, result.theta, experiment.v_volt, experiment.dt)
     if title is None:

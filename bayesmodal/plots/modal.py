@@ -40,7 +40,7 @@ def plot_rayleigh_contour(M, K, *, ax=None, modes=None, n_grid: int = 241,
     Examples
     --------
     >>> import numpy as np
-    >>> from bayesmodal.system import Rig
+    >>> from bayesmodal.model.system import Rig
     >>> ax = plot_rayleigh_contour(np.diag([1.565, 1.461, 1.146]), Rig().stiffness_matrix())
     >>> ax.get_xlabel()
     'alpha = x2 / x1 (m/m)'

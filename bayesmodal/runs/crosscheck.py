@@ -16,8 +16,8 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
-from ..simulate import simulate_linear
-from ..system import LinearModel
+from ..model.simulate import simulate_linear
+from ..model.system import LinearModel
 
 __all__ = ["LSCECheck", "lsce_check", "ResidualCheck", "residual_check", "sample_acf",
            "predictive_coverage"]

@@ -30,7 +30,7 @@ from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
 from ..inference.moves import parse_moves
 from ..metrics import fit_percent
-from ..system import LinearModel
+from ..model.system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 
@@ -166,7 +166,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         # several effects make one combined model, named "a+b" (extensions.Combined)
         extension = "+".join(cfg.extensions)
         try:
-            from ..discrepancy.effects import get_extension
+            from ..model.effects import get_extension
 
             get_extension(extension)
         except ValueError as exc:
@@ -178,7 +178,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     layout = cfg.layout
     noise = cfg.noise
     if noise == "ar:auto":
-        from ..fit import fit_lsq
+        from ..fit.linear import fit_lsq
         from ..inference.records import choose_noise
 
         if extension is not None:

@@ -4,7 +4,7 @@ Each diagnostic is a pure function of the residuals of the linear model,
 ``LinearResiduals`` (from ``linear_residuals(experiment, model, theta)``), returning a
 frozen ``Diagnostic(name, statistic, p_value, threshold, detected, suggests, location,
 summary, detail)``; ``suggests`` names the model extensions
-(``bayesmodal.discrepancy.effects.EXTENSIONS``) the evidence points to.
+(``bayesmodal.model.effects.EXTENSIONS``) the evidence points to.
 
 ================================  ===================================  =======================
 function                          looks for                            suggests

@@ -31,7 +31,7 @@ class Diagnostic:
         True when the residuals show the effect: ``p_value < alpha`` or ``statistic``
         beyond ``threshold`` (and the effect-size guard, where documented).
     suggests : tuple of str
-        Model extensions (keys of ``bayesmodal.discrepancy.effects.EXTENSIONS``) or other causes
+        Model extensions (keys of ``bayesmodal.model.effects.EXTENSIONS``) or other causes
         (``"unmodelled_mode"``, ``"sensor_gain"``, ``"input_gain"``) the evidence points to
         when detected; empty otherwise.
     location : str or None

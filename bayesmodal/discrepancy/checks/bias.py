@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg, stats
 
-from ...simulate import simulate_linear
+from ...model.simulate import simulate_linear
 from ._result import Diagnostic
 from ._stats import regress_hac
 from .residuals import LinearResiduals

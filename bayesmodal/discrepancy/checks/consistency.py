@@ -19,7 +19,7 @@ import numpy as np
 from ..._errors import DataError
 from ...data import Experiment
 from ...metrics import fit_percent
-from ...system import LinearModel, Rig
+from ...model.system import LinearModel, Rig
 from ._result import Diagnostic
 
 __all__ = ["cross_experiment_consistency"]
@@ -67,12 +67,12 @@ def cross_experiment_consistency(
     if model is None:
         model = LinearModel(Rig(), "free")
     if fit is None:
-        from ...fit import fit_lsq
+        from ...fit.linear import fit_lsq
 
         def fit(es):
             return fit_lsq(es, model).theta
     if simulate is None:
-        from ...simulate import simulate_linear
+        from ...model.simulate import simulate_linear
 
         def simulate(theta, e):
             return simulate_linear(model, theta, e.v_volt, e.dt)

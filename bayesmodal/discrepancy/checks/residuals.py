@@ -15,8 +15,8 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..._errors import DataError
 from ...data import ECP_M_PER_COUNT, Experiment
-from ...simulate import simulate_state_space
-from ...system import LinearModel
+from ...model.simulate import simulate_state_space
+from ...model.system import LinearModel
 
 __all__ = [
     "LinearResiduals",
@@ -121,7 +121,7 @@ def linear_residuals(
     --------
     >>> from bayesmodal.data import find_data, load_experiment
     >>> from bayesmodal.fit import fit_lsq
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> p = find_data("ecp210-3dof/data_impulses.mat")
     >>> if p:
     ...     e = load_experiment(p)

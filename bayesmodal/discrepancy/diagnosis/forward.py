@@ -77,13 +77,19 @@ from ..._errors import DataError, ModelError
 from ..._json import to_jsonable
 from ..._progress import announce
 from ...data import Experiment
-from ...fit import LSQResult, fit_lsq
+from ...fit.effects import (
+    ExtensionFit,
+    extension_fit_at,
+    extension_residuals,
+    fit_extension_lsq,
+    root_weights,
+)
+from ...fit.global_search import fit_extension_global, is_stick_slip
+from ...fit.linear import LSQResult, fit_lsq
 from ...metrics import fit_percent
-from ...simulate import simulate_linear
-from ...system import LinearModel, Rig
-from ..effects import EXTENSIONS, ExtensionFit, fit_extension_lsq, get_extension
-from ..effects.fit import extension_fit_at, extension_residuals, root_weights
-from ..effects.global_fit import fit_extension_global, is_stick_slip
+from ...model.effects import EXTENSIONS, get_extension
+from ...model.simulate import simulate_linear
+from ...model.system import LinearModel, Rig
 from .null import NullCalibration, calibrate_null, fit_noise, run_diagnostics
 from .scoring import Criterion, criterion_for, held_out_significant
 from .starts import extra_starts
@@ -650,7 +656,7 @@ def forward_select(
         Evaluations of each null refit of the recalibration.
     global_search : bool
         Refit a stick-slip model by ``fit_extension_global`` (differential evolution,
-        then the least-squares polish; ``bayesmodal.discrepancy.effects.global_fit``)
+        then the least-squares polish; ``bayesmodal.fit.global_search``)
         where the decision rests on it: a candidate with friction whose local fit gains
         significantly, and the equal-level model of a backward check that would keep
         directional levels.  The lower cost is kept: local fits stop on the terraces of

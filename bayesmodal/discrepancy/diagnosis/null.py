@@ -38,10 +38,10 @@ import numpy as np
 from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import progress_bar
 from ...data import ECP_M_PER_COUNT, Experiment
-from ...fit import fit_lsq
+from ...fit.linear import fit_lsq
 from ...inference.likelihood import simulate_noise
-from ...simulate import simulate_linear
-from ...system import LinearModel
+from ...model.simulate import simulate_linear
+from ...model.system import LinearModel
 from ..checks import RESIDUAL_DIAGNOSTICS, Diagnostic, linear_residuals
 
 __all__ = [
@@ -338,7 +338,7 @@ def calibrate_null(
                 if ef is None:
                     fit = fit_lsq(null_exps, model, theta0=theta, max_nfev=refit_nfev)
                 else:
-                    from ..effects import fit_extension_lsq
+                    from ...fit.effects import fit_extension_lsq
 
                     fit = fit_extension_lsq(null_exps, ef.extension, ef.rig, theta0=theta,
                                             linear=ef.linear, max_nfev=refit_nfev,

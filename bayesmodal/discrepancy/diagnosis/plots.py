@@ -13,7 +13,7 @@ def plot_before_after(diagnosis, experiment, *, ax=None):
     """Measured positions, the linear prediction and the extended model's, per cart."""
     import matplotlib.pyplot as plt
 
-    from ...simulate import simulate_linear
+    from ...model.simulate import simulate_linear
 
     lin = diagnosis.detail["linear"]
     n = experiment.n_outputs

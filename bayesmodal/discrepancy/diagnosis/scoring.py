@@ -27,8 +27,8 @@ import numpy as np
 from scipy import stats
 
 from ...data import Experiment
-from ...system import Rig
-from ..effects import Extension
+from ...model.effects import Extension
+from ...model.system import Rig
 
 __all__ = ["ar1_pointwise", "output_error_pointwise", "autocorr_se", "Criterion",
            "AR1", "OUTPUT_ERROR", "EITHER", "criterion_for", "held_out_significant",

@@ -15,10 +15,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from ...data import Experiment
-from ...simulate import simulate_linear
-from ...system import LinearModel, Rig, damper_mask
-from ..effects import Extension
-from ..effects.fit import extension_residuals, root_weights
+from ...fit.effects import extension_residuals, root_weights
+from ...model.effects import Extension
+from ...model.simulate import simulate_linear
+from ...model.system import LinearModel, Rig, damper_mask
 
 __all__ = ["best_start", "best_starts", "extra_starts"]
 

@@ -11,7 +11,7 @@ Steps (``posterior=False`` gives the same decision, only without the MCMC interv
 3. no discrepancy: cause ``"none"``;
 4. otherwise rank the candidate extensions by their signatures (the diagnostics that
    exceeded and suggest them), fit them by least squares
-   (``bayesmodal.discrepancy.effects.fit_extension_lsq``) and score each by the drop of the
+   (``bayesmodal.model.effects.fit_extension_lsq``) and score each by the drop of the
    AR(1)-whitened negative log-likelihood (noise profiled): likelihood-ratio statistic
    ``LR = 2 gain`` against ``chi2(k)`` at level ``alpha / n_candidates``, ranking key the
    BIC gain ``LR - k ln N``; with several training records a gain also counts when a
@@ -35,15 +35,15 @@ from scipy import stats
 from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import announce, progress_bar
 from ...data import Experiment
-from ...fit import fit_lsq
+from ...fit.effects import WEIGHTINGS, fit_extension_lsq
+from ...fit.linear import fit_lsq
 from ...identified import require_identified
 from ...metrics import fit_percent
-from ...simulate import simulate_linear
-from ...system import LinearModel, Rig
-from ..effects import EXTENSIONS, Extension, fit_extension_lsq, get_extension
-from ..effects._base import cart_numbers
-from ..effects._linear import kernel_order
-from ..effects.fit import WEIGHTINGS
+from ...model.effects import EXTENSIONS, Extension, get_extension
+from ...model.effects._base import cart_numbers
+from ...model.effects._linear import kernel_order
+from ...model.simulate import simulate_linear
+from ...model.system import LinearModel, Rig
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
 from .forward import REFINES, RESIDUAL_BASED, Cause, forward_select, loro_gain
 from .null import (
@@ -238,7 +238,7 @@ def diagnose(
     global_search : bool
         In forward selection, fit every model with stick-slip friction also by
         differential evolution and a least-squares polish
-        (``bayesmodal.discrepancy.effects.global_fit``), not only from local starts.
+        (``bayesmodal.fit.global_search``), not only from local starts.
     progress : bool
         Progress lines on stderr: each stage as it starts, and progress over the null
         data sets, the candidate fits and the sampler steps (``bayesmodal._progress``).

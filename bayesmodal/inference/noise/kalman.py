@@ -9,7 +9,7 @@ model's own dynamics shape the error:
     x_{k+1} = Ad x_k + Bd v_k + w_k,   w_k ~ N(0, Qd)
     y_k = C x_k + e_k,                 e_k ~ N(0, diag(sigma_j^2)),  C = [I 0]
 
-with ``Ad, Bd`` the exact ZOH discretisation (as in :mod:`bayesmodal.simulate`) and
+with ``Ad, Bd`` the exact ZOH discretisation (as in :mod:`bayesmodal.model.simulate`) and
 ``Qd = int_0^dt e^{A s} G diag(q) G' e^{A' s} ds`` by Van Loan's method: with
 ``F = [[-A, G Q G'], [0, A']] dt`` and ``E = expm(F)``, ``Qd = E_22' E_12``.
 
@@ -74,7 +74,7 @@ import numpy as np
 from scipy.linalg import solve_discrete_are
 
 from ..._errors import ConfigError, DataError, ModelError
-from ..._kernels import _compile, padded_width
+from ...model._kernels import _compile, padded_width
 from ..priors import LogUniform, PriorSet
 from .base import HALF_LOG_2PI, SIGMA_PRIOR
 
@@ -315,7 +315,7 @@ def steady_state_filter(system: ProcessNoiseSystem, sigma: np.ndarray) -> Steady
 def _kalman_kernel(n_states: int, n_out: int, width: int, store: bool):
     """Compiled ``kernel(P, v, y, X, SS, U)``: the steady-state filter for ``width`` lanes.
 
-    Generated like the simulator's kernels (``bayesmodal._kernels``): the state loop is
+    Generated like the simulator's kernels (``bayesmodal.model._kernels``): the state loop is
     unrolled and the lane width and row strides are constants, so that the compiler
     vectorises across lanes.  Flat float64 arrays, lane index innermost: ``P`` rows
     ``Ad[i, m]`` (``i*s + m``), ``Bd[i]`` (``s*s + i``), ``(Ad K)[i, j]``
@@ -580,7 +580,7 @@ def kalman_loglik(model, theta_mech: np.ndarray, q: np.ndarray, sigma: np.ndarra
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> th = np.array([[6.2, 1.5, 1.4, 1.1, 1.5, 1e-4]])
     >>> v = np.r_[np.full(10, 3.0), np.zeros(190)]

@@ -6,7 +6,7 @@ with amplitude raises the natural frequencies of large oscillations.
 
 Numerics: the linear part is exact (ZOH over sub-steps ``dt / n_sub``) and the cubic forces
 enter as an input by the second-order exponential Runge-Kutta scheme ETD2RK (see
-``bayesmodal.discrepancy.kernels.cubic_run``).  ``k3_i = 0`` gives the linear model.
+``bayesmodal.model.kernels.cubic_run``).  ``k3_i = 0`` gives the linear model.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import FRAME, Rig
 from ..kernels import cubic_run, zoh
+from ..system import FRAME, Rig
 from ._base import EffectLocation, Extension, ParamSpec
 from ._linear import kernel_order, linear_parts
 

@@ -7,7 +7,7 @@ below the static level ``Fs_i >= max(Fcp_i, Fcn_i)`` and breaks away along the f
 
 Numerics: the stick-slip kernel of ``extensions.coulomb`` compiled with the level chosen
 by direction wherever friction acts: the held force, the break-away, and the reversal
-correction ``dv = (Fcp_i + Fcn_i) dir tau / m_i`` (``bayesmodal.discrepancy.kernels.coulomb_run``
+correction ``dv = (Fcp_i + Fcn_i) dir tau / m_i`` (``bayesmodal.model.kernels.coulomb_run``
 with ``Fc_backward``).  ``Fcp_i = Fcn_i`` is ``coulomb_friction``; all zero is the linear
 model.
 """
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
 from ..kernels import coulomb_run, zoh
+from ..system import Rig
 from ._base import EffectLocation, ParamSpec, cart_numbers
 from ._linear import linear_parts
 from .coulomb import CoulombFriction, _per_cart, cart_location

@@ -15,7 +15,7 @@ so that ``M x'' + C x' + K x = b v`` with ``K[n-1, n-1] = k_{n-1} + k_n`` and
 
 Any other rectilinear layout is described by a ``Rig`` with explicit ``carts``, ``springs``,
 ``dampers``, ``drive``, ``sensors`` and ``clamped`` carts (see docs/rigs.md and
-``bayesmodal.rigs`` for the TOML form).  Every two-node element between carts ``i`` and
+``bayesmodal.model.rigs`` for the TOML form).  Every two-node element between carts ``i`` and
 ``j`` with value ``k`` adds ``k`` to ``K[i, i]`` and ``K[j, j]`` and ``-k`` to ``K[i, j]``
 and ``K[j, i]``; an element to the frame (or to a clamped cart) adds only ``K[i, i]``.
 Clamped carts are not degrees of freedom.  Unknown springs are parameters ``k*`` appended
@@ -35,10 +35,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._errors import ModelError
-from .data import ECP_M_PER_COUNT
+from .._errors import ModelError
+
+#: Metres per encoder count of the ECP 210 rig (0.0706 m per 16000 counts).
+ECP_M_PER_COUNT = 0.0706 / 16000
 
 __all__ = [
+    "ECP_M_PER_COUNT",
     "Rig",
     "Cart",
     "Spring",
@@ -242,7 +245,7 @@ class Rig:
     ``len(springs_n_m)`` carts (spring ``i`` joins cart ``i`` and ``i + 1``, the last one
     joins the last cart to the frame, the motor drives cart 1, an encoder on every cart).
     Any other layout gives ``carts`` and ``springs`` (and optionally the rest); see
-    docs/rigs.md and ``bayesmodal.rigs.load_rig`` for the TOML form.
+    docs/rigs.md and ``bayesmodal.model.rigs.load_rig`` for the TOML form.
 
     Parameters
     ----------

@@ -20,7 +20,7 @@ sub-step (a predictor-corrector with two of each was 1.5 times slower for 25 % l
 error).  Every operation is a smooth
 function of the parameters (``|v|`` and ``sign(v)`` enter only through ``a`` and
 ``z_ss (1 - E)``, both continuous in ``v``), so the simulated output is continuous in
-them.  Layouts and batching as in ``bayesmodal.discrepancy.kernels._codegen``.
+them.  Layouts and batching as in ``bayesmodal.model.kernels._codegen``.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ Not supported (``ModelError`` at construction): two plant-side effects together 
 
 Examples
 --------
->>> from bayesmodal.discrepancy.effects import get_extension
+>>> from bayesmodal.model.effects import get_extension
 >>> ext = get_extension("coulomb_friction+input_offset")
 >>> ext.extension_names(Rig())
 ('Fc1', 'Fc2', 'Fc3', 'Fs1', 'Fs2', 'Fs3', 'v_offset')
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._errors import ModelError
-from ...system import Rig
+from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec
 from ._input import held_average, linear_lanes_run
 from .end_stop import STOP_KERNELS
@@ -83,7 +83,7 @@ class Combined(Extension):
 
     Examples
     --------
-    >>> from bayesmodal.discrepancy.effects import EXTENSIONS
+    >>> from bayesmodal.model.effects import EXTENSIONS
     >>> Combined((EXTENSIONS["input_offset"], EXTENSIONS["input_saturation"])).name
     'input_offset+input_saturation'
     """

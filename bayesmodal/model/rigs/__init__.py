@@ -37,7 +37,7 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
 With no known mass, spring or gain the rig is identified per unit of drive gain
 (``Rig.per_unit_gain``).
 
-The presets ship as package data (``bayesmodal/rigs/*.toml``); ``load_rig`` accepts a
+The presets ship as package data (``bayesmodal/model/rigs/*.toml``); ``load_rig`` accepts a
 preset name or a path.  ``ecp210-3cart`` is ``Rig()``, the layout of the reference report.
 """
 
@@ -52,7 +52,7 @@ from pathlib import Path
 
 import tomli_w
 
-from .._errors import ModelError
+from ..._errors import ModelError
 from ..system import FRAME, Cart, Damper, Drive, Rig, Sensor, Spring
 
 __all__ = [

@@ -13,7 +13,7 @@ width ``gap_m`` in the rack of cart 1.  Let ``delta = x_m - x_1``:
 The rig starts at rest with the pinion in the middle of the gap.  ``gap_m = 0`` gives the
 linear model.  Numerics: the two linear modes are stepped exactly (ZOH over sub-steps
 ``dt / n_sub``); switches are detected at sub-step boundaries and corrected to second
-order for the time since the event (see ``bayesmodal.discrepancy.kernels.backlash_run``).
+order for the time since the event (see ``bayesmodal.model.kernels.backlash_run``).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import LinearModel, Rig
 from ..kernels import backlash_run, expm_batched, zoh
+from ..system import LinearModel, Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
 from ._linear import kernel_order, linear_parts, parts_from, require_one_drive
 

@@ -3,7 +3,7 @@
 The motor force is ``g_v clip(v, -v_sat, v_sat)``; the force limit is ``g_v v_sat``.  A
 memoryless clip of the held input keeps the simulation exact.  ``v_sat = inf`` (or any level
 above ``max |v|``) gives the linear model.  The clip is applied per parameter set inside
-the compiled recursion (``bayesmodal.discrepancy.kernels.linear_input_run``).
+the compiled recursion (``bayesmodal.model.kernels.linear_input_run``).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
 from ..kernels import linear_input_run, zoh
+from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._linear import linear_parts
 

@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ._errors import DataError, ModelError
-from .data import Experiment, check_identifiable
-from .metrics import fit_percent
-from .simulate import simulate_linear
-from .system import LinearModel, param_kinds
-from .system import log_scale_mask as _log_mask
+from .._errors import DataError, ModelError
+from ..data import Experiment, check_identifiable
+from ..metrics import fit_percent
+from ..model.simulate import simulate_linear
+from ..model.system import LinearModel, param_kinds
+from ..model.system import log_scale_mask as _log_mask
 
 __all__ = ["LSQResult", "fit_lsq", "default_start"]
 
@@ -95,7 +95,7 @@ class LSQResult:
             at 0, a standard error is not finite or above its estimate, the Jacobian is
             rank-deficient, or the fit is below 0 % on some record and cart.
         """
-        from .identified import identify
+        from ..identified import identify
 
         return identify(self)
 
@@ -258,8 +258,8 @@ def fit_lsq(
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
-    >>> from bayesmodal.simulate import simulate_linear
+    >>> from bayesmodal.model.system import LinearModel, Rig
+    >>> from bayesmodal.model.simulate import simulate_linear
     >>> model = LinearModel(Rig(), "proportional")
     >>> truth = np.array([6.2, 1.5, 1.4, 1.1, 1.5, 1e-4])
     >>> t = np.arange(2000) * 0.005

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...system import Rig
+from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
 

@@ -16,7 +16,7 @@ the linear model (``sigma0``, ``sigma1``, ``v_stribeck`` then do nothing).
 
 Numerics: the linear rig is stepped exactly (ZOH over sub-steps ``dt / n_sub``) with the
 friction force held at its mean over the sub-step, the bristle equation solved exactly
-with the mid-step velocity frozen; second order (``bayesmodal.discrepancy.kernels.lugre``).  The
+with the mid-step velocity frozen; second order (``bayesmodal.model.kernels.lugre``).  The
 explicit coupling of the bristle spring to a cart needs ``sqrt(sigma0 / m_i) h`` well
 below 1: at the prior's upper ``sigma0 = 1e5 N/m``, ``m = 1.1 kg`` and the default
 ``h = 1.25 ms`` it is 0.38.
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
 from ..kernels import lugre_run, zoh
+from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
 from ._linear import linear_parts
 from .coulomb import _per_cart, cart_location

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
 from ..kernels import cubic_run, zoh
 from ..kernels.stop import checked_side
+from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
 from ._linear import kernel_order, linear_parts
 

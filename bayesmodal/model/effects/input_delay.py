@@ -10,7 +10,7 @@ for the first ``phi dt`` and ``v[k-m]`` after, so the exact discrete model is::
     Gamma(t) = int_0^t e^{A s} ds.
 
 It is run as this linear recursion, batched, with each parameter set's input shifted by its
-own ``m`` inside the compiled kernel (``bayesmodal.discrepancy.kernels.linear_input_run``).
+own ``m`` inside the compiled kernel (``bayesmodal.model.kernels.linear_input_run``).
 ``delay_s = 0`` gives the linear model.
 """
 
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
 from ..kernels import linear_input_run, zoh
+from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import split_delay
 from ._linear import linear_parts

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._errors import ModelError
-from ...system import LinearModel, Rig, state_space_from
+from ..system import LinearModel, Rig, state_space_from
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ force is ``g_v (v + v_offset)``.  The drive is enabled when a record starts: the
 rest at ``x = 0`` and the offset acts from ``t = 0`` on, like a small step.  A bias differs
 from record to record (it drifts with temperature), hence a per-record parameter.  The
 model stays linear and is simulated exactly (per-lane input in the compiled recursion
-``bayesmodal.discrepancy.kernels.linear_input_run``).  ``v_offset = 0`` gives the linear model.
+``bayesmodal.model.kernels.linear_input_run``).  ``v_offset = 0`` gives the linear model.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
+from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
 

@@ -20,7 +20,7 @@ not.
 
 Examples
 --------
->>> from bayesmodal.discrepancy.effects import get_extension
+>>> from bayesmodal.model.effects import get_extension
 >>> from bayesmodal.data import find_data, load_experiment
 >>> p = find_data("ecp210-3dof/data_steps.mat")
 >>> fit = (fit_records_lsq([load_experiment(p)], get_extension("input_offset"), max_nfev=5)
@@ -35,13 +35,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..._errors import ConfigError, DataError, ModelError
-from ...data import Experiment
-from ...fit import fit_lsq
-from ...metrics import fit_percent
-from ...system import LinearModel, Rig, log_scale_mask
-from ._base import Extension
-from ._input import linear_lanes_run
+from .._errors import ConfigError, DataError, ModelError
+from ..data import Experiment
+from ..metrics import fit_percent
+from ..model.effects._base import Extension
+from ..model.effects._input import linear_lanes_run
+from ..model.system import LinearModel, Rig, log_scale_mask
+from .linear import fit_lsq
 
 __all__ = ["RecordsFit", "LOROFit", "fit_records_lsq", "loro_lsq", "new_record_theta",
            "simulate_model"]

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._errors import DataError, ModelError
-from ...system import LinearModel, Rig
+from ..system import LinearModel, Rig
 from ._linear import kernel_order, outputs_from_kernel, state_to_kernel
 
 __all__ = ["ParamSpec", "EffectLocation", "Extension", "cart_numbers"]
@@ -102,7 +102,7 @@ class Extension(ABC):
 
     Examples
     --------
-    >>> from bayesmodal.discrepancy.effects import EXTENSIONS
+    >>> from bayesmodal.model.effects import EXTENSIONS
     >>> ext = EXTENSIONS["motor_lag"]
     >>> ext.names(Rig())[-1]
     'tau_s'

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._errors import ModelError
-from ...system import Rig
+from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
 

@@ -9,7 +9,7 @@ approximation is in how ``f`` varies within a sub-step; with the extension switc
 linear-input extensions (lag, delay, saturation) run an exact linear recursion whose
 input is shifted and clipped per parameter set inside the kernel.
 
-Batching follows ``bayesmodal._kernels``: the parameter sets ("lanes") are innermost and
+Batching follows ``bayesmodal.model._kernels``: the parameter sets ("lanes") are innermost and
 contiguous, the lane count is a compile-time constant (a power of two up to
 ``MAX_WIDTH``), the kernel source is generated for each shape with the state unrolled into
 scalars, and the branches of the hybrid models (stick, slip, contact) are written on local

@@ -15,7 +15,7 @@ abruptly a few tens of encoder counts away from their equilibrium.
 Numerics: exact ZOH of the linear rig over a sample with the friction forces as held
 inputs; samples with an event are taken again in sub-steps ``h = dt / n_sub`` with the
 events located on cubic Hermite interpolants and corrected (see
-``bayesmodal.discrepancy.kernels.coulomb_run``).
+``bayesmodal.model.kernels.coulomb_run``).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...system import Rig
 from ..kernels import coulomb_run, zoh
+from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
 from ._linear import kernel_order, linear_parts, to_kernel
 

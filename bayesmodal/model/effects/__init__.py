@@ -33,7 +33,7 @@ is a ``Combined`` model, the linear core with all of them (see ``extensions.comb
 Examples
 --------
 >>> import numpy as np
->>> from bayesmodal.system import Rig
+>>> from bayesmodal.model.system import Rig
 >>> ext = EXTENSIONS["coulomb_friction"]
 >>> rig = Rig()
 >>> theta = ext.null_theta(rig, np.array([6.2, 1.56, 1.46, 1.15, 2.9, 1.8, 2.0, 0.0, 0.0]))
@@ -52,7 +52,6 @@ from .coulomb_directional import DirectionalCoulombFriction
 from .cubic import CubicStiffness
 from .deadband import DriveDeadband
 from .end_stop import EndStop
-from .fit import ExtensionFit, fit_extension_lsq
 from .input_delay import InputDelay
 from .input_offset import InputOffset
 from .lugre import LuGreFriction
@@ -64,7 +63,6 @@ __all__ = [
     "AmplitudeGain",
     "EffectLocation",
     "Extension",
-    "ExtensionFit",
     "ParamSpec",
     "Backlash",
     "Combined",
@@ -78,7 +76,6 @@ __all__ = [
     "InputSaturation",
     "LuGreFriction",
     "MotorLag",
-    "fit_extension_lsq",
     "get_extension",
 ]
 

@@ -35,18 +35,18 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from ..._errors import ConfigError
-from ...data import Experiment
-from ...fit import LSQResult, fit_lsq
-from ...system import LinearModel, Rig, damper_mask
-from ._base import Extension
-from .fit import (
+from .._errors import ConfigError
+from ..data import Experiment
+from ..model.effects._base import Extension
+from ..model.system import LinearModel, Rig, damper_mask
+from .effects import (
     ExtensionFit,
     experiment_weights,
     extension_residuals,
     fit_extension_lsq,
     root_weights,
 )
+from .linear import LSQResult, fit_lsq
 
 __all__ = ["fit_extension_global", "is_stick_slip", "MASS_BOX", "DAMPER_BOX"]
 

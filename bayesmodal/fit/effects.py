@@ -31,12 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..._errors import ConfigError, DataError, ModelError
-from ...data import Experiment
-from ...fit import LSQResult, barrier_residuals, fit_lsq
-from ...metrics import fit_percent
-from ...system import LinearModel, Rig, damper_mask, log_scale_mask
-from ._base import Extension
+from .._errors import ConfigError, DataError, ModelError
+from ..data import Experiment
+from ..metrics import fit_percent
+from ..model.effects._base import Extension
+from ..model.system import LinearModel, Rig, damper_mask, log_scale_mask
+from .linear import LSQResult, barrier_residuals, fit_lsq
 
 __all__ = ["ExtensionFit", "fit_extension_lsq", "extension_fit_at", "extension_residuals",
            "extension_cost", "record_weights", "experiment_weights", "root_weights",
@@ -327,7 +327,7 @@ def fit_extension_lsq(
 
     Examples
     --------
-    >>> from bayesmodal.discrepancy.effects import EXTENSIONS
+    >>> from bayesmodal.model.effects import EXTENSIONS
     >>> from bayesmodal.data import find_data, load_experiment
     >>> p = find_data("ecp210-3dof/data_impulses.mat")
     >>> res = fit_extension_lsq(load_experiment(p), EXTENSIONS["motor_lag"]) if p else None

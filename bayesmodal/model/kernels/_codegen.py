@@ -3,7 +3,7 @@
 ``_compile`` turns generated source into a cached numba function, ``_Rows`` names the rows
 of the flat lane-innermost blocks, ``run_batched`` packs parameter sets into lanes, pads
 and chunks them, and ``fma`` / ``_fma_sum`` / ``_sum`` write the arithmetic.  The layouts
-are described in the package docstring (``bayesmodal.discrepancy.kernels``).
+are described in the package docstring (``bayesmodal.model.kernels``).
 """
 
 from __future__ import annotations
@@ -24,12 +24,12 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from ..._kernels import (
+from .._kernels import (
     ALIGN_BYTES,
     MAX_WIDTH,  # noqa: F401  (the package exports it from here)
     aligned_empty,
 )
-from ..._kernels import padded_width as _linear_width
+from .._kernels import padded_width as _linear_width
 
 _JIT = {"nogil": True, "boundscheck": False, "error_model": "numpy"}
 

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from ._errors import DataError, ModelError
+from .._errors import DataError, ModelError
 from ._kernels import (
     aligned_empty,
     direct_kernel,
@@ -257,7 +257,7 @@ class LinearSimulator:
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> sim = LinearSimulator(np.ones(200), 0.005, model.n_carts)
     >>> A, B = model.state_space(np.array([[6.2, 1.5, 1.5, 1.1, 1.5, 1e-4]]))
@@ -728,7 +728,7 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
 
     Examples
     --------
-    >>> from bayesmodal.system import LinearModel, Rig
+    >>> from bayesmodal.model.system import LinearModel, Rig
     >>> model = LinearModel(Rig(), "proportional")
     >>> theta = np.array([6.2, 1.5, 1.5, 1.1, 1.5, 1e-4])
     >>> simulate_linear(model, theta, np.ones(100), 0.005).shape
