@@ -222,7 +222,24 @@ class Normal:
 def noise_names(n_outputs: int, noise: str) -> tuple[str, ...]:
     """Names of the noise parameters of the single-record likelihood's models: white,
     ``sigma_1..n``, and AR(1), ``sigma_1..n`` then ``phi_1..n`` (the noise model's own
-    ``names``)."""
+    ``names``).
+
+    Parameters
+    ----------
+    n_outputs : int
+        Outputs of the records (one ``sigma`` each, and one ``phi`` each for AR(1)).
+    noise : {"white", "ar1"}
+        The noise model.
+
+    Returns
+    -------
+    tuple of str
+
+    Examples
+    --------
+    >>> noise_names(2, "ar1")
+    ('sigma_1', 'sigma_2', 'phi_1', 'phi_2')
+    """
     if noise not in NOISE_MODELS:
         raise ConfigError(f"noise must be 'ar1' or 'white', got {noise!r}")
     return parse_noise(noise).model(n_outputs).names(n_outputs)

@@ -110,6 +110,18 @@ def resolve_noise(noise, n_outputs: int):
     ``"ar(p1,...,pn)"``, ``"process"``, a ``NoiseSpec`` (``noise_spec.parse_noise``) or an
     instance (``bayesmodal.inference.noise``).
 
+    Parameters
+    ----------
+    noise : str, NoiseSpec or NoiseModel
+        The noise model, by name (``noise_spec.parse_noise`` reads it) or built.
+    n_outputs : int
+        Outputs of the records: AR orders given per output must match, and an instance
+        must accept it.
+
+    Returns
+    -------
+    NoiseModel
+
     Examples
     --------
     >>> resolve_noise("ar3", 2).name
