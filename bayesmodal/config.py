@@ -125,7 +125,6 @@ def extension_revisions(names) -> dict:
 #: metres, the level times each record's relative response size, or that size to a
 #: sampled power.
 NOISE_SCALES = ("none", "response", "power")
-NOISE_MODELS = ("ar1", "white")
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "data": {"files": list, "m_per_count": (int, float), "heldout": list, "columns": dict,
@@ -238,11 +237,12 @@ class RunConfig:
     @property
     def layout(self):
         """The per-record layout (``RecordLayout``), or None for shared parameters."""
+        from .inference.noise_spec import parse_noise
         from .inference.records import RecordLayout
 
         if not self.per_record and not self.noise_per_record and self.noise_scale == "none":
             # AR(p) noise lives in the several-record likelihood: shared layout
-            return None if self.noise in NOISE_MODELS else RecordLayout({})
+            return None if parse_noise(self.noise).one_record else RecordLayout({})
 
         return RecordLayout(dict(self.per_record), self.noise_per_record, self.noise_scale)
 
@@ -546,10 +546,11 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         err("crossval.enabled", "leave-one-record-out needs at least two [data.files]")
 
     noise = values.get(("likelihood", "noise"), "ar1")
-    import re  # noqa: PLC0415
+    from .inference.noise_spec import NOISE_MODELS, parse_noise  # noqa: PLC0415
 
-    if noise not in NOISE_MODELS and not re.fullmatch(
-            r"ar:auto|ar\d+|ar\(\d+(,\d+)*\)|process|iar1", str(noise).replace(" ", "")):
+    try:
+        parse_noise(noise)
+    except ConfigError:
         err("likelihood.noise", f"must be one of {NOISE_MODELS}, 'arP' (e.g. 'ar4'), "
             f"'ar(p1,...,pn)', 'ar:auto', 'iar1' or 'process', got {noise!r}")
     kw["noise"] = noise

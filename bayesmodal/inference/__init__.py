@@ -39,7 +39,8 @@ from .idata import (
     to_inference_data,
     with_pointwise_loglik,
 )
-from .likelihood import NOISE_MODELS, Likelihood, ar1_terms, simulate_noise, white_terms
+from .likelihood import Likelihood, ar1_terms, simulate_noise, white_terms
+from .noise_spec import NOISE_MODELS, NoiseSpec, parse_noise
 from .priors import LogUniform, Normal, PriorSet, Uniform, default_priors, noise_names
 from .propagate import (
     Interval,
@@ -86,6 +87,7 @@ __all__ = [
     "ModalSamples",
     "ModelChoice",
     "NOISE_MODELS",
+    "NoiseSpec",
     "Normal",
     "PosteriorRun",
     "PredictiveScore",
@@ -116,6 +118,7 @@ __all__ = [
     "model_from_idata",
     "nested_evidence",
     "noise_names",
+    "parse_noise",
     "parameter_intervals",
     "posterior_matrix",
     "posterior_mode",

@@ -194,7 +194,11 @@ def nested_evidence(
     >>> bool(abs(ev.log_z - np.log(1 / 20)) < 4 * ev.log_z_err)
     True
     """
-    import dynesty
+    try:
+        import dynesty
+    except ImportError:
+        raise ConfigError("nested sampling of the evidence needs the optional library "
+                          "dynesty: pip install 'bayesmodal[evidence]'") from None
 
     gen = np.random.default_rng(rng)
     calls = [0]

@@ -28,6 +28,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 from .coverage_reference import calibration_summary
+from .noise_spec import parse_noise
 from .predictive import PredictiveScores, predict_new_record, score_samples
 from .records import DEFAULT_LAYOUT, RecordLayout
 
@@ -272,7 +273,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     model = _model(spec)
     seed = spec.seed + (0 if heldout is None else 1000 * (heldout + 1))
     noise = spec.noise
-    if noise == "ar:auto":  # orders from the training records only
+    if isinstance(noise, str) and parse_noise(noise).kind == "ar:auto":  # from training only
         from ..fit.linear import fit_lsq
         from .records import choose_noise
 

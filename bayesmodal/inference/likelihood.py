@@ -49,6 +49,7 @@ from ..data import Experiment
 from ..model._resid_kernels import ar1_sums
 from ..model.simulate import LinearSimulator, simulate_linear
 from ..model.system import LinearModel
+from .noise_spec import NOISE_MODELS
 from .priors import noise_names
 
 __all__ = [
@@ -62,7 +63,6 @@ __all__ = [
     "resolve_extension",
 ]
 
-NOISE_MODELS = ("ar1", "white")
 
 _HALF_LOG_2PI = 0.5 * float(np.log(2 * np.pi))
 

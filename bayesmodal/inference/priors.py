@@ -71,6 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError
+from .noise_spec import NOISE_MODELS, parse_noise
 
 __all__ = [
     "Uniform",
@@ -219,13 +220,29 @@ class Normal:
 
 
 def noise_names(n_outputs: int, noise: str) -> tuple[str, ...]:
-    """Names of the noise parameters: ``sigma_1..n`` and, for AR(1), ``phi_1..n``."""
-    sig = tuple(f"sigma_{k + 1}" for k in range(n_outputs))
-    if noise == "white":
-        return sig
-    if noise == "ar1":
-        return sig + tuple(f"phi_{k + 1}" for k in range(n_outputs))
-    raise ConfigError(f"noise must be 'ar1' or 'white', got {noise!r}")
+    """Names of the noise parameters of the single-record likelihood's models: white,
+    ``sigma_1..n``, and AR(1), ``sigma_1..n`` then ``phi_1..n`` (the noise model's own
+    ``names``).
+
+    Parameters
+    ----------
+    n_outputs : int
+        Outputs of the records (one ``sigma`` each, and one ``phi`` each for AR(1)).
+    noise : {"white", "ar1"}
+        The noise model.
+
+    Returns
+    -------
+    tuple of str
+
+    Examples
+    --------
+    >>> noise_names(2, "ar1")
+    ('sigma_1', 'sigma_2', 'phi_1', 'phi_2')
+    """
+    if noise not in NOISE_MODELS:
+        raise ConfigError(f"noise must be 'ar1' or 'white', got {noise!r}")
+    return parse_noise(noise).model(n_outputs).names(n_outputs)
 
 
 @dataclass(frozen=True)

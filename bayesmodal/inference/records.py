@@ -61,6 +61,15 @@ from .likelihood import (
     simulate_noise,
     white_terms,
 )
+from .noise import (
+    ARpNoise,
+    NoiseModel,
+    choose_order,
+    kalman_loglik,
+    kalman_pointwise,
+    simulate_process_noise,
+)
+from .noise_spec import NOISE_MODELS, parse_noise
 from .priors import Normal, PriorSet, Uniform, default_priors
 from .record_scale import (
     NOISE_SCALES,
@@ -98,41 +107,30 @@ V0_PRIOR = Normal(0.0, 0.1, lo=-1.0, hi=1.0)
 
 def resolve_noise(noise, n_outputs: int):
     """A ``NoiseModel`` for ``"white"``, ``"ar1"``, ``"iar1"``, ``"arP"`` /
-    ``"ar(p1,...,pn)"`` or an instance (``bayesmodal.inference.noise``).
+    ``"ar(p1,...,pn)"``, ``"process"``, a ``NoiseSpec`` (``noise_spec.parse_noise``) or an
+    instance (``bayesmodal.inference.noise``).
+
+    Parameters
+    ----------
+    noise : str, NoiseSpec or NoiseModel
+        The noise model, by name (``noise_spec.parse_noise`` reads it) or built.
+    n_outputs : int
+        Outputs of the records: AR orders given per output must match, and an instance
+        must accept it.
+
+    Returns
+    -------
+    NoiseModel
 
     Examples
     --------
     >>> resolve_noise("ar3", 2).name
     'ar(3,3)'
     """
-    from .noise import AR1Noise, ARpNoise, IntegratedAR1Noise, NoiseModel, WhiteNoise
-
     if isinstance(noise, NoiseModel):
         noise.names(n_outputs)  # checks the number of outputs
         return noise
-    text = str(noise).strip().lower().replace(" ", "")
-    if text == "white":
-        return WhiteNoise()
-    if text == "ar1":
-        return AR1Noise()
-    if text == "iar1":
-        return IntegratedAR1Noise()
-    if text == "process":
-        from .noise import ProcessNoise
-
-        return ProcessNoise()
-    m = re.fullmatch(r"ar(\d+)|ar\((\d+(?:,\d+)*)\)", text)
-    if m:
-        orders = ((int(m.group(1)),) * n_outputs if m.group(1)
-                  else tuple(int(x) for x in m.group(2).split(",")))
-        model = ARpNoise(orders)
-        model.names(n_outputs)
-        return model
-    raise ConfigError(
-        f"noise model {noise!r}: use 'white', 'ar1', 'iar1' (AR(1) increments, a wandering "
-        "error started at rest), 'arP' (e.g. 'ar4', the same order on "
-        "every output), 'ar(p1,...,pn)', 'ar:auto' (order chosen by BIC on the "
-        "least-squares residuals) or 'process' (a random force on each cart, Kalman filter)")
+    return parse_noise(noise).model(n_outputs)
 
 
 #: Largest AR order ``"ar:auto"`` considers.  On the measured ECP 210 residuals BIC keeps
@@ -157,8 +155,6 @@ def choose_noise(experiments, model, start, *, extension=None, max_p: int = AUTO
     -------
     ARpNoise
     """
-    from .noise import ARpNoise, choose_order
-
     theta = np.asarray(getattr(start, "theta", start), dtype=float)
     orders = np.ones(model.n_outputs, int)
     for e in experiments:
@@ -299,7 +295,7 @@ class RecordsLikelihood:
             self.experiments)
         # one single-record likelihood per record: it validates outputs, noise, extension
         noise_model = resolve_noise(self.noise, self.model.n_outputs)
-        basic = self.noise if self.noise in ("white", "ar1") else "white"
+        basic = self.noise if self.noise in NOISE_MODELS else "white"
         # one single-record likelihood per record: it validates outputs and the extension
         singles = tuple(Likelihood(self.model, (e,), basic, self.extension) for e in exps)
         if not exps:
@@ -343,7 +339,7 @@ class RecordsLikelihood:
         object.__setattr__(self, "extension", ext)
         object.__setattr__(self, "noise_model", noise_model)
         object.__setattr__(self, "noise", self.noise if isinstance(self.noise, str) and
-                           self.noise in ("white", "ar1") else noise_model.name)
+                           self.noise in NOISE_MODELS else noise_model.name)
         object.__setattr__(self, "record_keys", keys)
         object.__setattr__(self, "_index", self._build_index(mech))
         object.__setattr__(self, "_sims", SimulatorCache())
@@ -618,7 +614,7 @@ class RecordsLikelihood:
                      ) -> np.ndarray:
         """Log density, shape (nb,), of residuals ``R`` (N, n_out, nb) under the noise model
         with parameter rows ``params`` (nb, n_noise), its level times ``scale``."""
-        if self.noise in ("white", "ar1"):  # the sufficient-statistics path
+        if self.noise in NOISE_MODELS:  # the sufficient-statistics path
             sigma, phi = self._sigma_phi(params)
             return residual_loglik(R, sigma * _col(scale), phi)
         if np.all(np.asarray(scale) == 1.0):
@@ -632,7 +628,7 @@ class RecordsLikelihood:
         ``scale`` (not for process noise, whose draws go through the dynamics: see
         ``predictive.predict_new_record``).  ``start`` (AR(1) only): the known residual
         at sample 0, shape (nb, n_out), m (``likelihood.simulate_noise``)."""
-        if self.noise in ("white", "ar1"):
+        if self.noise in NOISE_MODELS:
             sigma, phi = self._sigma_phi(params)
             return simulate_noise(sigma * _col(scale), phi, n_samples, rng, start)
         return np.reshape(scale, (-1, 1, 1)) * self.noise_model.simulate(params, n_samples,
@@ -652,13 +648,11 @@ class RecordsLikelihood:
             with np.errstate(all="ignore"):
                 r_ = e.y_m[None] - yh
                 s = np.reshape(self._scale_rows(theta[ok], r), (-1, 1, 1))
-                if self.noise in ("white", "ar1"):
+                if self.noise in NOISE_MODELS:
                     sigma, phi = self._noise(full)
                     sigma = sigma * s[:, :, 0]
                     t = white_terms(r_, sigma) if phi is None else ar1_terms(r_, sigma, phi)
                 elif self.noise == "process":
-                    from .noise import kalman_pointwise
-
                     mech, q, sig = self._process_split(full)
                     t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt,
                                          v0=v0)
@@ -676,7 +670,7 @@ class RecordsLikelihood:
         if not np.any(ok):
             return out
         th = theta[ok]
-        if (self.extension is None and self.noise in ("white", "ar1")
+        if (self.extension is None and self.noise in NOISE_MODELS
                 and fast_path(self.model)):
             with np.errstate(all="ignore"):
                 ll = self._linear_record_loglik(th)
@@ -686,7 +680,7 @@ class RecordsLikelihood:
             for r, e in enumerate(self.experiments):
                 full, v0 = self.record_theta(th, r)
                 params = full[:, len(self.mech_names):]
-                if self.noise in ("white", "ar1"):
+                if self.noise in NOISE_MODELS:
                     ll = self._basic_loglik(e, full, v0, params, self._scale_rows(th, r))
                 elif self.noise == "process":
                     ll = self._process_loglik(e, full, v0)
@@ -736,8 +730,6 @@ class RecordsLikelihood:
 
     def _process_loglik(self, e: Experiment, full, v0) -> np.ndarray:
         """Kalman-filter innovations likelihood (exact start from rest), input ``v + v0``."""
-        from .noise import kalman_loglik
-
         mech, q, sigma = self._process_split(full)
         return kalman_loglik(self.model, mech, q, sigma, e.v_volt, e.y_m, e.dt,
                              initial="rest", v0=v0)
@@ -793,8 +785,6 @@ class RecordsLikelihood:
         for r, e in enumerate(self.experiments):
             full, v0 = self.record_theta(theta, r)
             if self.noise == "process":  # what the random force adds to the prediction
-                from .noise import simulate_process_noise
-
                 mech, q, sig = self._process_split(full)
                 y = simulate_process_noise(self.model, mech, q, sig, e.v_volt, e.dt, rng,
                                            v0=v0)
@@ -814,7 +804,7 @@ class RecordsLikelihood:
             mech = full[0, : len(self.mech_names)]
             e = self.experiments[r]
             res = (e.y_m - self.predict_mech(mech[None], v0, e)[0]) / self.scale(r) ** power
-            if self.noise in ("white", "ar1"):
+            if self.noise in NOISE_MODELS:
                 starts.append(noise_moments(res, self.noise))
             elif self.noise == "process":
                 # a small random force (N^2 s) and the residual RMS as measurement noise:

@@ -43,6 +43,7 @@ from ..model.system import LinearModel
 from .likelihood import Likelihood, as_experiments
 from .mode import posterior_mode
 from .moves import default_moves
+from .noise_spec import NoiseSpec, parse_noise
 from .priors import PriorSet, default_priors
 from .stragglers import prune_stragglers
 from .threads import ThreadedLogPosterior, resolve_threads
@@ -639,18 +640,21 @@ def sample_posterior(
     (60, 32, 9)
     """
     exps = as_experiments(experiments)
-    if not isinstance(noise, str) or noise not in ("ar1", "white"):
+    spec = parse_noise(noise) if isinstance(noise, str | NoiseSpec) else None
+    if spec is None or not spec.one_record:
         # AR(p) and other noise models live in the several-record likelihood; one record
         # with every parameter shared is its simplest layout
         from .records import RecordLayout, choose_noise
 
         if layout is None:
             layout = RecordLayout({})
-        if isinstance(noise, str) and noise.strip().lower() == "ar:auto":
+        if spec is not None and spec.kind == "ar:auto":
             if start is None and extension is None:
                 start = fit_lsq(list(exps), model)
                 require_identified(start, exps, "the posterior")
             noise = choose_noise(exps, model, start, extension=extension)
+    else:
+        noise = spec.name  # "AR1" or " ar1" take the path of "ar1"
     if layout is None:
         lik = Likelihood(model, exps, noise, extension, initial_state)
     else:

@@ -72,6 +72,14 @@ def plot_residuals(res: LinearResiduals, *, ax=None, counts: bool = True):
 def plot_whiteness(result: Diagnostic, *, ax=None):
     """Autocorrelation of the AR-whitened residuals with the 95 % band.
 
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``whiteness`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
+
     Returns
     -------
     matplotlib.axes.Axes
@@ -96,6 +104,14 @@ def plot_whiteness(result: Diagnostic, *, ax=None):
 def plot_input_correlation(result: Diagnostic, *, ax=None):
     """Cross-correlation of whitened residual and input against lag.
 
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``input_correlation`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
+
     Returns
     -------
     matplotlib.axes.Axes
@@ -118,6 +134,14 @@ def plot_input_correlation(result: Diagnostic, *, ax=None):
 
 def plot_friction_signature(result: Diagnostic, *, ax=None):
     """Binned force residual against velocity for every cart (a step at zero = friction).
+
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``friction_signature`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
 
     Returns
     -------
@@ -146,6 +170,14 @@ def plot_friction_signature(result: Diagnostic, *, ax=None):
 def plot_decay_envelope(result: Diagnostic, *, ax=None):
     """``sqrt(E)`` on each free-decay stretch with the exponential and linear laws.
 
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``decay_envelope`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
+
     Returns
     -------
     matplotlib.axes.Axes
@@ -168,6 +200,14 @@ def plot_decay_envelope(result: Diagnostic, *, ax=None):
 
 def plot_amplitude_dependence(result: Diagnostic, *, ax=None):
     """Relative frequency of each mode against amplitude, one point per window.
+
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``amplitude_dependence`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
 
     Returns
     -------
@@ -234,6 +274,14 @@ def plot_stick(result: Diagnostic, res: LinearResiduals | None = None, *, ax=Non
 def plot_residual_spectrum(result: Diagnostic, *, ax=None):
     """Residual PSD with the smooth background, the peak limit and the model's modes.
 
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``residual_spectrum`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
+
     Returns
     -------
     matplotlib.axes.Axes
@@ -263,6 +311,14 @@ def plot_residual_spectrum(result: Diagnostic, *, ax=None):
 def plot_gain_error(result: Diagnostic, *, ax=None):
     """Relative gain error per output with 2-sigma bars.
 
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``gain_error`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
+
     Returns
     -------
     matplotlib.axes.Axes
@@ -283,6 +339,14 @@ def plot_gain_error(result: Diagnostic, *, ax=None):
 
 def plot_consistency(result: Diagnostic, *, ax=None):
     """Fit percentage of each experiment (columns) predicted from each fit (rows).
+
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``consistency`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
 
     Returns
     -------
@@ -307,6 +371,14 @@ def plot_consistency(result: Diagnostic, *, ax=None):
 def plot_input_bias(result: Diagnostic, *, ax=None):
     """Residual mean per output (micrometres) against the fitted offset's response.
 
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``input_bias`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
+
     Returns
     -------
     matplotlib.axes.Axes
@@ -329,6 +401,14 @@ def plot_input_bias(result: Diagnostic, *, ax=None):
 
 def plot_drive_gain(result: Diagnostic, *, ax=None):
     """Gain error asked by each input event against its amplitude, with 2-sigma bars.
+
+    Parameters
+    ----------
+    result : Diagnostic
+        The ``drive_gain`` check (``bayesmodal.discrepancy.checks``), whose ``detail``
+        holds what is drawn.
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
 
     Returns
     -------
@@ -364,6 +444,13 @@ _PLOTS = {
 
 def plot_diagnostic(result: Diagnostic, *, ax=None):
     """Plot any diagnostic with the function for its ``name``.
+
+    Parameters
+    ----------
+    result : Diagnostic
+        A check's result; its ``name`` picks the plot (``whiteness``, ``stick``, ...).
+    ax : matplotlib Axes, optional
+        Axes to draw on; new axes when None.
 
     Examples
     --------

@@ -84,6 +84,18 @@ def _fsync_replace(tmp: Path, path: Path) -> None:
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder.
 
+    Parameters
+    ----------
+    path : str or path
+        The file to write; replaced in one rename if it exists.
+    data : bytes
+        Its content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
     Raises
     ------
     OSError
@@ -102,19 +114,59 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
-    """Write UTF-8 ``text`` to ``path`` atomically."""
+    """Write UTF-8 ``text`` to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or path
+        The file to write.
+    text : str
+        Its content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
-    """Write ``obj`` as indented JSON atomically (NaN and infinity become null)."""
+    """Write ``obj`` as indented JSON atomically (NaN and infinity become null).
+
+    Parameters
+    ----------
+    path : str or path
+        The JSON file to write.
+    obj : object
+        Plain values, NumPy scalars and arrays.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write_text(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False)
                              + "\n")
 
 
 def atomic_savefig(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
     """Save a matplotlib figure atomically (``name.tmp.png`` then rename) and close it;
-    a PNG gets a 256-colour palette (``bayesmodal.plots._png.save_png``)."""
+    a PNG gets a 256-colour palette (``bayesmodal.plots._png.save_png``).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : str or path
+        The image file; its suffix chooses the format.
+    dpi : int
+        Resolution, dots per inch.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     import matplotlib.pyplot as plt
 
     from ..plots._png import save_png

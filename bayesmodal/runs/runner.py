@@ -29,6 +29,7 @@ from .._errors import ConfigError, DataError, one_line
 from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment
 from ..inference.moves import parse_moves
+from ..inference.noise_spec import parse_noise
 from ..metrics import fit_percent
 from ..model.system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
@@ -176,8 +177,9 @@ def prepare_run(config: RunConfig) -> PreparedRun:
                 f"{src}: [model.damping] the {extension} extension is built on free "
                 f"damping, got {cfg.damping!r}")
     layout = cfg.layout
-    noise = cfg.noise
-    if noise == "ar:auto":
+    spec = parse_noise(cfg.noise)
+    noise = spec.name
+    if spec.kind == "ar:auto":
         from ..fit.linear import fit_lsq
         from ..inference.records import choose_noise
 
@@ -186,7 +188,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
                               "model; give the orders, e.g. 'ar4'")
         noise = choose_noise(exps, model, fit_lsq(list(exps), model)).name
     if layout is None:
-        base = default_priors(model, noise=cfg.noise, n_outputs=model.n_carts,
+        base = default_priors(model, noise=noise, n_outputs=model.n_carts,
                               extension=extension)
     else:
         from ..inference.records import RecordsLikelihood, record_priors

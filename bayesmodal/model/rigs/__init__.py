@@ -204,7 +204,17 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
 
 
 def rig_to_dict(rig: Rig) -> dict:
-    """The TOML tables of a rig (every default written out), inverse of ``rig_from_dict``."""
+    """The TOML tables of a rig (every default written out), inverse of ``rig_from_dict``.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    dict
+        Nested tables of plain values, ready for ``tomli_w``.
+    """
     d: dict = {"name": rig.name, "clamped": list(rig.clamped), "carts": [], "springs": []}
     for c in rig.carts:
         t = {"name": c.name, "mass": c.mass}
@@ -237,7 +247,19 @@ def rig_to_dict(rig: Rig) -> dict:
 
 
 def rig_from_toml(text: str, *, where: str = "rig") -> Rig:
-    """Parse a TOML rig description; a syntax error becomes a one-line ModelError."""
+    """Parse a TOML rig description; a syntax error becomes a one-line ModelError.
+
+    Parameters
+    ----------
+    text : str
+        The TOML text (the tables ``rig_to_toml`` writes).
+    where : str
+        Where the text comes from, opening error messages (a file name, ``"[rig]"``).
+
+    Returns
+    -------
+    Rig
+    """
     try:
         d = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -246,7 +268,16 @@ def rig_from_toml(text: str, *, where: str = "rig") -> Rig:
 
 
 def rig_to_toml(rig: Rig) -> str:
-    """TOML text of a rig; ``rig_from_toml(rig_to_toml(rig)) == rig``."""
+    """TOML text of a rig; ``rig_from_toml(rig_to_toml(rig)) == rig``.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    str
+    """
     return tomli_w.dumps(rig_to_dict(rig))
 
 
@@ -256,6 +287,15 @@ def _preset_text(name: str) -> str:
 
 def load_rig(source: str | os.PathLike) -> Rig:
     """A rig from a preset name (``PRESETS``) or a TOML file.
+
+    Parameters
+    ----------
+    source : str or path
+        A preset name (``"ecp210-3cart"``) or the path of a TOML rig description.
+
+    Returns
+    -------
+    Rig
 
     Raises
     ------
@@ -277,7 +317,14 @@ def load_rig(source: str | os.PathLike) -> Rig:
 
 
 def save_rig(rig: Rig, path: str | os.PathLike) -> None:
-    """Write a rig description as TOML, atomically (temporary file, then rename)."""
+    """Write a rig description as TOML, atomically (temporary file, then rename).
+
+    Parameters
+    ----------
+    rig : Rig
+    path : str or path
+        The TOML file to write; replaced if it exists.
+    """
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     try:
