@@ -50,9 +50,9 @@ def main(argv=None) -> int:
 
     from bayesmodal.discrepancy.diagnosis.forward import _lpd
     from bayesmodal.discrepancy.diagnosis.starts import best_starts, extra_starts
-    from bayesmodal.fit import fit_lsq
+    from bayesmodal.fit import fit_extension_lsq, fit_lsq
     from bayesmodal.fit.effects import extension_residuals
-    from bayesmodal.model.effects import fit_extension_lsq, get_extension
+    from bayesmodal.model.effects import get_extension
     from bayesmodal.model.system import LinearModel, Rig
 
     h = make_case(args.case, args.seed, args.samples)

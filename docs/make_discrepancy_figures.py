@@ -27,10 +27,10 @@ import numpy as np
 
 from bayesmodal.data import find_data, load_experiment
 from bayesmodal.discrepancy.checks import RESIDUAL_DIAGNOSTICS, linear_residuals
-from bayesmodal.fit import fit_lsq
+from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.effects import extension_residuals
 from bayesmodal.metrics import fit_percent
-from bayesmodal.model.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.model.effects import EXTENSIONS
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 

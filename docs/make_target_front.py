@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 from _measured import RECORDS, measured_records  # docs/_measured.py (run as docs/<script>.py)
 
-from bayesmodal.fit import fit_lsq
+from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.records import fit_records_lsq
 from bayesmodal.metrics import fit_percent
-from bayesmodal.model.effects import fit_extension_lsq, get_extension
+from bayesmodal.model.effects import get_extension
 from bayesmodal.model.system import LinearModel, Rig
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -20,9 +20,9 @@ from bayesmodal import ConfigError, ModelError
 from bayesmodal.data import ECP_M_PER_COUNT
 from bayesmodal.discrepancy.diagnosis import diagnose
 from bayesmodal.discrepancy.diagnosis.forward import REFINES, loro_gain
-from bayesmodal.fit import fit_lsq
+from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.effects import extension_fit_at
-from bayesmodal.model.effects import EXTENSIONS, fit_extension_lsq, get_extension
+from bayesmodal.model.effects import EXTENSIONS, get_extension
 from bayesmodal.model.system import LinearModel, Rig
 
 N_NULL = 19

@@ -231,8 +231,8 @@ def test_least_squares_fit_of_a_combination_recovers_truth_within_its_standard_e
     Gaussian noise; the estimate lies within 4 Gauss-Newton standard errors (from the
     finite-difference Jacobian at the estimate) of the truth, and the fit's cost is not
     above the cost at the truth (the optimum, not merely a point near it)."""
+    from bayesmodal.fit import fit_extension_lsq
     from bayesmodal.fit.effects import extension_residuals
-    from bayesmodal.model.effects import fit_extension_lsq
 
     ext = get_extension("input_offset+drive_deadband")
     N = 2400

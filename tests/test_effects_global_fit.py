@@ -16,7 +16,7 @@ from scipy import stats
 
 from bayesmodal import ConfigError
 from bayesmodal.discrepancy.diagnosis.forward import _lpd
-from bayesmodal.fit import fit_lsq
+from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.global_search import (
     DAMPER_BOX,
     DAMPER_PAD,
@@ -25,7 +25,7 @@ from bayesmodal.fit.global_search import (
     pruned_starts,
     search_box,
 )
-from bayesmodal.model.effects import fit_extension_lsq, get_extension
+from bayesmodal.model.effects import get_extension
 from bayesmodal.model.system import LinearModel, Rig
 
 CASE, SEED = "coulomb_friction+drive_deadband", 1

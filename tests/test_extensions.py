@@ -12,6 +12,7 @@ from reference_stop import simulate_stop_ref
 
 from bayesmodal import ModelError
 from bayesmodal.data import ECP_M_PER_COUNT, Experiment
+from bayesmodal.fit import fit_extension_lsq
 from bayesmodal.metrics import fit_percent
 from bayesmodal.model.effects import (
     EXTENSIONS,
@@ -19,7 +20,6 @@ from bayesmodal.model.effects import (
     CoulombFriction,
     CubicStiffness,
     Extension,
-    fit_extension_lsq,
     get_extension,
 )
 from bayesmodal.model.simulate import simulate_linear

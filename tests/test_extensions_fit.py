@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from hidden_effects import make
 
-from bayesmodal.fit import fit_lsq
+from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.effects import extension_residuals
-from bayesmodal.model.effects import EXTENSIONS, fit_extension_lsq
+from bayesmodal.model.effects import EXTENSIONS
 from bayesmodal.model.system import LinearModel, Rig
 
 RIG = Rig()

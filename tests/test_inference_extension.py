@@ -192,7 +192,8 @@ def truth_runs(friction_data):
     model, which reaches the truth's basin on this record (cost 1.6e-8 m^2); the
     four-sub-step fit from the linear fit, or from diagnose's grid start, stops in a local
     optimum 25000 times costlier that a 1500-step chain does not leave."""
-    from bayesmodal.model.effects import CoulombFriction, fit_extension_lsq
+    from bayesmodal.fit import fit_extension_lsq
+    from bayesmodal.model.effects import CoulombFriction
 
     e = friction_data.experiment
     ext = EXTENSIONS["coulomb_friction"]

@@ -14,7 +14,7 @@ backend therefore continues exactly as the uninterrupted run would have.
 
 Model extensions (``extension="coulomb_friction"`` etc.) sample the free-damping
 parameters, the extension's parameters and the noise parameters jointly; the walkers start
-around ``bayesmodal.model.effects.fit_extension_lsq`` and every half-ensemble is one batched
+around ``bayesmodal.fit.fit_extension_lsq`` and every half-ensemble is one batched
 ``Extension.simulate`` call per experiment.
 """
 

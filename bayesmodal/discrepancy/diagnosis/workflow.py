@@ -11,7 +11,7 @@ Steps (``posterior=False`` gives the same decision, only without the MCMC interv
 3. no discrepancy: cause ``"none"``;
 4. otherwise rank the candidate extensions by their signatures (the diagnostics that
    exceeded and suggest them), fit them by least squares
-   (``bayesmodal.model.effects.fit_extension_lsq``) and score each by the drop of the
+   (``bayesmodal.fit.fit_extension_lsq``) and score each by the drop of the
    AR(1)-whitened negative log-likelihood (noise profiled): likelihood-ratio statistic
    ``LR = 2 gain`` against ``chi2(k)`` at level ``alpha / n_candidates``, ranking key the
    BIC gain ``LR - k ln N``; with several training records a gain also counts when a
