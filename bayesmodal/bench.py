@@ -32,6 +32,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.signal
 
+from .model.effects import EXTENSIONS
 from .model.simulate import LinearSimulator, simulate_linear
 from .model.system import LinearModel, Rig
 
@@ -48,21 +49,8 @@ EXTENSION_MAX_RATIO = 10.0
 #: Largest accepted cost of the best combined model, in linear-simulator evaluations.
 COMBINED_MAX_RATIO = 20.0
 
-#: Extension parameters of the benchmark (realistic sizes on the rig, effect active).
-_EFFECTS = {
-    "coulomb_friction": (0.1, 0.15, 0.08, 0.15, 0.2, 0.12),
-    "motor_lag": (0.01,),
-    "input_delay": (0.0123,),
-    "backlash": (3e-4, 0.2),
-    "cubic_stiffness": (1e5, -5e4, 1e5),
-    "input_saturation": (2.5,),
-    "input_offset": (0.15,),
-    "drive_deadband": (0.05,),  # below the 0.2 V sweep: the carts still move
-    "lugre_friction": (0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005),
-    "coulomb_directional": (0.1, 0.15, 0.08, 0.05, 0.2, 0.12, 0.15, 0.2, 0.12),
-    "amplitude_gain": (0.02,),
-    "end_stop": (0.02, 2000.0),  # reached by the 3 V pulses of the rig-like input
-}
+#: Extension parameters of the benchmark: each effect's ``typical`` sizes on the rig.
+_EFFECTS = {n: e.typical for n, e in EXTENSIONS.items()}
 
 #: Combined models timed by default after the single effects (``extensions.Combined``): a
 #: plant-side effect behind input stages (per-lane input), and the whole linear input chain.

@@ -98,6 +98,7 @@ from pathlib import Path, PurePosixPath
 
 from ._errors import ConfigError
 from .data import ECP_M_PER_COUNT, in_data_root
+from .model.effects import EXTENSIONS
 from .model.system import DAMPING_MODELS, ECP210_SPRINGS_N_M
 
 __all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
@@ -109,10 +110,9 @@ MOVES = ("stretch", "de", "de-snooker", "de-jump", "walk", "kde")
 #: emcee's with the fix of its pull request #531 since 24 Nov 2026; the released one
 #: made the posteriors about 18 % too narrow, docs/uncertainty.md).
 MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
-#: Model extensions whose numerics changed the result, hashed the same way: LuGre friction
-#: steps with 4 sub-steps per sample since 25 Nov 2026 (8 before; 1.3 instead of 0.35
-#: encoder count of discretisation error, half the cost).
-EXTENSION_REVISIONS = {"lugre_friction": "n_sub=4"}
+#: Model extensions whose numerics changed the result, hashed the same way
+#: (``Extension.revision``: LuGre friction steps with 4 sub-steps per sample, not 8).
+EXTENSION_REVISIONS = {n: e.revision for n, e in EXTENSIONS.items() if e.revision}
 
 
 def extension_revisions(names) -> dict:

@@ -19,8 +19,10 @@ from reference_sim import (
     V_EPS,
     driven,
     input_segments,
+    layout_of,
     n_linear,
     rig_matrices,
+    simulate_linear_ref,
 )
 from scipy.integrate import solve_ivp
 
@@ -225,6 +227,16 @@ def simulate_amplitude_gain_ref(springs, theta, u, dt):
     return simulate_linear_chain_ref(springs, theta[:p], u, dt, kappa=float(theta[p]))
 
 
+def simulate_sensor_gain_ref(springs, theta, u, dt):
+    """The linear rig read by sensors whose scales, after the first, are ``s_j``."""
+    p = n_linear(springs)
+    y = simulate_linear_ref(springs, theta[:p], u, dt)
+    outputs = layout_of(springs).outputs
+    for j, s in enumerate(theta[p:], start=1):
+        y[:, outputs[j]] *= s
+    return y
+
+
 #: References of the new registered effects, by name (same signature as reference_sim's).
 NEW_REFERENCES = {
     "input_offset": simulate_offset_ref,
@@ -232,4 +244,5 @@ NEW_REFERENCES = {
     "lugre_friction": simulate_lugre_ref,
     "coulomb_directional": simulate_directional_coulomb_ref,
     "amplitude_gain": simulate_amplitude_gain_ref,
+    "sensor_gain": simulate_sensor_gain_ref,
 }

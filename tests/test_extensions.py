@@ -43,6 +43,7 @@ EFFECTS = {
     "coulomb_directional": [0.1, 0.15, 0.08, 0.05, 0.2, 0.05, 0.15, 0.25, 0.2],
     "amplitude_gain": [0.03],
     "end_stop": [0.02, 2000.0],
+    "sensor_gain": [1.04, 0.97],
 }
 REFERENCES = {**REFERENCES, **NEW_REFERENCES, "end_stop": simulate_stop_ref}
 

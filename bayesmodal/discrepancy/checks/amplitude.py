@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg, stats
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from ._stats import bonferroni
 from .residuals import LinearResiduals, constant_input_segments, noise_level
@@ -238,8 +239,8 @@ def amplitude_dependence(
     p_damp = (min(1.0, min(e["damping_p"] for e in friction_modes) * n_t)
               if friction_modes else None)
     p_report = p_damp if (friction_modes and not stiff) else p_fw
-    suggests = (("cubic_stiffness",) if stiff else ()) + (
-        ("coulomb_friction",) if friction_modes else ())
+    suggests = (suggested_by("amplitude_frequency") if stiff else ()) + (
+        suggested_by("amplitude_damping") if friction_modes else ())
     kind = "hardening" if best["slope"] > 0 else "softening"
     summary = (
         f"mode {best['mode']} frequency changes by {100 * best['relative_change']:+.2f} % over "

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg, stats
 
+from ...model.effects import suggested_by
 from ...model.simulate import simulate_linear
 from ._result import Diagnostic
 from ._stats import regress_hac
@@ -73,7 +74,7 @@ def input_bias(res: LinearResiduals, *, alpha: float = 0.01,
                f"(t = {t:.1f}, p = {p:.2g}); residual means [{means}] counts")
     return Diagnostic(
         name="input_bias", statistic=float(t), p_value=p, threshold=None,
-        detected=detected, suggests=("input_offset",) if detected else (),
+        detected=detected, suggests=suggested_by("bias") if detected else (),
         location="motor input" if detected else None, summary=summary,
         detail={"offset_v": v0, "stderr_v": se, "mean_m": mean, "slow_share": share,
                 "unit_response": s, "alpha": alpha})

@@ -19,6 +19,7 @@ import numpy as np
 from ..._errors import DataError
 from ...data import Experiment
 from ...metrics import fit_percent
+from ...model.effects import suggested_by
 from ...model.system import LinearModel, Rig
 from ._result import Diagnostic
 
@@ -100,7 +101,7 @@ def cross_experiment_consistency(
         p_value=None,
         threshold=float(threshold_percent),
         detected=bool(detected),
-        suggests=("coulomb_friction", "input_saturation", "cubic_stiffness") if detected else (),
+        suggests=suggested_by("consistency") if detected else (),
         location=f"{labels[i]} -> {labels[j]}" if detected else None,
         summary=summary,
         detail={"fit_matrix": F, "theta": thetas, "relative_spread": spread,

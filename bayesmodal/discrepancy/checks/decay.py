@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from .residuals import (
     LinearResiduals,
@@ -128,7 +129,7 @@ def decay_envelope(
         p_value=None,
         threshold=threshold,
         detected=bool(detected),
-        suggests=("coulomb_friction",) if detected else (),
+        suggests=suggested_by("decay") if detected else (),
         location=None,
         summary=summary,
         detail=out,

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from ._stats import regress_hac
 from .residuals import LinearResiduals
@@ -105,9 +106,9 @@ def drive_gain_amplitude(res: LinearResiduals, *, alpha: float = 0.01,
     if not detected:
         suggests = ()
     elif slope > 0:
-        suggests = ("drive_deadband", "amplitude_gain")
+        suggests = suggested_by("gain_rises")
     else:
-        suggests = ("input_saturation", "amplitude_gain")
+        suggests = suggested_by("gain_falls")
     detail.update(slope_per_v=slope, slope_se=se)
     summary = (f"gain asked by {amps.size} input events changes by {100 * change:+.1f} % "
                f"from {amps.min():.2g} to {amps.max():.2g} V (t = {t:.1f}, p = {p:.2g})")

@@ -26,6 +26,7 @@ import numpy as np
 from scipy import stats
 
 from ..._errors import ConfigError
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from ._stats import bonferroni, regress_hac
 from .residuals import LinearResiduals, derivative_noise_gain, noise_level, smooth_derivative
@@ -144,7 +145,7 @@ def friction_signature(
         p_value=p_fw,
         threshold=None,
         detected=detected,
-        suggests=("coulomb_friction",) if detected else (),
+        suggests=suggested_by("friction") if detected else (),
         location=f"cart {j + 1}" if detected else None,
         summary=summary,
         detail={"fc_n": fc, "fc_stderr_n": se, "viscous_n_s_m": visc, "t": tstat,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from ._stats import bonferroni, regress_hac
 from .residuals import LinearResiduals
@@ -60,7 +61,8 @@ def gain_error(
     if detected:
         # do the outputs share one gain error (within 3 standard errors)?
         common = np.all(np.abs(g - g.mean()) < 3 * np.sqrt(se**2 + np.mean(se**2)))
-        suggests = ("input_gain",) if common and np.all(np.abs(g) > min_gain) else ("sensor_gain",)
+        suggests = suggested_by("input_gain" if common and np.all(np.abs(g) > min_gain)
+                                else "sensor_gain")
     else:
         suggests = ()
     gains = ", ".join(f"{100 * x:+.1f}" for x in g)

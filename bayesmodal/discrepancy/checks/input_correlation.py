@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from ._stats import ar_filter, ar_select, bonferroni
 from .residuals import LinearResiduals
@@ -146,7 +147,7 @@ def input_residual_correlation(
         p_value=p_fw,
         threshold=None,
         detected=bool(detected),
-        suggests=("input_delay", "motor_lag") if detected and lagging else (),
+        suggests=suggested_by("lag") if detected and lagging else (),
         location=f"output {j + 1}" if detected else None,
         summary=summary,
         detail={"lags_s": lags * dt, "xcorr": xc, "band": 3.0 / np.sqrt(N), "chi2": chi,

@@ -18,6 +18,7 @@ import numpy as np
 from scipy import signal, stats
 from scipy.ndimage import median_filter
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from .residuals import LinearResiduals
 
@@ -118,7 +119,7 @@ def residual_spectrum(
         p_value=p_fw,
         threshold=None,
         detected=bool(detected),
-        suggests=("unmodelled_mode",) if detected else (),
+        suggests=suggested_by("unmodelled_mode") if detected else (),
         location=f"output {best[1][0] + 1}" if detected else None,
         summary=summary,
         detail={"f_hz": f, "psd": P, "baseline": base, "limit": float(limit), "peaks": peaks,

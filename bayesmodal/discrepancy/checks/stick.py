@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...model.effects import suggested_by
 from ._result import Diagnostic
 from .residuals import LinearResiduals, constant_input_segments, noise_level
 
@@ -106,7 +107,7 @@ def stick_detection(
         p_value=None,
         threshold=float(min_episodes),
         detected=bool(detected),
-        suggests=("coulomb_friction",) if detected else (),
+        suggests=suggested_by("stick") if detected else (),
         location=f"cart {j + 1}" if detected else None,
         summary=summary,
         detail={"episodes": episodes, "rest_tol_m": rest_tol, "offset_tol_m": offset_tol,

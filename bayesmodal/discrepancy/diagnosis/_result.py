@@ -9,13 +9,12 @@ from types import MappingProxyType
 from typing import Any
 
 from ..._json import to_jsonable
+from ...model.effects import EXTENSIONS
 
 __all__ = ["TestOutcome", "CandidateScore", "Interval", "Diagnosis", "CAUSES"]
 
-#: Causes the workflow can name.
-CAUSES = ("none", "coulomb_friction", "motor_lag", "input_delay", "backlash",
-          "cubic_stiffness", "input_saturation", "input_offset", "drive_deadband",
-          "coulomb_directional")
+#: Causes the workflow can name: none, or any registered effect.
+CAUSES = ("none",) + tuple(EXTENSIONS)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ from ...fit.effects import WEIGHTINGS, fit_extension_lsq
 from ...fit.linear import fit_lsq
 from ...identified import require_identified
 from ...metrics import fit_percent
-from ...model.effects import EXTENSIONS, Extension, get_extension
+from ...model.effects import EXTENSIONS, Extension, default_candidates, get_extension
 from ...model.effects._base import cart_numbers
 from ...model.effects._linear import kernel_order
 from ...model.simulate import simulate_linear
@@ -59,10 +59,8 @@ from .starts import best_starts
 
 __all__ = ["diagnose", "DEFAULT_CANDIDATES"]
 
-#: Candidate causes, in the catalogue's order.
-DEFAULT_CANDIDATES = ("coulomb_friction", "motor_lag", "input_delay", "backlash",
-                      "cubic_stiffness", "input_saturation", "input_offset",
-                      "drive_deadband", "coulomb_directional")
+#: Candidate causes, in the catalogue's order (``Extension.default_candidate``).
+DEFAULT_CANDIDATES = default_candidates()
 
 #: Elements whose strength is at least this fraction of the strongest are reported too.
 LOCATION_FRACTION = 0.25
@@ -99,13 +97,16 @@ def _outcomes(cal: NullCalibration, exps, diags_per_exp) -> tuple[list[TestOutco
 
 
 def _location(ext: Extension, rig: Rig, theta) -> tuple[list[int] | None, str | None]:
-    """The carts (by number) or springs (by their place in ``rig.springs``, 1-based) where
-    the effect acts, and a label."""
+    """The carts (by number), springs (by their place in ``rig.springs``) or sensors (by
+    their place in ``rig.sensors``), 1-based, where the effect acts, and a label."""
     loc = ext.location_of(rig, theta)
     if loc.kind == "input" or loc.index is None:
         return None, loc.label
     order = kernel_order(rig)
-    if loc.kind == "spring":
+    if loc.kind == "sensor":
+        def number(i):
+            return i + 1
+    elif loc.kind == "spring":
         def number(i):
             return order.spring_index[i] + 1
     else:

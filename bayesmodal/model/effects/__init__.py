@@ -25,6 +25,8 @@ name                          parameters (after the linear)    acts at
 ``amplitude_gain``            ``kappa_per_V`` (1/V)            motor input
 ``end_stop``                  ``x_stop`` (m), ``k_stop``       the driven cart
                               (N/m)
+``sensor_gain``               ``s_2..s_n`` (1)                 each sensor after
+                                                               the first
 ============================  ===============================  =====================
 
 Effects combine: ``get_extension("coulomb_friction+input_offset")`` (or a list of names)
@@ -57,6 +59,7 @@ from .input_offset import InputOffset
 from .lugre import LuGreFriction
 from .motor_lag import MotorLag
 from .saturation import InputSaturation
+from .sensor_gain import SensorGain
 
 __all__ = [
     "EXTENSIONS",
@@ -76,7 +79,10 @@ __all__ = [
     "InputSaturation",
     "LuGreFriction",
     "MotorLag",
+    "SensorGain",
     "get_extension",
+    "suggested_by",
+    "default_candidates",
 ]
 
 #: Registry of the extensions with their default numerical settings.
@@ -95,8 +101,38 @@ EXTENSIONS: dict[str, Extension] = {
         DirectionalCoulombFriction(),
         AmplitudeGain(),
         EndStop(),
+        SensorGain(),
     )
 }
+
+
+def suggested_by(signature: str) -> tuple[str, ...]:
+    """The registered effects whose ``signatures`` hold ``signature`` (a residual check's
+    tag), in registry order; ``(signature,)`` when none does (a cause outside the
+    catalogue, e.g. ``"unmodelled_mode"``).
+
+    Parameters
+    ----------
+    signature : str
+        A residual check's tag (``"stick"``, ``"decay"``, ``"bias"``, ``"lag"``, ...).
+
+    Returns
+    -------
+    tuple of str
+
+    Examples
+    --------
+    >>> suggested_by("lag")
+    ('motor_lag', 'input_delay')
+    """
+    found = tuple(n for n, e in EXTENSIONS.items() if signature in e.signatures)
+    return found or (signature,)
+
+
+def default_candidates() -> tuple[str, ...]:
+    """The effects ``diagnose`` tries by default (``Extension.default_candidate``), in
+    registry order."""
+    return tuple(n for n, e in EXTENSIONS.items() if e.default_candidate)
 
 
 def get_extension(name) -> Extension:

@@ -112,13 +112,31 @@ class Extension(ABC):
     description: str = ""
     exact: bool = False
     validity_rule: str = "linear part admissible, extension parameters finite and >= 0"
-    #: ``"plant"`` (acts on the carts: friction, backlash, springs) or ``"input"`` (acts on
-    #: the voltage before the motor force: offset, dead band, saturation, lag, delay).
+    #: ``"plant"`` (acts on the carts: friction, backlash, springs), ``"input"`` (acts on
+    #: the voltage before the motor force: offset, dead band, saturation, lag, delay) or
+    #: ``"output"`` (acts on the sensors' readings: ``transform_output``).
     side: str = "plant"
     #: Place of an input-side effect in the physical chain offset (0) -> dead band (1) ->
     #: saturation (2) -> amplitude gain (2.5) -> lag (3) -> delay (4); None for plant-side
     #: effects.
     input_stage: float | None = None
+
+    #: The memoryless input stage a fused plant kernel applies itself to the shared input
+    #: (``kernels.coulomb.INPUT_STAGES``: ``"offset"``, ``"deadband"``, ``"saturation"``,
+    #: ``"gain"``), or None.
+    kernel_stage: str | None = None
+    #: In the catalogue ``diagnose`` tries by default (``DEFAULT_CANDIDATES``).
+    default_candidate: bool = True
+    #: A change of the simulator that changes its numbers: part of a run's hash
+    #: (``config.EXTENSION_REVISIONS``); empty for the first version.
+    revision: str = ""
+    #: Residual signatures that point to the effect: tags of the checks of
+    #: ``bayesmodal.discrepancy.checks`` (``"stick"``, ``"decay"``, ``"bias"``, ...,
+    #: ``suggested_by``).
+    signatures: tuple[str, ...] = ()
+    #: Parameters of a realistic size on the three-cart rig ``Rig()`` (benchmarks and
+    #: tests), in ``extension_names`` order.
+    typical: tuple[float, ...] = ()
 
     #: What the effect needs on the rig: ``""`` (any rig), ``"drive"`` (a motor on at least
     #: one cart: every input-side effect needs one) or ``"one_drive"`` (a motor on exactly one cart:
@@ -291,8 +309,25 @@ class Extension(ABC):
         order = kernel_order(rig)
         y = self._simulate(rig, np.ascontiguousarray(lin), np.ascontiguousarray(ext), u, dt,
                            state_to_kernel(order, x0b))
-        y = outputs_from_kernel(order, y)
+        y = self.transform_output(rig, ext, outputs_from_kernel(order, y))
         return y[0] if single else y
+
+    def transform_output(self, rig: Rig, theta_ext: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The sensors' readings of the simulated outputs (default: as simulated).
+
+        Parameters
+        ----------
+        rig : Rig
+        theta_ext : ndarray, shape (nb, n_ext)
+            The effect's own parameters.
+        y : ndarray, shape (nb, N, n_outputs)
+            Simulated outputs, m (possibly a view of a kernel's buffer: not to be written).
+
+        Returns
+        -------
+        ndarray, shape (nb, N, n_outputs)
+        """
+        return y
 
     @abstractmethod
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0) -> np.ndarray:

@@ -31,6 +31,10 @@ class AmplitudeGain(Extension):
     """
 
     name = "amplitude_gain"
+    signatures = ("gain_rises", "gain_falls")
+    kernel_stage = "gain"
+    default_candidate = False
+    typical = (0.02,)
     description = "drive gain g_v (1 + kappa |v|) growing or falling with the voltage"
     exact = True
     validity_rule = "linear part admissible, |kappa_per_V| <= 0.05 (a monotone drive up to 10 V)"

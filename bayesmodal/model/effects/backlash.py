@@ -53,6 +53,7 @@ class Backlash(Extension):
     n_sub: int = 2
 
     name = "backlash"
+    typical = (3e-4, 0.2)
     needs = "one_drive"
     description = "gap gap_m in the rack-pinion drive of cart 1 (motor mass m_p, plastic contact)"
     exact = False

@@ -49,16 +49,12 @@ from .end_stop import STOP_KERNELS
 #: Input-side effects that are linear filters handled by the linear plant recursion.
 _LINEAR_FILTERS = {3: "tau", 4: "delay_s"}
 
-#: Memoryless input effects a plant kernel with ``fuses_input_stages`` applies itself to
-#: the shared input (``kernels.coulomb.INPUT_STAGES``), instead of a per-lane input block.
-_KERNEL_STAGES = {"input_offset": "offset", "drive_deadband": "deadband",
-                  "input_saturation": "saturation", "amplitude_gain": "gain"}
-
-
 def _kernel_stage(effect: Extension) -> str | None:
-    """The kernel's stage for a memoryless input effect, or None (the smooth dead band's
-    softplus is left to numpy)."""
-    kind = _KERNEL_STAGES.get(effect.name)
+    """The kernel's stage for a memoryless input effect (``Extension.kernel_stage``: a
+    plant kernel with ``fuses_input_stages`` applies it to the shared input itself,
+    instead of a per-lane input block), or None (the smooth dead band's softplus is left
+    to numpy)."""
+    kind = effect.kernel_stage
     if kind == "deadband" and getattr(effect, "width_v", 0.0) != 0.0:
         return None
     return kind
@@ -110,7 +106,7 @@ class Combined(Extension):
         names = [e.name for e in flat]
         if len(set(names)) != len(names):
             raise ModelError(f"effect repeated in {names}; list each effect once")
-        plant = [e for e in flat if e.side != "input"]
+        plant = [e for e in flat if e.side not in ("input", "output")]
         forces = [e for e in plant if getattr(e, "plant_force", False)]
         kernels = [e for e in plant if e not in forces]
         if len(kernels) > 1 or len(forces) > 1:
@@ -149,7 +145,7 @@ class Combined(Extension):
     def plant(self) -> Extension | None:
         """The plant-side effect whose kernel runs the model (a plant-side force alone
         runs its own), or None for the linear plant."""
-        plant = [e for e in self.effects if e.side != "input"]
+        plant = [e for e in self.effects if e.side not in ("input", "output")]
         return next((e for e in plant if not getattr(e, "plant_force", False)),
                     plant[0] if plant else None)
 
@@ -158,6 +154,12 @@ class Combined(Extension):
         """A plant-side force that the plant kernel takes next to its own, or None."""
         f = next((e for e in self.effects if getattr(e, "plant_force", False)), None)
         return None if f is self.plant else f
+
+    def transform_output(self, rig, theta_ext, y):
+        """Each effect's reading of the outputs, in the order the effects are named."""
+        for e, sl in zip(self.effects, self._slices(rig), strict=True):
+            y = e.transform_output(rig, theta_ext[:, sl], y)
+        return y
 
     def unsupported(self, rig: Rig) -> str | None:
         """The first of the effects' reasons not to act on ``rig``, or None."""

@@ -74,6 +74,8 @@ class CoulombFriction(Extension):
     adaptive: bool = True
 
     name = "coulomb_friction"
+    signatures = ("friction", "stick", "decay", "consistency", "amplitude_damping")
+    typical = (0.1, 0.15, 0.08, 0.15, 0.2, 0.12)
     description = "per-cart Coulomb friction with stick-slip (static level Fs >= Fc)"
     exact = False
     #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the

@@ -37,6 +37,8 @@ class DirectionalCoulombFriction(CoulombFriction):
     """
 
     name = "coulomb_directional"
+    signatures = ()  # a refinement of coulomb_friction, tried after it
+    typical = (0.1, 0.15, 0.08, 0.05, 0.2, 0.12, 0.15, 0.2, 0.12)
     description = "per-cart Coulomb friction, level by direction of sliding, with stick-slip"
     #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the
     #: kernel, ``kernels.coulomb.INPUT_STAGES``; used by ``Combined``)

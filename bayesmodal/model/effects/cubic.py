@@ -53,6 +53,8 @@ class CubicStiffness(Extension):
     n_sub: int = 2
 
     name = "cubic_stiffness"
+    signatures = ("consistency", "amplitude_frequency")
+    typical = (1e5, -5e4, 1e5)
     description = "spring force k_i d + k3_i d^3 (hardening k3 > 0, softening k3 < 0)"
     exact = False
     validity_rule = "linear part admissible, k3_i finite (either sign)"

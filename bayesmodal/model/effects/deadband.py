@@ -74,6 +74,9 @@ class DriveDeadband(Extension):
     width_v: float = 0.0
 
     name = "drive_deadband"
+    signatures = ("gain_rises",)
+    kernel_stage = "deadband"
+    typical = (0.05,)  # below the 0.2 V sweep of the benchmark: the carts still move
     description = "no motor force below |v| = v_dead (motor static friction, cogging)"
     exact = True
     side = "input"

@@ -59,6 +59,8 @@ class EndStop(Extension):
     side: int = 1
 
     name = "end_stop"
+    default_candidate = False
+    typical = (0.02, 2000.0)  # reached by the 3 V pulses of the rig-like input
     description = "a soft one-sided end stop of the driven cart (k_stop beyond x_stop)"
     exact = False
     validity_rule = "linear part admissible, x_stop > 0, k_stop >= 0, finite"

@@ -38,6 +38,8 @@ class InputDelay(Extension):
     """
 
     name = "input_delay"
+    signatures = ("lag",)
+    typical = (0.0123,)
     description = "pure time delay delay_s of the motor input (sub-sample, exact)"
     exact = True
     side = "input"

@@ -30,6 +30,9 @@ class InputOffset(Extension):
     """
 
     name = "input_offset"
+    signatures = ("bias",)
+    kernel_stage = "offset"
+    typical = (0.15,)
     description = "constant bias v_offset added to the motor voltage (amplifier offset)"
     exact = True
     validity_rule = "linear part admissible, v_offset finite (either sign)"

@@ -65,6 +65,9 @@ class LuGreFriction(Extension):
     fuses_input_stages = True
 
     name = "lugre_friction"
+    default_candidate = False
+    revision = "n_sub=4"
+    typical = (0.1, 0.15, 0.08, 0.15, 0.2, 0.12, 2e4, 100.0, 0.005)
     description = "LuGre friction per cart (bristles: pre-sliding, Stribeck; smooth)"
     exact = False
     validity_rule = ("linear part admissible, 0 <= Fc_i <= Fs_i, sigma0 > 0, sigma1 >= 0, "

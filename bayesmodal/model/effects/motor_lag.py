@@ -31,6 +31,8 @@ class MotorLag(Extension):
     """
 
     name = "motor_lag"
+    signatures = ("lag",)
+    typical = (0.01,)
     description = "first-order lag tau_s between motor voltage and force"
     exact = True
     side = "input"

@@ -29,6 +29,9 @@ class InputSaturation(Extension):
     """
 
     name = "input_saturation"
+    signatures = ("consistency", "gain_falls")
+    kernel_stage = "saturation"
+    typical = (2.5,)
     description = "motor voltage (force) clipped at +-v_sat"
     exact = True
     validity_rule = "linear part admissible, v_sat > 0 (inf allowed)"
