@@ -1,18 +1,59 @@
-"""bayesmodal: Bayesian identification of vibrating mass-spring-damper rigs."""
+"""bayesmodal: Bayesian identification of vibrating mass-spring-damper rigs.
 
-from ._errors import ConfigError, DataError, ModelError
+The public API, one import away::
+
+    from bayesmodal import Rig, load_rig, load_experiment, fit_lsq, sample_posterior
+
+=================================  ==========================================================
+the rig and its model              ``Rig``, ``load_rig``, ``LinearModel``, ``simulate_linear``,
+                                   ``discretize_zoh``, ``EXTENSIONS``, ``get_extension``
+records                            ``Experiment``, ``load_experiment``
+least squares                      ``fit_lsq``, ``fit_extension_lsq``
+posterior                          ``sample_posterior``, ``crossval``
+what the model misses              ``diagnose``
+runs                               ``RunConfig``, ``load_config``
+errors                             ``ConfigError``, ``DataError``, ``ModelError``,
+                                   ``IdentificationError``
+=================================  ==========================================================
+
+The inference, diagnosis and run names load their layers (emcee, ArviZ) on first use, so
+that ``import bayesmodal`` and the command line start quickly.
+"""
+
+from importlib import import_module
+
+from ._errors import ConfigError, DataError, IdentificationError, ModelError
+from .data import Experiment, load_experiment
+from .fit import fit_extension_lsq, fit_lsq
+from .model import EXTENSIONS, LinearModel, Rig, get_extension, load_rig
 from .model.simulate import discretize_zoh, simulate_linear
-from .model.system import LinearModel, Rig
 
 __version__ = "0.1.0"
 
+#: Names loaded on first use: name -> module.
+_LAZY = {
+    "sample_posterior": "bayesmodal.inference.sampling",
+    "crossval": "bayesmodal.inference.crossval",
+    "diagnose": "bayesmodal.discrepancy.diagnosis.workflow",
+    "RunConfig": "bayesmodal.config",
+    "load_config": "bayesmodal.config",
+}
+
 __all__ = [
-    "ConfigError",
-    "DataError",
-    "ModelError",
-    "LinearModel",
-    "Rig",
-    "discretize_zoh",
-    "simulate_linear",
-    "__version__",
+    "Rig", "load_rig", "LinearModel", "simulate_linear", "discretize_zoh", "EXTENSIONS",
+    "get_extension", "Experiment", "load_experiment", "fit_lsq", "fit_extension_lsq",
+    "sample_posterior", "crossval", "diagnose", "RunConfig", "load_config",
+    "ConfigError", "DataError", "ModelError", "IdentificationError", "__version__",
 ]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'bayesmodal' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(__all__)
