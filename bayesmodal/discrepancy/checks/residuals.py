@@ -37,10 +37,10 @@ class LinearResiduals:
     model : LinearModel
     theta : ndarray, shape (n_params,)
         Linear parameters the prediction used.
-    y_pred : ndarray, shape (N, n)
-        Predicted cart positions, m.
-    v_pred : ndarray, shape (N, n)
-        Predicted cart velocities, m/s (exact, noise-free).
+    y_pred : ndarray, shape (N, n_outputs)
+        Predicted positions of the measured carts (one column per sensor), m.
+    v_pred : ndarray, shape (N, n_outputs)
+        Predicted velocities of the measured carts, m/s (exact, noise-free).
     residual : ndarray, shape (N, n)
         ``y_measured - y_pred``, m.
     v_meas : ndarray, shape (N, n)
@@ -128,10 +128,10 @@ def linear_residuals(
     ...     model = LinearModel(Rig(), "free")
     ...     res = linear_residuals(e, model, fit_lsq(e, model).theta)
     """
-    if experiment.n_outputs != model.n_carts:
+    if experiment.n_outputs != model.n_outputs:
         raise DataError(
             f"{experiment.name}: {experiment.n_outputs} outputs but the model has "
-            f"{model.n_carts} carts"
+            f"{model.n_outputs} sensors"
         )
     theta = model.check(np.asarray(theta, dtype=float))
     if theta.ndim != 1:
@@ -150,8 +150,10 @@ def linear_residuals(
     n = model.n_carts
     A, B = model.state_space(theta)
     states = simulate_state_space(A, B, experiment.v_volt, dt, 2 * n)[0]
-    y_pred = np.ascontiguousarray(states[:, :n])
-    v_pred = np.ascontiguousarray(states[:, n:])
+    # the measured carts' positions and velocities (every cart in order on the chain)
+    out = np.arange(n) if model.output_index is None else np.asarray(model.output_index)
+    y_pred = np.ascontiguousarray(states[:, out])
+    v_pred = np.ascontiguousarray(states[:, n + out])
     return LinearResiduals(
         experiment=experiment,
         model=model,
