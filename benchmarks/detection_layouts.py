@@ -41,24 +41,12 @@ def candidates() -> tuple[str, ...]:
     return tuple(DEFAULT_CANDIDATES) + ("end_stop",)
 
 
-def judge(h, d) -> tuple[bool, list]:
-    """Every effect of the case named at its location (``none`` for the null case)."""
-    if h.case == "none":
-        return d.cause == "none", []
-    found = {}
-    for c in d.causes:
-        if c.replaces:
-            found.pop(c.replaces, None)
-        found[c.cause] = c.location
-    ok = all(name in found and found[name] == loc for name, loc in h.effects.items())
-    return ok, sorted(found.items())
-
-
 def run_one(args) -> dict:
     layout, case, seed, n_samples = args
     import warnings
 
     from hidden_layouts import layout_rig, make_layout_case
+    from hidden_pairs import judge
 
     from bayesmodal.discrepancy.diagnosis import diagnose
 

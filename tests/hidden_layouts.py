@@ -31,9 +31,8 @@ white noise of 0.3-1 count, rounding to counts; the linear parameters perturbed 
 from __future__ import annotations
 
 import numpy as np
-from hidden_effects import DT, Q, rig_input
-from hidden_pairs import HiddenCase
-from reference_effects import input_chain_ref
+from hidden_effects import DT, rig_input
+from hidden_pairs import HiddenCase, _friction, counts, input_stages
 from reference_sim import (
     RefLayout,
     simulate_backlash_ref,
@@ -94,21 +93,9 @@ def make_layout_case(layout: str, case: str, seed: int, n_samples: int = 2400) -
     u = rig_input(n_samples)
     names = [] if case == "none" else case.split("+")
     n = ref.n
-    effects, sizes = {}, {}
-    v = np.array(u, float)
-    if "input_offset" in names:
-        v0 = rng.uniform(0.03, 0.15) * rng.choice([-1.0, 1.0])
-        v = input_chain_ref(v, v_offset=v0)
-        effects["input_offset"], sizes["input_offset"] = None, [v0]
-    if "drive_deadband" in names:
-        vd = rng.uniform(0.1, 0.3)
-        v = input_chain_ref(v, v_dead=vd)
-        effects["drive_deadband"], sizes["drive_deadband"] = None, [vd]
+    v, effects, sizes = input_stages(rng, names, u)
     if "coulomb_friction" in names:
-        i = int(rng.integers(n))
-        fc = rng.uniform(0.3, 1.5)
-        w = np.zeros(2 * n)
-        w[i], w[n + i] = fc, fc * rng.uniform(1.0, 1.5)
+        i, w = _friction(rng, n)
         effects["coulomb_friction"], sizes["coulomb_friction"] = [i + 1], w.tolist()
         y = simulate_coulomb_ref(ref, np.r_[theta_lin, w], v, DT)
     elif "end_stop" in names:
@@ -136,9 +123,7 @@ def make_layout_case(layout: str, case: str, seed: int, n_samples: int = 2400) -
         y = simulate_backlash_ref(ref, np.r_[theta_lin, gap, m_p], v, DT, tau=tau)
     else:
         y = simulate_linear_ref(ref, theta_lin, v, DT)
-    y = y[:, ref.outputs]
-    sigma = rng.uniform(0.3, 1.0) * Q
-    y = np.round((y + sigma * rng.standard_normal(y.shape)) / Q) * Q
-    e = Experiment(np.arange(n_samples) * DT, u, y, name=f"{layout}-{case}-{seed}")
+    e = Experiment(np.arange(n_samples) * DT, u, counts(y[:, ref.outputs], rng),
+                   name=f"{layout}-{case}-{seed}")
     return HiddenCase(e, case, effects, sizes, theta_lin)
 

@@ -64,22 +64,18 @@ class HiddenCase:
     theta_lin: np.ndarray | None = None
 
 
-def _friction(rng):
-    i = int(rng.integers(3))
+def _friction(rng, n: int = 3):
+    """Friction on one of ``n`` carts (drawn): ``(cart index, (Fc_1..Fc_n, Fs_1..Fs_n))``."""
+    i = int(rng.integers(n))
     fc = rng.uniform(0.3, 1.5)
-    w = np.zeros(6)
-    w[i], w[3 + i] = fc, fc * rng.uniform(1.0, 1.5)
+    w = np.zeros(2 * n)
+    w[i], w[n + i] = fc, fc * rng.uniform(1.0, 1.5)
     return i, w
 
 
-def make_case(case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
-    """One experiment of ``case`` (``CASES``) drawn from ``seed``."""
-    if case not in CASES:
-        raise ValueError(f"unknown case {case!r}; known: {CASES}")
-    rng = np.random.default_rng(seed)
-    theta_lin = BASE * rng.uniform(0.95, 1.05, BASE.size)
-    u = rig_input(n_samples)
-    names = case.split("+")
+def input_stages(rng, names, u):
+    """The drawn offset and dead band of ``names`` applied to ``u``: ``(voltage at the
+    motor, {effect: None}, {effect: [size]})``."""
     effects, sizes = {}, {}
     v = np.array(u, float)
     if "input_offset" in names:
@@ -90,6 +86,24 @@ def make_case(case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
         vd = rng.uniform(0.1, 0.3)
         v = input_chain_ref(v, v_dead=vd)
         effects["drive_deadband"], sizes["drive_deadband"] = None, [vd]
+    return v, effects, sizes
+
+
+def counts(y, rng):
+    """``y`` (m) with white noise of 0.3-1 count (drawn), rounded to whole counts."""
+    sigma = rng.uniform(0.3, 1.0) * Q
+    return np.round((y + sigma * rng.standard_normal(y.shape)) / Q) * Q
+
+
+def make_case(case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
+    """One experiment of ``case`` (``CASES``) drawn from ``seed``."""
+    if case not in CASES:
+        raise ValueError(f"unknown case {case!r}; known: {CASES}")
+    rng = np.random.default_rng(seed)
+    theta_lin = BASE * rng.uniform(0.95, 1.05, BASE.size)
+    u = rig_input(n_samples)
+    names = case.split("+")
+    v, effects, sizes = input_stages(rng, names, u)
     if "coulomb_friction" in names:
         i, w = _friction(rng)
         effects["coulomb_friction"], sizes["coulomb_friction"] = [i + 1], w.tolist()
@@ -111,18 +125,19 @@ def make_case(case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
         y = simulate_backlash_ref(SPRINGS, np.r_[theta_lin, gap, m_p], v, DT, tau=tau)
     else:
         y = simulate_linear_ref(SPRINGS, theta_lin, v, DT)
-    sigma = rng.uniform(0.3, 1.0) * Q
-    y = np.round((y + sigma * rng.standard_normal(y.shape)) / Q) * Q
-    e = Experiment(np.arange(n_samples) * DT, u, y, name=f"{case}-{seed}")
+    e = Experiment(np.arange(n_samples) * DT, u, counts(y, rng), name=f"{case}-{seed}")
     return HiddenCase(e, case, effects, sizes, theta_lin)
 
 
 def judge(h: HiddenCase, d) -> tuple[bool, list]:
-    """Did the diagnosis name every effect of the case with its location?
+    """Did the diagnosis name every effect of the case with its location (and nothing on
+    a case without effects)?
 
     Returns ``(correct, found)`` with ``found`` the ``(cause, location)`` pairs of the
     final model (a refined effect counts under its refinement's name).
     """
+    if not h.effects:  # null data: nothing may be named
+        return d.cause == "none", []
     found = {}
     for c in d.causes:
         if c.replaces:
