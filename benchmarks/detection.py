@@ -26,6 +26,7 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 _TESTS = _HERE.parent / "tests"
 sys.path.insert(0, str(_TESTS))
+sys.path.insert(0, str(_HERE.parent / "docs"))  # docs/_stamp.py
 
 import numpy as np  # noqa: E402
 
@@ -106,6 +107,8 @@ def main(argv=None) -> int:
 
 
 def _write(args, rows, t0, *, final):
+    from _stamp import stamp  # date, commit and machine of the output
+
     table = {}
     for eff in ["none"] + list(args.effects):
         sel = [r for r in rows if r["effect"] == eff]
@@ -120,7 +123,7 @@ def _write(args, rows, t0, *, final):
                       "confusions": sorted({r["cause"] for r in sel if not r["correct"]})}
     out = {"table": table, "rows": rows, "seeds": args.seeds, "nulls": args.nulls,
            "calibration_nulls": args.calibration_nulls, "samples": args.samples,
-           "complete": final, "wall_seconds": time.perf_counter() - t0}
+           "complete": final, "wall_seconds": time.perf_counter() - t0, "stamp": stamp()}
     Path(args.out).write_text(json.dumps(out, indent=2))
     return table
 

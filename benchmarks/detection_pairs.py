@@ -9,8 +9,8 @@ name every effect of the case with its location (``hidden_pairs.judge``); on the
 data it must answer ``none``.  Prints the rate per case with the exact one-sided 95 %
 Clopper-Pearson bound, the effects found when wrong, the seconds per data set, and
 writes JSON (rewritten after every data set, so a partial run keeps its rows).
-``--resume`` reads that file and runs only the data sets it lacks, so a run stopped by a
-session's end goes on where it stopped (the file's settings must match the command's).
+``--resume`` reads that file and runs only the data sets it lacks, so a run that was stopped
+goes on where it stopped (the file's settings must match the command's).
 
 Usage::
 
@@ -32,6 +32,7 @@ from pathlib import Path
 # the hidden-effect cases live in tests/
 _HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(_HERE.parent / "tests"))
+sys.path.insert(0, str(_HERE.parent / "docs"))  # docs/_stamp.py
 
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
@@ -126,6 +127,7 @@ def _stored_rows(path: Path, args) -> list:
 
 
 def main(argv=None) -> int:
+    from _stamp import stamp  # date, commit and machine of the output
     from hidden_pairs import CASES
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -163,7 +165,8 @@ def main(argv=None) -> int:
                   f"{'ok' if r['correct'] else 'WRONG'} {r['seconds']:.0f} s", flush=True)
             Path(args.out).write_text(json.dumps(
                 {"table": table(rows, cases), "rows": rows, "args": vars(args),
-                 "complete": i == len(jobs), "wall_seconds": time.perf_counter() - t0},
+                 "complete": i == len(jobs), "wall_seconds": time.perf_counter() - t0,
+                 "stamp": stamp()},
                 indent=2))
     print()
     for case, t in table(rows, cases).items():

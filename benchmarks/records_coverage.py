@@ -7,7 +7,7 @@ from a known truth, each with its own drive gain (log-normal, 5 % spread) and in
 
 ``joint``   the four records together, default layout (g_v and v0 per record from their
             populations), AR(1) noise;
-``single``  the pulse record alone with the single-record AR(1) model (yesterday's default).
+``single``  the pulse record alone with the single-record AR(1) model.
 
 For each analysis it records whether the 90 % equal-tailed intervals of the masses, the
 natural frequencies, the modal damping ratios and the population gain ``mu_gv`` (for the

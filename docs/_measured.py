@@ -24,13 +24,16 @@ def run_studies(studies: dict, summarise, out: str, markdown, *, workers: int,
                 only: list[str] | None = None) -> dict:
     """Leave-one-record-out studies of the four records, one per labelled ``CrossvalSpec``.
 
-    Each result goes through ``summarise(result, wall_s)`` into ``<out>.json``, written
+    Each result goes through ``summarise(result, wall_s)`` into ``<out>.json`` with its
+    ``stamp`` (date, commit, machine: docs/_stamp.py), written
     after every study (``only`` runs the named studies and keeps the file's others); the
     summaries through ``markdown`` into ``<out>.md``, which is also printed.
     """
     import json
     import time
     from pathlib import Path
+
+    from _stamp import stamp  # docs/_stamp.py
 
     from bayesmodal.inference.crossval import crossval
 
@@ -44,7 +47,7 @@ def run_studies(studies: dict, summarise, out: str, markdown, *, workers: int,
         res = crossval(exps, spec, workers=workers, joint=False,
                        progress=lambda line, label=label: print(f"{label}: {line}",
                                                                file=sys.stderr))
-        done[label] = summarise(res, time.perf_counter() - t0)
+        done[label] = {**summarise(res, time.perf_counter() - t0), "stamp": stamp()}
         path.write_text(json.dumps(done, indent=1) + "\n")
     table = markdown(done)
     Path(out).with_suffix(".md").write_text(table)

@@ -557,7 +557,24 @@ def compute(*, runs_dir: Path | None, log=print) -> tuple[dict, dict]:
     return num, objs
 
 
+def table(num: dict) -> str:
+    """The stored result as the Markdown table the script prints: the fit (%) of each
+    record's carts 1-3 with the impulse record's least-squares fits (linear, stick-slip
+    friction, and each other effect of the catalogue)."""
+    short = ("impulses", "steps", "sweep fast", "sweep slow")
+    lines = ["| model fitted to the impulses | " + " | ".join(short) + " |",
+             "|---" * (len(short) + 1) + "|"]
+    rows = {"linear": num["linear"]["fits"], "stick-slip friction": num["friction"]["fits"]}
+    rows.update({name: r["fits"] for name, r in num["other_extensions"].items()})
+    for label, fits in rows.items():
+        cells = " | ".join(", ".join(f"{x:.1f}" for x in fits[n]) for n in RECORDS)
+        lines.append(f"| {label} | {cells} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
+    from _stamp import stamp  # docs/_stamp.py (run as docs/<script>.py)
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures"))
     ap.add_argument("--runs", default=str(ROOT / "out" / "discrepancy_runs"))
@@ -578,14 +595,16 @@ def main(argv=None) -> int:
         num["tradeoff"] = _public(tradeoff_part(recs, lin, np.asarray(num["friction"]["theta"])))
         num["loglik_references"] = loglik_references(recs, num)
         made = tradeoff_figure(recs, num, out)
+        num["stamp_tradeoff"] = stamp()
         path.write_text(json.dumps(num, indent=1, default=float) + "\n")
         print(f"wrote {made} and the trade-off into {path}")
         return 0
     num, objs = compute(runs_dir=None if args.quick else Path(args.runs),
                         log=lambda m: print(m, file=sys.stderr, flush=True))
     made = figures(load_records(), num, objs, out)
-    public = _public(num)
+    public = {**_public(num), "stamp": stamp()}
     (out / "discrepancy.json").write_text(json.dumps(public, indent=1, default=float) + "\n")
+    print(table(public))
     print(f"wrote {', '.join(made)} and discrepancy.json to {out}")
     return 0
 

@@ -348,6 +348,8 @@ def markdown(joint: dict, loro: dict | None) -> str:
 
 
 def main(argv=None) -> int:
+    from _stamp import stamp  # docs/_stamp.py (run as docs/<script>.py)
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-loro", action="store_true", help="joint fits only")
     ap.add_argument("--folds", default=None, metavar="R,...",
@@ -364,7 +366,8 @@ def main(argv=None) -> int:
               for label in ("friction", "dead band, one gain", "directional friction", FINAL)}
     needs = record_checks(recs, joint, loro)
     out = {"records": list(RECORDS), "steps": [s[0] for s in STEPS],
-           "joint": joint, "loro": loro, "residuals": checks, "records_need": needs}
+           "joint": joint, "loro": loro, "residuals": checks, "records_need": needs,
+           "stamp": stamp()}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
     print(markdown(joint, loro))

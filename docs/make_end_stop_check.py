@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 from _measured import measured_records  # docs/_measured.py (run as docs/<script>.py)
+from _stamp import stamp  # docs/_stamp.py
 
 from bayesmodal.data import Experiment
 from bayesmodal.fit.records import fit_records_lsq, simulate_model
@@ -53,6 +54,20 @@ def pulses(imp: Experiment) -> list[Experiment]:
         out.append(Experiment(imp.t_s[sl] - imp.t_s[sl.start], imp.v_volt[sl], imp.y_m[sl],
                               name=f"pulse {k + 1}"))
     return out
+
+
+def table(out: dict) -> str:
+    """The stored result as the Markdown table the script prints: per model and split,
+    the fit (%) of each held-out pulse on carts 1-3."""
+    lines = ["| model | split | held-out pulse: fit % (carts 1-3) |", "|---|---|---|"]
+    for label, splits in out.items():
+        if label == "stamp":
+            continue
+        for split, r in splits.items():
+            held = "; ".join(f"{name}: {', '.join(f'{x:.1f}' for x in fit)}"
+                             for name, fit in r["held_out"].items())
+            lines.append(f"| {label} | {split} | {held} |")
+    return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> int:
@@ -86,7 +101,9 @@ def main(argv=None) -> int:
                 "held_out": held, "theta": th[0].tolist(), "names": list(fit.names),
                 "seconds": round(time.time() - t0)}
             print(f"{label:34s} {split}: {held}", flush=True)
+    out["stamp"] = stamp()
     Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    print(table(out))
     return 0
 
 

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 from _measured import measured_records  # docs/_measured.py (run as docs/<script>.py)
+from _stamp import stamp  # docs/_stamp.py
 
 from bayesmodal.fit.records import fit_records_lsq
 from bayesmodal.model.effects import get_extension
@@ -109,6 +110,33 @@ def multistart(recs, rig, base: dict, n: int, seed: int = 20261127) -> dict:
             "cart3_at_best_cost": float(cart3[np.argmin(cost)])}
 
 
+def _fit_cells(fit) -> str:
+    return " | ".join(", ".join(f"{x:.1f}" for x in f) for f in fit)
+
+
+def table(out: dict) -> str:
+    """The stored result as the Markdown tables the script prints: cost and fit (%) of
+    each joint fit per record (carts 1-3), then the multistart's summary if present."""
+    lines = ["| model | cost | impulses | steps | sweep fast | sweep slow |",
+             "|---|---|---|---|---|---|",
+             f"| {out['base']['label']} | {out['base']['cost']:.5f} | "
+             f"{_fit_cells(out['base']['fit'])} |"]
+    for group in ("extra", "per_record"):
+        for label, r in out[group].items():
+            lines.append(f"| {label} | {r['cost']:.5f} | {_fit_cells(r['fit'])} |")
+    m = out.get("multistart")
+    if m:
+        lower = m["cart3_at_lower_cost"]
+        lines += ["", "| starts | seed | starts below the fit's cost | impulses' cart 3 "
+                  "at those starts | largest impulses' cart 3 | lowest cost | its cart 3 |",
+                  "|---|---|---|---|---|---|---|",
+                  f"| {m['n']} | {m['seed']} | {m['n_lower_cost']} | "
+                  + (f"{lower[0]:.2f}-{lower[1]:.2f}" if lower else "-")
+                  + f" | {m['cart3_max']:.2f} | {m['best_cost']:.5f} | "
+                  f"{m['cart3_at_best_cost']:.2f} |"]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "docs/figures/impulses_cart3_check.json"))
@@ -123,7 +151,8 @@ def main(argv=None) -> int:
     if args.multistart:
         path = Path(args.out)
         out = json.loads(path.read_text()) if path.exists() else {}
-        out["multistart"] = multistart(recs, rig, base, args.multistart)
+        out["multistart"] = {**multistart(recs, rig, base, args.multistart),
+                             "stamp": stamp()}
         path.write_text(json.dumps(out, indent=1) + "\n")
         return 0
     out = {"base": {"label": BASE_LABEL, "cost": base["cost"], "fit": base["fit"]},
@@ -147,7 +176,9 @@ def main(argv=None) -> int:
         out["per_record"][label] = _row(fit, t0, per)
         print(f"{label}: cost {fit.cost:.5f}, fit {out['per_record'][label]['fit']}",
               flush=True)
+    out["stamp"] = stamp()
     Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    print(table(out))
     return 0
 
 

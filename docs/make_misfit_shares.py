@@ -64,7 +64,9 @@ def main(argv=None) -> int:
               f"{1e3 * row['residual_m']:12.2f} {row['residual_m'] / row['response_m']:18.3f} "
               f"{row['residual_m'] / row['dynamic_m']:17.3f}")
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=1))
+        from _stamp import stamp  # docs/_stamp.py
+
+        args.json.write_text(json.dumps({"rows": rows, "stamp": stamp()}, indent=1))
     return 0
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from _measured import RECORDS, measured_records  # docs/_measured.py
+from _stamp import stamp  # docs/_stamp.py
 
 from bayesmodal.config import load_config
 from bayesmodal.data import Experiment
@@ -62,6 +63,23 @@ def rows(result) -> dict:
     return out
 
 
+def table(out: dict) -> str:
+    """The stored result as the Markdown table the script prints: per study and held-out
+    record, the record's scale and the 90 % band's coverage, width, fit and R-hat."""
+    names = {"shared_level": "one level shared by the records",
+             "record_scaled": "each record divided by its scale"}
+    lines = ["| study | held-out record | scale c_r | 90 % band covers (carts 1-3) | "
+             "width / sd | fit % of the median | fold R-hat |", "|---|---|---|---|---|---|---|"]
+    for label in ("shared_level", "record_scaled"):
+        for name, r in out[label].items():
+            lines.append(f"| {names[label]} | {name} | {out['scale'][name]} | "
+                         f"{', '.join(f'{c:.0f}' for c in r['coverage_90'])} | "
+                         f"{', '.join(f'{w:.2f}' for w in r['width_90'])} | "
+                         f"{', '.join(f'{f:.1f}' for f in r['fit_percent'])} | "
+                         f"{r['max_rhat']} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workers", type=int, default=2)
@@ -78,11 +96,9 @@ def main(argv=None) -> int:
         res = crossval(data, spec, workers=args.workers, joint=False,
                        progress=lambda line: print(line, file=sys.stderr))
         out[label] = rows(res)
+    out["stamp"] = stamp()
     Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
-    for label in ("shared_level", "record_scaled"):
-        for name, r in out[label].items():
-            print(f"{label:14s} {name:22s} cov90 {r['coverage_90']} width {r['width_90']} "
-                  f"fit {r['fit_percent']} R-hat {r['max_rhat']}")
+    print(table(out))
     return 0
 
 

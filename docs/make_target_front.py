@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 from _measured import RECORDS, measured_records  # docs/_measured.py (run as docs/<script>.py)
+from _stamp import stamp  # docs/_stamp.py
 
 from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.records import fit_records_lsq
@@ -75,6 +76,17 @@ def row(ext, rig, theta, recs, t0: float) -> dict:
             "seconds": round(time.time() - t0, 1)}
 
 
+def table(out: dict) -> str:
+    """The stored result as the Markdown table the script prints: per weighting the fit
+    (%) of each record's carts 1-3 and the smallest margin to the targets."""
+    lines = ["| weighting | impulses | steps | sweep fast | sweep slow | smallest margin |",
+             "|---|---|---|---|---|---|"]
+    for label, r in out["rows"].items():
+        cells = " | ".join(", ".join(f"{x:.1f}" for x in f) for f in r["fit"])
+        lines.append(f"| {label} | {cells} | {r['min_margin']:+.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "docs/figures/target_front.json"))
@@ -96,13 +108,10 @@ def main(argv=None) -> int:
     rows["record and cart"] = row(ext, rig, f.theta[0], recs, t0)
     out = {"model": ext.name, "names": list(ext.linear_model(rig).names)
            + list(ext.extension_names(rig)), "records": list(RECORDS), "targets": TARGETS,
-           "start": str(DIAGNOSIS.relative_to(ROOT)), "max_nfev": MAX_NFEV, "rows": rows}
+           "start": str(DIAGNOSIS.relative_to(ROOT)), "max_nfev": MAX_NFEV, "rows": rows,
+           "stamp": stamp()}
     Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
-    print("| weighting | impulses | steps | sweep fast | sweep slow | smallest margin |")
-    print("|---|---|---|---|---|---|")
-    for label, r in rows.items():
-        cells = " | ".join(", ".join(f"{x:.1f}" for x in f) for f in r["fit"])
-        print(f"| {label} | {cells} | {r['min_margin']:+.2f} |")
+    print(table(out))
     return 0
 
 

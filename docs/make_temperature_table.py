@@ -21,6 +21,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+from _stamp import stamp  # noqa: E402
 from make_uncertainty_table import _load  # noqa: E402
 
 
@@ -43,7 +44,7 @@ def main(argv=None) -> int:
                               criterion=args.criterion, workers=args.workers, joint=False,
                               progress=lambda line: print(f"  {line}", flush=True))
     out = {"calibration": cal.to_dict(), "at_chosen": res.to_dict(),
-           "settings": vars(args), "wall_time_s": time.perf_counter() - t0}
+           "settings": vars(args), "wall_time_s": time.perf_counter() - t0, "stamp": stamp()}
     (HERE / "figures" / "temperature.json").write_text(json.dumps(out, indent=1))
     rows = ["| held-out record | 90 % band covers (carts 1, 2, 3) | width / sd "
             "| fit % of median | lpd (nats) | max R-hat |", "|---|---|---|---|---|---|"]

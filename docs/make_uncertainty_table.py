@@ -8,8 +8,8 @@ For each configuration (model, noise model, per-record layout) it samples the po
 three records and predicts the fourth, for each record in turn (``bayesmodal.inference.
 crossval``), and writes ``docs/figures/uncertainty.json`` and the markdown tables
 ``docs/figures/uncertainty.md``.  ``--only NAME`` runs one configuration (the others keep
-their stored results).  The first configuration is yesterday's: the impulse record alone,
-AR(1) noise, every parameter shared, predicting the other three records.
+their stored results).  The first configuration is the single-record model: the impulse record
+alone, AR(1) noise, every parameter shared, predicting the other three records.
 """
 
 from __future__ import annotations
@@ -23,6 +23,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from _stamp import stamp  # noqa: E402
+
 RECORDS = ("data_impulses", "data_steps", "data_sine_sweep_fast", "data_sine_sweep_slow")
 
 #: name -> (noise, per-record layout text, description)
@@ -85,7 +88,7 @@ def run_config(exps, name: str, steps: int, workers: int, seed: int) -> dict:
 def table(results: dict) -> str:
     lines = []
     for name, res in results.items():
-        desc = "impulses alone, AR(1), every parameter shared (yesterday's default)" \
+        desc = "impulses alone, AR(1), every parameter shared (the single-record model)" \
             if name == "single_impulses" else CONFIGS[name][2]
         lines.append(f"**{name}**: {desc}\n")
         lines.append("| held-out record | 90 % band covers (carts 1, 2, 3) | 50 % band covers "
@@ -130,6 +133,7 @@ def main(argv=None) -> int:
         else:
             results[name] = run_config(exps, name, args.steps, args.workers, args.seed)
         results[name]["settings"] = {"steps": args.steps, "seed": args.seed}
+        results[name]["stamp"] = stamp()
         print(f"{name}: {time.perf_counter() - t0:.0f} s", flush=True)
         out_json.write_text(json.dumps(results, indent=1))
         (HERE / "figures" / "uncertainty.md").write_text(table(results))

@@ -1,5 +1,5 @@
 """Docs that run: every ``python``, ``bash``, ``sh`` and ``console`` snippet of README.md,
-runs/README.md and docs/*.md is executed as written.
+runs/README.md, docs/*.md and docs/validation/*.md is executed as written.
 
 A snippet runs in a subprocess (Python with ``PYTHONPATH`` at the repository root; shell
 with ``bash -e``, with ``bayesmodal`` and ``python`` on ``PATH`` meaning this package and
@@ -84,7 +84,8 @@ def parse_marker(text: str) -> dict:
 
 def doc_pages() -> list[Path]:
     return [REPO / "README.md", REPO / "runs" / "README.md",
-            *sorted((REPO / "docs").glob("*.md"))]
+            *sorted((REPO / "docs").glob("*.md")),
+            *sorted((REPO / "docs" / "validation").glob("*.md"))]
 
 
 def snippets(path: Path) -> list[Snippet]:

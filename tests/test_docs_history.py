@@ -13,7 +13,10 @@ scan the pages for
 
 with a negative control (the patterns flag a sample that narrates and pass a clean
 sentence), an explicit allow-list for legitimate matches (each with its reason), and a
-check that every relative link of README.md and docs/*.md names an existing file.
+check that every relative link of README.md, docs/*.md and docs/validation/*.md names an
+existing file.  The stamp lines of the Validation pages' generated tables carry the date
+a study's output was made, read from that output (docs/make_validation_pages.py): an
+ISO date is data there, and only there.
 """
 
 from __future__ import annotations
@@ -90,13 +93,34 @@ def _allowed(page: str, name: str, line: str) -> bool:
     return any(page == p and name == k and t in line for p, k, t, _ in ALLOWED)
 
 
+_STAMP_LINE = re.compile(r"^Stamp(?: of [^:]+)?: date \d{4}-\d\d-\d\dT[\d:]+Z, commit ")
+
+
+def _generated_stamp_lines(page: str, lines: list[str]) -> set[int]:
+    """1-based numbers of the stamp lines inside generated blocks of a Validation page."""
+    if not page.startswith("docs/validation/"):
+        return set()
+    out, inside = set(), False
+    for n, ln in enumerate(lines, 1):
+        if ln.startswith("<!-- generated: "):
+            inside = True
+        elif ln.startswith("<!-- end generated: "):
+            inside = False
+        elif inside and _STAMP_LINE.match(ln):
+            out.add(n)
+    return out
+
+
 def test_pages_do_not_narrate_history():
     problems = []
     for page in pages():
         rel = page.relative_to(REPO).as_posix()
         lines = page.read_text(encoding="utf-8").splitlines()
+        stamps = _generated_stamp_lines(rel, lines)
         for n, name, found in narration("\n".join(lines)):
             if _allowed(rel, name, lines[n - 1] + " " + (lines[n] if n < len(lines) else "")):
+                continue
+            if name == "ISO date" and n in stamps:
                 continue
             problems.append(f"{rel}:{n}: {name}: {found!r}")
     assert not problems, (
@@ -135,6 +159,18 @@ def test_patterns_flag_narration_and_pass_a_clean_text():
     assert narration(CLEAN) == []
 
 
+def test_only_generated_stamp_lines_may_carry_a_date():
+    """A stamp line is exempt inside a Validation page's generated block, not outside it,
+    and not on another page."""
+    stamp = "Stamp: date 2026-01-02T03:04:05Z, commit abc1234, machine M."
+    block = ["<!-- generated: x -->", "", stamp, "", "<!-- end generated: x -->"]
+    assert _generated_stamp_lines("docs/validation/a.md", block) == {3}
+    assert _generated_stamp_lines("docs/validation/a.md", ["", stamp]) == set()
+    assert _generated_stamp_lines("docs/a.md", block) == set()
+    assert _generated_stamp_lines("docs/validation/a.md",
+                                  [block[0], "Measured 2026-01-02.", block[-1]]) == set()
+
+
 def test_allow_list_entries_are_used():
     """Every allow-list entry still matches a line (a stale entry would hide nothing
     but mislead the reader)."""
@@ -167,7 +203,8 @@ def _link_targets(text: str) -> list[tuple[int, str]]:
     return out
 
 
-@pytest.mark.parametrize("page", [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))],
+@pytest.mark.parametrize("page", [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")),
+                                  *sorted((REPO / "docs" / "validation").glob("*.md"))],
                          ids=lambda p: p.relative_to(REPO).as_posix())
 def test_relative_links_name_existing_files(page):
     missing = [f"{page.relative_to(REPO).as_posix()}:{n}: {t}"
