@@ -55,6 +55,12 @@ MAX_RELATIVE_STDERR_DAMPER = 1.0 / np.sqrt(np.finfo(float).eps)
 #: Parameter kinds whose zero switches the model off (no drive, no inertia, no spring).
 _ESSENTIAL = ("gain", "mass", "spring")
 
+#: The input of a closed-loop record: the effort the controller applied drives the carts
+#: (an output-error fit of it is consistent, tests/test_closed_loop.py), the reference
+#: does not.
+_CLOSED_LOOP = ("in a closed-loop record the control effort, 'Control Effort' of an ECP "
+                "export, not the commanded position")
+
 #: What a bound at zero says, and the fix, by parameter kind.
 _BOUND_FIX = {
     "gain": ("the carts do not move with the input as the model drives them; if +V moves "
@@ -63,15 +69,14 @@ _BOUND_FIX = {
              "input column is the motor command in volts (--columns v=NAME)"),
     "mass": ("the model is switched off; check that the input column is the motor command "
              "in volts and its sign (--columns v=NAME, --input-scale, -1 for a reversed "
-             "drive)"),
+             f"drive; {_CLOSED_LOOP})"),
     "spring": ("the model is switched off; check that the input column is the motor "
                "command in volts and its sign (--columns v=NAME, --input-scale, -1 for a "
-               "reversed drive)"),
+               f"reversed drive; {_CLOSED_LOOP})"),
 }
 
-_INPUT_FIX = ("check that the input column is the open-loop motor command in volts "
-              "(--columns v=NAME, --input-scale; a closed-loop record's control effort "
-              "is not an input the model can explain) and that the record excites every "
+_INPUT_FIX = ("check that the input column is the motor command in volts (--columns "
+              f"v=NAME, --input-scale; {_CLOSED_LOOP}) and that the record excites every "
               "cart")
 
 

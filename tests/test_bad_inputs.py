@@ -220,6 +220,19 @@ def _instrument(name: str, **kw):
     return make
 
 
+def _closed_loop(name: str):
+    """A PID loop on cart 1 exported by the ECP Executive (``tests/closed_loop_writer.py``),
+    at a servo period of 8 ms (printed exactly: no warning about the times)."""
+
+    def make(folder: Path) -> str:
+        from closed_loop_writer import write_closed_loop
+
+        write_closed_loop(folder / name, dt=0.008)
+        return name
+
+    return make
+
+
 def _sparse(name: str, size: int):
     def make(folder: Path) -> str:
         p = folder / name
@@ -482,8 +495,16 @@ INPUTS = [
              "the carts moved)",
              _csv("late.csv", lambda t, v, y: (t, np.roll(v, 280), y)),
              r"not identified: no finite standard error for g_v, .*the data do not "
-             r"determine them; check that the input column is the open-loop motor command",
+             r"determine them; check that the input column is the motor command in volts",
              entries=("lsq",)),
+    BadInput("closed_loop_reference", "a closed-loop ECP export (a PID's effort drove the "
+             "carts, 8 ms servo period) read with the commanded position as its input",
+             _closed_loop("pid.txt"),
+             r"not identified: .*in a closed-loop record the control effort, 'Control "
+             r"Effort' of an ECP export, not the commanded position",
+             entries=("lsq",),
+             args=("--columns", "t=Time,v=Commanded Pos,x1=Encoder 1 Pos,x2=Encoder 2 Pos,"
+                   "x3=Encoder 3 Pos", "--input-scale", "1/800")),
     BadInput("two_carts", "a 2-cart record for the 3-cart model",
              _csv("two.csv", lambda t, v, y: (t, v, y[:, :2]), header="t,v,x1,x2"),
              "2 outputs but the model has 3 carts",
