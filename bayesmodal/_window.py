@@ -27,7 +27,8 @@ def select(where: str, t_s: np.ndarray, v_volt: np.ndarray, y_m: np.ndarray, opt
     The time window first (:func:`cut`), then, with ``opts.release == "auto"``, the cut
     at the release of a hand-released decay (``_release.find_release``), then, with
     ``opts.rest_offset == "final"``, each output less its final rest position
-    (``_release.final_rest``).
+    (``_release.final_rest``), or with ``"initial"`` less its rest level before the first
+    input (``_release.initial_rest``).
 
     Parameters
     ----------
@@ -59,6 +60,8 @@ def select(where: str, t_s: np.ndarray, v_volt: np.ndarray, y_m: np.ndarray, opt
         t, v, y = t[k0:], v[k0:], y[k0:]
     if opts.rest_offset == "final":
         y = y - _release.final_rest(where, y)
+    elif opts.rest_offset == "initial":
+        y = y - _release.initial_rest(where, v, y)
     return t, v, y
 
 

@@ -487,6 +487,12 @@ INPUTS = [
              _csv("driven.csv"), r"the input is not zero \(up to 3 V\); --release auto is "
              r"for a cart released by hand with no input", entries=("load_experiment", "lsq"),
              args=("--release", "auto")),
+    BadInput("rest_offset_no_rest", "a record whose input starts at its third sample, read "
+             "with the rest before the input removed",
+             _csv("early.csv", lambda t, v, y: (t, np.roll(v, -18), y)),
+             r"the input starts at sample 3; --rest-offset initial needs at least 10 samples "
+             r"at rest before it", entries=("load_experiment", "lsq"),
+             args=("--rest-offset", "initial")),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",

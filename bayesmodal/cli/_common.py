@@ -9,7 +9,7 @@ from pathlib import Path
 from .._errors import DataError
 from .._json import to_jsonable
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
-from ..reading import TIME_BASES, ReadOptions, parse_columns, parse_scale
+from ..reading import REST_OFFSETS, TIME_BASES, ReadOptions, parse_columns, parse_scale
 from ..system import Rig
 
 
@@ -61,9 +61,11 @@ def add_reader_arguments(p) -> None:
                    help="auto: a cart held displaced by hand, then released; cut the record "
                         "at the release (the last sample before it moves) and estimate the "
                         "initial state (default: no cut)")
-    g.add_argument("--rest-offset", choices=["none", "final"], default=None,
-                   help="final: subtract each output's mean over the record's last 10 %%, "
-                        "where dry friction left the carts at rest (default none)")
+    g.add_argument("--rest-offset", choices=REST_OFFSETS, default=None,
+                   help="initial: subtract each output's mean before the first input (an "
+                        "encoder not zeroed at rest); final: subtract each output's mean "
+                        "over the record's last 10 %%, where dry friction left the carts at "
+                        "rest (default none)")
 
 
 def reader_options(args) -> ReadOptions:
