@@ -182,7 +182,8 @@ def check_records(model: LinearModel, experiments: Sequence[Experiment],
         it starts from rest, or a record where nothing moves.
     ModelError
         Free decays only while ``g_v`` is unknown, or with nothing but the gain to fix the
-        scale of masses and springs; the message names what to add.
+        scale of masses and springs, or a layout whose unknowns no such record can
+        identify (``structure.check_structure``); the message names what to add.
     """
     if initial_state not in INITIAL_STATES:
         raise ModelError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
@@ -212,6 +213,9 @@ def check_records(model: LinearModel, experiments: Sequence[Experiment],
             raise ModelError(
                 "free decays fix only the ratios of masses, dampers and springs; add a known "
                 "mass (mass = \"known\", mass_kg) or a known spring (known = true)")
+    from .structure import check_structure
+
+    check_structure(model, experiments, initial_state)
 
 
 def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) -> None:

@@ -39,6 +39,7 @@ from ...fit import fit_lsq
 from ...identified import require_identified
 from ...metrics import fit_percent
 from ...simulate import simulate_linear
+from ...structure import check_structure
 from ...system import LinearModel, Rig
 from ..effects import EXTENSIONS, Extension, fit_extension_lsq, get_extension
 from ..effects.fit import WEIGHTINGS
@@ -289,6 +290,7 @@ def diagnose(
     train_exps = [exps[i] for i in tr]
     held_exps = [exps[i] for i in held]
     model = LinearModel(rig, "free")
+    check_structure(model, train_exps)  # a layout no record identifies: before any fit
     q = infer_quantum(exps) if quantum_m is None else float(quantum_m)
     if q < 0 or not np.isfinite(q):
         raise ConfigError(f"quantum_m must be finite and >= 0, got {quantum_m!r}")
