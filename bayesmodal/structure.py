@@ -54,8 +54,8 @@ class Structure:
     singular_values : ndarray
         Of the column-scaled sensitivity, relative to the largest, largest first.
     together : tuple of str
-        The model parameters of the unseen direction (relative changes of at least a
-        tenth of its largest); empty when identified.
+        The model parameters of the unseen direction (a relative change, or an effect, of
+        at least a tenth of its largest); empty when identified.
     """
 
     rank: int
@@ -73,7 +73,8 @@ def _generic_point(model) -> np.ndarray:
     from .fit import default_start
 
     u = np.random.default_rng(_SEED).uniform(-1.0, 1.0, model.n_params)
-    return np.maximum(default_start(model), 1e-3) * np.exp(0.2 * u)
+    start = default_start(model)
+    return np.where(start > 0, start, 1e-3) * np.exp(0.2 * u)
 
 
 def structure(model, *, forced: bool = True, free_records: int = 0) -> Structure:
@@ -146,11 +147,15 @@ def structure(model, *, forced: bool = True, free_records: int = 0) -> Structure
     rank = int(np.sum(rel > RANK_TOL))
     together: tuple[str, ...] = ()
     if rank < jac.shape[1]:
-        # the unseen direction in relative changes of the parameters (undo the scaling)
-        v = np.abs(vt[-1] / np.where(norms > 0, norms, 1.0))[:p]
-        if v.max() > 0:
-            together = tuple(name for name, c in zip(model.names, v, strict=True)
-                             if c >= 0.1 * v.max())
+        # the unseen direction, in relative changes of the parameters (the scaling
+        # undone) and in their effects (as scaled): a parameter large in either moves
+        v_rel = np.abs(vt[-1] / np.where(norms > 0, norms, 1.0))[:p]
+        v_eff = np.abs(vt[-1])[:p]
+        big = np.zeros(p, bool)
+        for v in (v_rel, v_eff):
+            if v.max() > 0:
+                big |= v >= 0.1 * v.max()
+        together = tuple(name for name, b in zip(model.names, big, strict=True) if b)
     return Structure(rank, jac.shape[1], rel, together)
 
 
