@@ -227,7 +227,7 @@ def _closed_loop(name: str):
     def make(folder: Path) -> str:
         from closed_loop_writer import write_closed_loop
 
-        write_closed_loop(folder / name, dt=0.008)
+        write_closed_loop(folder / name, N, dt=0.008)
         return name
 
     return make
@@ -493,6 +493,14 @@ INPUTS = [
              r"the input starts at sample 3; --rest-offset initial needs at least 10 samples "
              r"at rest before it", entries=("load_experiment", "lsq"),
              args=("--rest-offset", "initial")),
+    BadInput("rest_offset_left_in", "encoders not zeroed at rest (outputs 0.3 mm off 0 "
+             "before the first input)",
+             _csv("offset.csv", lambda t, v, y: (t, v, y + 3e-4)),
+             r"before the first input the carts rest with output 1 at 0.3 mm, not at 0 "
+             r"where (the model starts|a run starts every record); an encoder not zeroed "
+             r"at rest", entries=("lsq", "sample", "diagnose", "run", "batch"),
+             patterns={"run": r"rest_offset = \"initial\" in \[data\]",
+                       "batch": r"rest_offset = \"initial\" in \[data\]"}),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",

@@ -51,8 +51,9 @@ def test_lsq_fits_a_closed_loop_export_with_one_command_line(tmp_path):
 
 def test_the_commanded_position_as_input_never_exits_0(tmp_path):
     # the reference is not what drove the carts: the fit cannot explain the record with
-    # it and must say so (the record gave c1 = 1.9e19 +- nan with exit 0)
-    path = write_closed_loop(tmp_path / "pid.txt")
+    # it and must say so (the record gave c1 = 1.9e19 +- nan with exit 0); 400
+    # samples: the optimiser spends its 400 evaluations either way
+    path = write_closed_loop(tmp_path / "pid.txt", 400)
     columns = ("t=Time,v=Commanded Pos,x1=Encoder 1 Pos,x2=Encoder 2 Pos,"
                "x3=Encoder 3 Pos")
     code, out, err = _cli(["lsq", str(path), "--columns", columns, "--input-scale",

@@ -135,10 +135,13 @@ def test_a_run_reads_a_record_with_its_rest_offset_removed(tmp_path):
     (tmp_path / "cfg.toml").write_text(cfg_text.format("initial"))
     prep, _ = _quiet(prepare_run, load_config(tmp_path / "cfg.toml"))
     np.testing.assert_allclose(prep.experiments[0].y_m, y, atol=1e-15)
-    # negative control: without the key the offset stays
+    # negative control: without the key the offset stays, and the run refuses the
+    # record with the key that removes it
     (tmp_path / "cfg.toml").write_text(cfg_text.format("none"))
-    prep, _ = _quiet(prepare_run, load_config(tmp_path / "cfg.toml"))
-    np.testing.assert_allclose(prep.experiments[0].y_m, y + offset, atol=1e-15)
+    with pytest.raises(ConfigError, match=r"\[data.files\] .*rec.csv: before the first "
+                       r"input the carts rest with output 1 at 0.2 mm, not at 0 where a run "
+                       r"starts every record; .*set rest_offset = \"initial\" in \[data\]"):
+        _quiet(prepare_run, load_config(tmp_path / "cfg.toml"))
 
 
 def test_rig_sensor_scale_is_the_default_counts_scale():

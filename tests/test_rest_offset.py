@@ -5,7 +5,8 @@ not a response from rest at 0, which the model starts from.  ``--rest-offset ini
 (``ReadOptions(rest_offset="initial")``) subtracts each output's mean over the samples
 before the first input; the offset is then known to ``sigma / sqrt(n)``, and the fit
 recovers the truth within its standard errors combined with that error's, which it does
-not without the option (negative control).
+not without the option (negative control); the command line refuses such a record
+without it, naming the fix.
 """
 
 from __future__ import annotations
@@ -82,9 +83,16 @@ def test_lsq_with_the_offset_removed_recovers_the_truth(tmp_path):
     total = np.hypot(se, se_offset)
     assert np.all(np.abs(theta - THETA) < K_SE * total), (theta - THETA) / total
     # negative control: the offset left in biases the fit far beyond its standard errors
-    # (g_v by over 1 000 of them: the fit is still "identified", its fit percent high)
+    # (g_v by over 1 000 of them: the fit is still "identified", its fit percent high) ...
     raw = fit_lsq(load_experiment(path), LinearModel(Rig(), "free"))
     assert np.any(np.abs(raw.theta - THETA) > 100 * total)
+    # ... so the command line refuses the record with the fix
+    code, out, err = _cli(["lsq", str(path)])
+    assert code == 2 and out == "" and len(err) == 1, err
+    assert err[0] == (f"bayesmodal lsq: error: {path}: before the first input the carts "
+                      f"rest with output 1 at {1e3 * OFFSET_M[0]:.3g} mm, not at 0 where "
+                      "the model starts; an encoder not zeroed at rest: remove each "
+                      "output's rest level with --rest-offset initial")
 
 
 def test_no_rest_before_the_input_is_refused(tmp_path):
@@ -100,3 +108,25 @@ def test_no_rest_before_the_input_is_refused(tmp_path):
     with pytest.raises(ConfigError, match=r"rest_offset must be one of \('none', 'initial', "
                        r"'final'\)"):
         ReadOptions(rest_offset="first")
+
+
+def test_an_offset_at_rest_is_told_from_carts_that_move():
+    from bayesmodal._window import offset_at_rest
+
+    t = np.arange(N) * DT
+    v = 0.5 * (t >= 0.5)
+    model = LinearModel(Rig(), "free")
+    y = simulate_linear(model, THETA, v, DT)
+    noise = NOISE_M * np.random.default_rng(9).standard_normal(y.shape)
+    assert offset_at_rest(y + noise, v) == ""                       # at rest at 0
+    assert offset_at_rest(y + noise + OFFSET_M, v) == "output 1 at 0.163 mm"
+    counts = np.round((y + OFFSET_M) / M_PER_COUNT) * M_PER_COUNT   # whole counts
+    assert offset_at_rest(counts, v) == "output 1 at 0.163 mm"
+    assert offset_at_rest(np.round(y / M_PER_COUNT) * M_PER_COUNT, v) == ""
+    # a bias of the drive pushes the carts from 0 before the input: they move, and that
+    # is no offset of the sensors (negative control)
+    biased = simulate_linear(model, THETA, v + 0.1, DT)
+    assert np.max(np.abs(biased[:100, 0])) > 10 * np.abs(OFFSET_M[0])
+    assert offset_at_rest(biased + noise, v) == ""
+    # an input from the first samples: no rest to judge
+    assert offset_at_rest(y + OFFSET_M, np.r_[0.0, np.ones(N - 1)]) == ""

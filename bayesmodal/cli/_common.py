@@ -142,6 +142,8 @@ def load_args(args) -> list[Experiment]:
         if getattr(args, "initial_state", "rest") == "rest":
             if opts.t_start is not None:  # the fit starts the window from rest
                 _check_rest(e, opts, hasattr(args, "initial_state"))
+            if opts.rest_offset == "none":
+                _check_offset(e)
             check_identifiable(e)  # (a free decay has no input: checked by the fit)
     return exps
 
@@ -156,6 +158,17 @@ def _check_rest(e: Experiment, opts: ReadOptions, can_estimate: bool) -> None:
         raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s "
                         f"with {why}, not at rest; {fix}start the window where the carts "
                         "rest at 0 with no input")
+
+
+def _check_offset(e: Experiment) -> None:
+    """Refuse a record whose outputs rest away from 0 before its input."""
+    from .._window import offset_at_rest
+
+    why = offset_at_rest(e.y_m, e.v_volt)
+    if why:
+        raise DataError(f"{e.source or e.name}: before the first input the carts rest with "
+                        f"{why}, not at 0 where the model starts; an encoder not zeroed at "
+                        "rest: remove each output's rest level with --rest-offset initial")
 
 
 def print_json(obj) -> None:
