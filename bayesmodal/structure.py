@@ -25,6 +25,7 @@ zero to rounding (1e-16 measured), while the preset rigs' smallest is above 0.1.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -159,6 +160,12 @@ def structure(model, *, forced: bool = True, free_records: int = 0) -> Structure
     return Structure(rank, jac.shape[1], rel, together)
 
 
+@functools.lru_cache(maxsize=64)
+def _cached(model, forced: bool, free_records: int) -> Structure:
+    # every least-squares fit asks (the diagnosis refits many times): once per layout
+    return structure(model, forced=forced, free_records=free_records)
+
+
 def check_structure(model, experiments: Sequence, initial_state: str = "rest") -> None:
     """Refuse a model whose unknown parameters no record of this kind can identify.
 
@@ -179,7 +186,7 @@ def check_structure(model, experiments: Sequence, initial_state: str = "rest") -
 
     forced = any(np.any(e.v_volt != 0) for e in experiments)
     free = min(len(experiments), 3) if initial_state == "estimate" else 0
-    st = structure(model, forced=forced, free_records=free)
+    st = _cached(model, forced, free)
     if st.identified:
         return
     names = st.together or model.names
