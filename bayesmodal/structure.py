@@ -5,8 +5,9 @@ the sensors does not change at all, whatever the record: scaling every mass, dam
 the gain together while an unknown spring in parallel with a known one absorbs the
 change (a spring to the frame and one to a clamped cart act on the same cart), or
 ``ca`` and ``cb`` on a single cart, where ``C = ca m + cb k`` is one damper.  A fit then
-returns one point of a line of equally good answers (``g_v = 2 +- 1909``); it is refused
-here, before any fitting, with the parameters that move together and what to fix.
+returns one point of a line of equally good answers (a simulated record with ``g_v =
+6.2``: ``g_v = 4.0 +- 10``, the fit 99.97 %); it is refused here, before any fitting,
+with the parameters that move together and what to fix.
 
 The test is the rank of the sensitivity of what the records can show to the unknown
 parameters, at a generic point (the fit's default start, each parameter moved by a fixed

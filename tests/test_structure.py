@@ -3,10 +3,11 @@
 Two springs in parallel on one cart (one to the frame, known; one to a clamped wall,
 unknown) do not fix the scale: every mass, damper and the gain scaled together, the
 unknown spring absorbs the change and the motion stays the same, so a fit returns one
-point of a line of equal answers (``g_v = 2 +- 1909``).  ``structure.check_structure``
-finds the unseen direction from the rank of the sensitivity of the transfer function
-(and of the free response, for estimated initial states) and ``fit_lsq`` refuses the
-rig with the parameters that move together and the fix.  The preset rigs are accepted
+point of a line of equal answers (``g_v = 4.0 +- 10`` for 6.2).
+``structure.check_structure`` finds the unseen direction from the rank of the
+sensitivity of the transfer function (and of the free response, for estimated initial
+states) and ``fit_lsq`` refuses the rig with the parameters that move together and the
+fix.  The preset rigs are accepted
 (negative control), except one cart with proportional damping, where ``ca`` and ``cb``
 fix one damping between them.
 """
