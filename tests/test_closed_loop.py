@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from closed_loop_writer import THETA, closed_loop, write_closed_loop
 from conftest import run_cli as _cli
 
@@ -49,6 +50,8 @@ def test_lsq_fits_a_closed_loop_export_with_one_command_line(tmp_path):
     assert np.all(np.abs(theta - THETA) < K_SE * se), (theta - THETA) / se
 
 
+@pytest.mark.slow  # the optimiser spends its 400 evaluations (3 to 35 s by the load);
+# the default suite's guard is the closed_loop_reference case of tests/test_bad_inputs.py
 def test_the_commanded_position_as_input_never_exits_0(tmp_path):
     # the reference is not what drove the carts: the fit cannot explain the record with
     # it and must say so (the record gave c1 = 1.9e19 +- nan with exit 0); 400
