@@ -16,6 +16,11 @@ its next term is 1.7 % of the motion); ``k0`` is the candidate of least residual
 squares, the maximum-likelihood change point under Gaussian noise.  The hold must last
 ``MIN_HELD + 2`` samples at least; a push before it is allowed.
 
+The rest before the input.  An encoder not zeroed with the carts at rest reads an
+offset the model, which starts from rest at 0, cannot produce; with
+``rest_offset="initial"`` each output's mean over the samples before the first non-zero
+input is subtracted (refused, as below, when they drift there).
+
 The final rest.  Dry friction stops the carts away from the springs' equilibrium, at
 an offset the linear model cannot produce.  With ``rest_offset="final"`` each output's
 last 10 % is taken as its rest: if the line fitted there drifts by more than 5 of its
@@ -136,23 +141,75 @@ def final_rest(where: str, y_m: np.ndarray) -> np.ndarray:
     """
     y = np.asarray(y_m, float).reshape(len(y_m), -1)
     n = int(round(REST_FRACTION * len(y)))
-    if n < 10:
+    if n < MIN_REST_SAMPLES:
         raise DataError(f"{where}: the record's final {REST_FRACTION:.0%} holds {n} samples, "
                         "too few to take the rest offset from")
-    tail = y[-n:]
+    return _rest_level(where, y[-n:], f"over the last {REST_FRACTION:.0%} of the record",
+                       "there is no final rest to take the offset from; record until the "
+                       "carts stop, or drop --rest-offset final")
+
+
+def initial_rest(where: str, v_volt: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+    """Each output's rest level before the first input: the offset of a sensor that was
+    not zeroed with the carts at rest.
+
+    Parameters
+    ----------
+    where : str
+        The file, for messages.
+    v_volt : ndarray, shape (N,)
+        Input, V; the rest is the samples before its first non-zero value.
+    y_m : ndarray, shape (N, n_outputs)
+        Positions, m.
+
+    Returns
+    -------
+    ndarray, shape (n_outputs,)
+        The mean of each output over the samples before the first input, m.
+
+    Raises
+    ------
+    DataError
+        No input, fewer than ``MIN_REST_SAMPLES`` samples before it, or an output that
+        drifts there (the carts move before the input).
+    """
+    v = np.asarray(v_volt, float)
+    y = np.asarray(y_m, float).reshape(v.size, -1)
+    driven = np.flatnonzero(v != 0)
+    if driven.size == 0:
+        raise DataError(f"{where}: the input is all zeros, so there is no rest before the "
+                        "first input; --rest-offset initial is for a driven record (a "
+                        "free decay takes --rest-offset final)")
+    n = int(driven[0])
+    if n < MIN_REST_SAMPLES:
+        raise DataError(f"{where}: the input starts at sample {n + 1}; --rest-offset initial "
+                        f"needs at least {MIN_REST_SAMPLES} samples at rest before it "
+                        "(start the record, or the window, earlier)")
+    return _rest_level(where, y[:n], "before the first input",
+                       "there is no rest to take the offset from; start the record with "
+                       "the carts at rest, or drop --rest-offset initial")
+
+
+#: Fewest samples a rest level is taken from.
+MIN_REST_SAMPLES = 10
+
+
+def _rest_level(where: str, stretch: np.ndarray, when: str, fix: str) -> np.ndarray:
+    """The mean of each output over ``stretch`` (shape (n, n_outputs), m), refused when
+    a line fitted to it drifts by more than ``_K_DRIFT`` of its standard errors
+    (``sigma sqrt(12 / n)``, ``sigma`` from the median absolute first difference)."""
+    n = len(stretch)
     k = np.arange(n, dtype=float)
     kc = k - k.mean()
-    slope = kc @ (tail - tail.mean(axis=0)) / (kc @ kc)
+    slope = kc @ (stretch - stretch.mean(axis=0)) / (kc @ kc)
     drift = np.abs(slope) * (n - 1)
-    d1 = np.diff(tail, axis=0)
+    d1 = np.diff(stretch, axis=0)
     sigma = np.median(np.abs(d1 - np.median(d1, axis=0)), axis=0) / 0.6745 / np.sqrt(2)
     limit = _K_DRIFT * sigma * np.sqrt(12.0 / n) + 1e-12
     moving = np.flatnonzero(drift > limit)
     if moving.size:
         j = int(moving[0])
         raise DataError(
-            f"{where}: output {j + 1} still moves over the last {REST_FRACTION:.0%} of the "
-            f"record (it drifts by {1e3 * drift[j]:.3g} mm, noise {1e3 * sigma[j]:.2g} mm), so "
-            "there is no final rest to take the offset from; record until the carts stop, "
-            "or drop --rest-offset final")
-    return tail.mean(axis=0)
+            f"{where}: output {j + 1} still moves {when} (it drifts by "
+            f"{1e3 * drift[j]:.3g} mm, noise {1e3 * sigma[j]:.2g} mm), so {fix}")
+    return stretch.mean(axis=0)

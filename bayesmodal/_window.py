@@ -27,7 +27,8 @@ def select(where: str, t_s: np.ndarray, v_volt: np.ndarray, y_m: np.ndarray, opt
     The time window first (:func:`cut`), then, with ``opts.release == "auto"``, the cut
     at the release of a hand-released decay (``_release.find_release``), then, with
     ``opts.rest_offset == "final"``, each output less its final rest position
-    (``_release.final_rest``).
+    (``_release.final_rest``), or with ``"initial"`` less its rest level before the first
+    input (``_release.initial_rest``).
 
     Parameters
     ----------
@@ -59,6 +60,8 @@ def select(where: str, t_s: np.ndarray, v_volt: np.ndarray, y_m: np.ndarray, opt
         t, v, y = t[k0:], v[k0:], y[k0:]
     if opts.rest_offset == "final":
         y = y - _release.final_rest(where, y)
+    elif opts.rest_offset == "initial":
+        y = y - _release.initial_rest(where, v, y)
     return t, v, y
 
 
@@ -142,3 +145,57 @@ def motion_at_start(y_m: np.ndarray, v_volt: np.ndarray, dt: float) -> str:
         return ""
     i = int(bad[0])
     return f"output {i + 1} at {1e3 * y[0, i]:.3g} mm"
+
+
+#: Fewest samples before the first input for its rest level to be judged.
+_MIN_REST = 10
+
+def offset_at_rest(y_m: np.ndarray, v_volt: np.ndarray) -> str:
+    """Where a driven record's outputs rest away from 0 before the first input, or ``""``.
+
+    The model starts from rest at 0; an encoder not zeroed with the carts at rest reads
+    a constant offset there, which a fit from rest absorbs in its parameters (on a
+    simulated record an offset of 37 counts moved ``g_v`` by 1 000 standard errors, the
+    fit still above 99 %).  An output's rest level is the mean of its samples before the
+    first non-zero input (at least ``_MIN_REST`` of them); it is an offset when it lies
+    beyond both 5 noise standard deviations (from the median absolute first difference
+    there) and 0.1 % of the output's range over the record (a floor for whole encoder
+    counts at rest, whose differences are all 0), from the first sample on, and the
+    output is still there (a line fitted over the stretch drifts by no more than 5 of
+    its standard errors, plus the floor): carts that move before the input, pushed by a
+    bias of the drive, are no offset of the sensor.
+
+    Parameters
+    ----------
+    y_m : ndarray, shape (N, n_outputs)
+        Positions, m.
+    v_volt : ndarray, shape (N,)
+        Input, V.
+
+    Returns
+    -------
+    str
+        E.g. ``"output 1 at 0.163 mm"``; ``""`` when every output rests at 0, or the
+        record has no rest of ``_MIN_REST`` samples before its input.
+    """
+    v = np.asarray(v_volt, float)
+    y = np.asarray(y_m, float).reshape(v.size, -1)
+    driven = np.flatnonzero(v != 0)
+    if driven.size == 0 or driven[0] < _MIN_REST:
+        return ""
+    rest = y[: driven[0]]
+    n = len(rest)
+    level = rest.mean(axis=0)
+    d1 = np.diff(rest, axis=0)
+    sigma = np.median(np.abs(d1 - np.median(d1, axis=0)), axis=0) / 0.6745 / np.sqrt(2)
+    tol = np.maximum(_K_NOISE * sigma, _REST_FRACTION * np.ptp(y, axis=0))
+    # at rest: a line fitted there drifts by at most 5 of its standard errors (carts
+    # pushed before the input, e.g. by a bias of the drive, move from 0: not an offset)
+    k = np.arange(n, dtype=float) - (n - 1) / 2
+    drift = np.abs(k @ (rest - level) / (k @ k)) * (n - 1)
+    still = drift <= _K_NOISE * sigma * np.sqrt(12.0 / n) + _REST_FRACTION * np.ptp(y, axis=0)
+    bad = np.flatnonzero((np.abs(level) > tol) & still & (np.abs(y[0]) > tol))
+    if bad.size == 0:
+        return ""
+    i = int(bad[0])
+    return f"output {i + 1} at {1e3 * level[i]:.3g} mm"

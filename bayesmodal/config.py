@@ -13,9 +13,10 @@ problem in a file is collected and reported at once, each naming the file and th
     time_scale = "1/1000"                        # optional: s per unit of the time
     time_base = "grid"                           # optional: auto, stamps or grid (a
                                                  # logger's stamps; CLI --time-base)
-    t_start = 2.0                                # optional: keep the record from this
-                                                 # time on, s of the record's clock
-    t_end = 12.0                                 # optional: keep it up to this time, s
+    t_start = 2.0                                # optional: a time window, s of the
+    t_end = 12.0                                 # record's clock (starting at rest)
+    rest_offset = "initial"                      # optional: none, initial or final (CLI
+                                                 # --rest-offset); release: only "none"
 
     [rig]
     springs_n_m = [774.0, 770.0, 396.0]   # a chain; or file = "my_rig.toml" (or a preset
@@ -129,7 +130,8 @@ NOISE_SCALES = ("none", "response", "power")
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "data": {"files": list, "m_per_count": (int, float), "heldout": list, "columns": dict,
              "input_scale": (int, float, str), "time_scale": (int, float, str),
-             "time_base": str, "t_start": (int, float), "t_end": (int, float)},
+             "time_base": str, "t_start": (int, float), "t_end": (int, float),
+             "rest_offset": str, "release": str},
     "rig": {"springs_n_m": list, "file": str, "name": str, "clamped": list, "carts": list,
             "springs": list, "dampers": dict, "drive": dict, "sensors": list},
     "model": {"damping": str, "extensions": list},
@@ -206,6 +208,7 @@ class RunConfig:
     time_base: str = "auto"
     t_start: float | None = None
     t_end: float | None = None
+    rest_offset: str = "none"
 
     #: Fields left out of the hash at their defaults (configs written before them keep
     #: their hashes).
@@ -214,7 +217,7 @@ class RunConfig:
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None, "columns": None, "input_scale": 1.0,
                      "time_scale": 1.0, "time_base": "auto", "init": "ball", "prune": None,
-                     "t_start": None, "t_end": None}
+                     "t_start": None, "t_end": None, "rest_offset": "none"}
 
     def read_options(self):
         """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
@@ -223,7 +226,8 @@ class RunConfig:
 
         return ReadOptions(columns=self.columns, input_scale=self.input_scale,
                            time_scale=self.time_scale, time_base=self.time_base,
-                           t_start=self.t_start, t_end=self.t_end)
+                           t_start=self.t_start, t_end=self.t_end,
+                           rest_offset=self.rest_offset)
 
     def make_rig(self):
         """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
@@ -459,6 +463,26 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
                 f"must be one of {', '.join(TIME_BASES)}, got {time_base!r}")
         else:
             kw["time_base"] = time_base
+
+    rest_offset = values.get(("data", "rest_offset"))
+    if rest_offset is not None:
+        from .reading import REST_OFFSETS  # noqa: PLC0415
+
+        if rest_offset not in REST_OFFSETS:
+            err("data.rest_offset", f"must be one of {', '.join(REST_OFFSETS)} (subtract "
+                "each output's rest level before the first input, or its final rest), got "
+                f"{rest_offset!r}")
+        else:
+            kw["rest_offset"] = rest_offset
+    release = values.get(("data", "release"))
+    if release == "auto":
+        # the cut decay starts displaced, and a run starts every record from rest
+        err("data.release", "a hand-released decay needs its initial state estimated, and a "
+            "run starts every record from rest; fit it with `bayesmodal lsq` or `bayesmodal "
+            "sample` and --release auto --initial-state estimate")
+    elif release is not None and release != "none":
+        err("data.release", f"must be 'none' in a run (a hand release is fitted with "
+            f"`bayesmodal lsq --release auto`), got {release!r}")
 
     window = {k: values[("data", k)] for k in ("t_start", "t_end") if ("data", k) in values}
     if window:

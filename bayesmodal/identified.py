@@ -39,7 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._errors import IdentificationError
 from ._format import param_unit, sig
+from .model.system import log_scale_mask as _log_mask
+from .model.system import param_kinds
 
 __all__ = ["Identification", "identify", "MAX_RELATIVE_STDERR", "MAX_RELATIVE_STDERR_DAMPER"]
 
@@ -55,6 +58,12 @@ MAX_RELATIVE_STDERR_DAMPER = 1.0 / np.sqrt(np.finfo(float).eps)
 #: Parameter kinds whose zero switches the model off (no drive, no inertia, no spring).
 _ESSENTIAL = ("gain", "mass", "spring")
 
+#: The input of a closed-loop record: the effort the controller applied drives the carts
+#: (an output-error fit of it is consistent, tests/test_closed_loop.py), the reference
+#: does not.
+_CLOSED_LOOP = ("in a closed-loop record the control effort, 'Control Effort' of an ECP "
+                "export, not the commanded position")
+
 #: What a bound at zero says, and the fix, by parameter kind.
 _BOUND_FIX = {
     "gain": ("the carts do not move with the input as the model drives them; if +V moves "
@@ -63,15 +72,14 @@ _BOUND_FIX = {
              "input column is the motor command in volts (--columns v=NAME)"),
     "mass": ("the model is switched off; check that the input column is the motor command "
              "in volts and its sign (--columns v=NAME, --input-scale, -1 for a reversed "
-             "drive)"),
+             f"drive; {_CLOSED_LOOP})"),
     "spring": ("the model is switched off; check that the input column is the motor "
                "command in volts and its sign (--columns v=NAME, --input-scale, -1 for a "
-               "reversed drive)"),
+               f"reversed drive; {_CLOSED_LOOP})"),
 }
 
-_INPUT_FIX = ("check that the input column is the open-loop motor command in volts "
-              "(--columns v=NAME, --input-scale; a closed-loop record's control effort "
-              "is not an input the model can explain) and that the record excites every "
+_INPUT_FIX = ("check that the input column is the motor command in volts (--columns "
+              f"v=NAME, --input-scale; {_CLOSED_LOOP}) and that the record excites every "
               "cart")
 
 
@@ -156,7 +164,6 @@ def identify(result, names: Sequence[str] | None = None) -> Identification:
     >>> verdict.identified, verdict.reason.split(" (")[0]
     (False, 'the drive gain g_v is indistinguishable from its bound 0')
     """
-    from .fit.linear import _log_mask, param_kinds
 
     model = result.model
     theta = np.asarray(result.theta, float)
@@ -267,7 +274,6 @@ def require_identified(result, experiments, what: str,
         The rules that refuse (``Identification.rules``); default
         ``STARTING_POINT_RULES``.
     """
-    from ._errors import IdentificationError
 
     exps = list(experiments)
     verdict = identify(result, [e.name for e in exps])

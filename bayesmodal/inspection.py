@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._window import offset_at_rest
 from .data import ECP_M_PER_COUNT, load_experiment
 from .reading import ReadOptions, choose_time_base, drive_sign
 
@@ -179,7 +180,8 @@ def _number(x: float) -> str:
     return repr(float(x)) if frac.denominator != 1 else str(frac.numerator)
 
 
-def _fit_command(path: Path, opts: ReadOptions, reversed_drive: bool) -> str:
+def _fit_command(path: Path, opts: ReadOptions, reversed_drive: bool,
+                 offset: bool = False) -> str:
     args = ["bayesmodal", "lsq", str(path)]
     if opts.columns is not None:
         args += ["--columns", ",".join(f"{r}={c}" for r, c in opts.columns)]
@@ -192,6 +194,14 @@ def _fit_command(path: Path, opts: ReadOptions, reversed_drive: bool) -> str:
         args += ["--m-per-count", _number(opts.m_per_count)]
     if opts.time_base != "auto":
         args += ["--time-base", opts.time_base]
+    for flag, value in (("--t-start", opts.t_start), ("--t-end", opts.t_end)):
+        if value is not None:
+            args += [flag, repr(float(value))]
+    if opts.release is not None:
+        args += ["--release", opts.release]
+    rest = "initial" if offset else opts.rest_offset
+    if rest != "none":
+        args += ["--rest-offset", rest]
     return " ".join(shlex.quote(a) for a in args)
 
 
@@ -275,7 +285,9 @@ def inspect_file(path, options: ReadOptions | None = None) -> Inspection:
         rest_before_m=tuple(float(a) for a in rest_before),
         rest_after_m=tuple(float(a) for a in rest_after),
         warnings=said,
-        fit_command=_fit_command(path, opts, reversed_drive),
+        # outputs resting away from 0 before the input: lsq refuses them without the fix
+        fit_command=_fit_command(path, opts, reversed_drive, offset=opts.rest_offset == "none"
+                                 and bool(offset_at_rest(exp.y_m, exp.v_volt))),
     )
 
 

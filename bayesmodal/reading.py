@@ -43,9 +43,12 @@ import numpy as np
 
 from ._errors import ConfigError, DataError
 
-__all__ = ["DriveSign", "MAX_GAP_STEPS", "ReadOptions", "TIME_BASES", "TimeBase",
+__all__ = ["DriveSign", "MAX_GAP_STEPS", "REST_OFFSETS", "ReadOptions", "TIME_BASES", "TimeBase",
            "TimeRegularisation", "choose_time_base", "drive_sign", "parse_columns",
            "parse_scale", "regularise_time"]
+
+#: Which rest level of each output is subtracted (``ReadOptions.rest_offset``).
+REST_OFFSETS = ("none", "initial", "final")
 
 #: How a reader may take the time column (``ReadOptions.time_base``).
 TIME_BASES = ("auto", "stamps", "grid")
@@ -151,10 +154,12 @@ class ReadOptions:
         ``"auto"``: a hand-released free decay; the record (or its window) is cut at the
         release, the last sample before the held cart moves (``bayesmodal._release``),
         and its initial state must be estimated (the CLI does so).
-    rest_offset : {"none", "final"}
-        ``"final"``: subtract from each output its mean over the record's last 10 %, where
-        dry friction left the carts at rest away from the springs' equilibrium (refused
-        when they still move there).
+    rest_offset : {"none", "initial", "final"}
+        ``"initial"``: subtract from each output its mean over the samples before the
+        first non-zero input (an encoder not zeroed with the carts at rest; at least 10
+        samples, refused when they drift).  ``"final"``: subtract from each output its
+        mean over the record's last 10 %, where dry friction left the carts at rest away
+        from the springs' equilibrium (refused when they still move there).
 
     Examples
     --------
@@ -202,9 +207,10 @@ class ReadOptions:
         if self.release not in (None, "auto"):
             raise ConfigError(f"release must be 'auto' (a hand-released decay, cut at the "
                               f"release) or None, got {self.release!r}")
-        if self.rest_offset not in ("none", "final"):
-            raise ConfigError(f"rest_offset must be 'none' or 'final' (subtract the final "
-                              f"rest position), got {self.rest_offset!r}")
+        if self.rest_offset not in REST_OFFSETS:
+            raise ConfigError(f"rest_offset must be one of {REST_OFFSETS} (subtract the "
+                              "rest level before the first input, or the final rest "
+                              f"position), got {self.rest_offset!r}")
 
     @property
     def column_map(self) -> dict[str, str] | None:

@@ -296,8 +296,9 @@ def find_plateaus(
     else:
         if not (np.isfinite(min_duration_s) and min_duration_s > 0):
             raise DataError(f"min_duration_s must be finite and > 0 s, got {min_duration_s!r}")
-        min_samples = max(3, int(round(min_duration_s / e.dt)))
-    w = 20 if smooth_s is None else max(1, int(round(smooth_s / e.dt)))
+        min_samples = max(3, int(round(min_duration_s / e.mean_dt)))
+    # durations to sample counts by the mean step: a logger's jittered stamps too
+    w = 20 if smooth_s is None else max(1, int(round(smooth_s / e.mean_dt)))
     segments = _constant_segments(v, max(min_samples, 2 * w))
     if not segments:
         raise DataError(

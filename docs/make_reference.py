@@ -283,6 +283,8 @@ def _help(a, prog: str) -> str:
 CONFIG_FIELDS = {("data", "files"): "data_files", ("data", "heldout"): "heldout_files",
                  ("outputs", "dir"): "out_dir", ("outputs", "chain"): "chain_storage",
                  ("crossval", "enabled"): "crossval", ("evidence", "enabled"): "evidence"}
+#: Keys checked but not kept (no ``RunConfig`` field): key -> the one value a run takes.
+CONFIG_CHECKED_ONLY = {("data", "release"): "none"}
 #: Keys of ``[rig]`` that are a rig description inline (``docs/rigs.md``).
 RIG_TABLES = ("file", "name", "clamped", "carts", "springs", "dampers", "drive", "sensors")
 #: ``RunConfig`` fields no key sets directly.
@@ -354,6 +356,9 @@ def config_page() -> str:
             if section == "rig" and key in RIG_TABLES:
                 default = "none"
                 field_name = "rig"
+            elif (section, key) in CONFIG_CHECKED_ONLY:
+                default = CONFIG_CHECKED_ONLY[(section, key)]
+                field_name = None
             else:
                 field_name = next((f for f in (CONFIG_FIELDS.get((section, key)),
                                                f"{section}_{key}", key) if f in fields), None)

@@ -19,7 +19,8 @@ M_PER_COUNT = 0.0706 / 16000
 
 
 def write_export(path: Path, v_volt: np.ndarray, y_m: np.ndarray, *, dt: float = ECP_DT,
-                 commanded: bool = True) -> Path:
+                 commanded: bool = True, commanded_m: np.ndarray | None = None,
+                 per_count: float = M_PER_COUNT) -> Path:
     """Write ``v`` (V) and the cart positions ``y`` (m) as an Executive export.
 
     Parameters
@@ -28,23 +29,31 @@ def write_export(path: Path, v_volt: np.ndarray, y_m: np.ndarray, *, dt: float =
     v_volt : ndarray, shape (N,)
         Control effort, V.
     y_m : ndarray, shape (N, n_encoders)
-        Positions, m; written as whole encoder counts.
+        Positions, m (rad for a torsional plant); written as whole encoder counts.
     dt : float
         Sample period, s; the time column is ``k dt`` printed to 1 ms.
     commanded : bool
         Write a ``Commanded Pos`` column (zeros: open loop).
+    commanded_m : ndarray, shape (N,), optional
+        The commanded position of a closed loop, m; written as whole counts (default
+        zeros).
+    per_count : float
+        Position per encoder count: m for the rectilinear plant (default), rad for the
+        torsional one (``2 pi / 16000``).
 
     Returns
     -------
     Path
     """
     n, m = y_m.shape
-    counts = np.round(y_m / M_PER_COUNT).astype(int)
+    counts = np.round(y_m / per_count).astype(int)
+    ref = (np.zeros(n, int) if commanded_m is None
+           else np.round(np.asarray(commanded_m) / per_count).astype(int))
     names = ["Sample", "Time"] + (["Commanded Pos"] if commanded else []) + [
         f"Encoder {i + 1} Pos" for i in range(m)] + ["Control Effort"]
     lines = [" " + "   ".join(names), ""]
     for k in range(n):
-        cells = [f"{k:5d}", f"{k * dt:8.3f}"] + (["     0"] if commanded else []) + [
+        cells = [f"{k:5d}", f"{k * dt:8.3f}"] + ([f"{ref[k]:6d}"] if commanded else []) + [
             f"{c:6d}" for c in counts[k]] + [f"{v_volt[k]:9.4f}"]
         row = " ".join(cells)
         opener = "[" if k == 0 else " "

@@ -220,6 +220,19 @@ def _instrument(name: str, **kw):
     return make
 
 
+def _closed_loop(name: str):
+    """A PID loop on cart 1 exported by the ECP Executive (``tests/closed_loop_writer.py``),
+    at a servo period of 8 ms (printed exactly: no warning about the times)."""
+
+    def make(folder: Path) -> str:
+        from closed_loop_writer import write_closed_loop
+
+        write_closed_loop(folder / name, N, dt=0.008)
+        return name
+
+    return make
+
+
 def _sparse(name: str, size: int):
     def make(folder: Path) -> str:
         p = folder / name
@@ -474,6 +487,20 @@ INPUTS = [
              _csv("driven.csv"), r"the input is not zero \(up to 3 V\); --release auto is "
              r"for a cart released by hand with no input", entries=("load_experiment", "lsq"),
              args=("--release", "auto")),
+    BadInput("rest_offset_no_rest", "a record whose input starts at its third sample, read "
+             "with the rest before the input removed",
+             _csv("early.csv", lambda t, v, y: (t, np.roll(v, -18), y)),
+             r"the input starts at sample 3; --rest-offset initial needs at least 10 samples "
+             r"at rest before it", entries=("load_experiment", "lsq"),
+             args=("--rest-offset", "initial")),
+    BadInput("rest_offset_left_in", "encoders not zeroed at rest (outputs 0.3 mm off 0 "
+             "before the first input)",
+             _csv("offset.csv", lambda t, v, y: (t, v, y + 3e-4)),
+             r"before the first input the carts rest with output 1 at 0.3 mm, not at 0 "
+             r"where (the model starts|a run starts every record); an encoder not zeroed "
+             r"at rest", entries=("lsq", "sample", "diagnose", "run", "batch"),
+             patterns={"run": r"rest_offset = \"initial\" in \[data\]",
+                       "batch": r"rest_offset = \"initial\" in \[data\]"}),
     BadInput("reversed_drive", "a drive wired the other way round (+V moves the carts to "
              "negative counts)", _reversed("reversed.csv"),
              r"the carts move against the input: below 0.5 Hz.* give --input-scale -1",
@@ -482,8 +509,16 @@ INPUTS = [
              "the carts moved)",
              _csv("late.csv", lambda t, v, y: (t, np.roll(v, 280), y)),
              r"not identified: no finite standard error for g_v, .*the data do not "
-             r"determine them; check that the input column is the open-loop motor command",
+             r"determine them; check that the input column is the motor command in volts",
              entries=("lsq",)),
+    BadInput("closed_loop_reference", "a closed-loop ECP export (a PID's effort drove the "
+             "carts, 8 ms servo period) read with the commanded position as its input",
+             _closed_loop("pid.txt"),
+             r"not identified: .*in a closed-loop record the control effort, 'Control "
+             r"Effort' of an ECP export, not the commanded position",
+             entries=("lsq",),
+             args=("--columns", "t=Time,v=Commanded Pos,x1=Encoder 1 Pos,x2=Encoder 2 Pos,"
+                   "x3=Encoder 3 Pos", "--input-scale", "1/800")),
     BadInput("two_carts", "a 2-cart record for the 3-cart model",
              _csv("two.csv", lambda t, v, y: (t, v, y[:, :2]), header="t,v,x1,x2"),
              "2 outputs but the model has 3 carts",

@@ -108,6 +108,42 @@ def test_lab_file_keys_leave_the_hash_alone_at_their_defaults():
     assert grid.read_options().time_base == "grid" and plain.read_options().time_base == "auto"
 
 
+def test_rest_offset_reaches_the_reader_and_the_hash():
+    base = {"data": {"files": ["a.csv"]}}
+    plain = parse_config(base, check_files=False)
+    none = parse_config({"data": {**base["data"], "rest_offset": "none", "release": "none"}},
+                        check_files=False)
+    initial = parse_config({"data": {**base["data"], "rest_offset": "initial"}},
+                           check_files=False)
+    # the default leaves the hash alone; another value is another run
+    assert none.hash() == plain.hash() != initial.hash()
+    assert initial.read_options().rest_offset == "initial"
+    assert plain.read_options().rest_offset == "none"
+    assert initial.to_dict()["rest_offset"] == "initial"   # recorded in config.json
+
+
+def test_a_run_reads_a_record_with_its_rest_offset_removed(tmp_path):
+    from bayesmodal.data import Experiment, save_csv
+    from bayesmodal.runs import prepare_run
+
+    t = np.arange(400) * 0.005
+    v = 0.5 * (t >= 0.5)
+    y = 1e-3 * (1 - np.exp(-np.clip(t - 0.5, 0, None) / 0.1))[:, None] * [1.0, 0.6, 0.3]
+    offset = np.array([2e-4, -1e-4, 5e-5])
+    save_csv(Experiment(t, v, y + offset), tmp_path / "rec.csv")
+    cfg_text = '[data]\nfiles = ["rec.csv"]\nrest_offset = "{}"\n'
+    (tmp_path / "cfg.toml").write_text(cfg_text.format("initial"))
+    prep, _ = _quiet(prepare_run, load_config(tmp_path / "cfg.toml"))
+    np.testing.assert_allclose(prep.experiments[0].y_m, y, atol=1e-15)
+    # negative control: without the key the offset stays, and the run refuses the
+    # record with the key that removes it
+    (tmp_path / "cfg.toml").write_text(cfg_text.format("none"))
+    with pytest.raises(ConfigError, match=r"\[data.files\] .*rec.csv: before the first "
+                       r"input the carts rest with output 1 at 0.2 mm, not at 0 where a run "
+                       r"starts every record; .*set rest_offset = \"initial\" in \[data\]"):
+        _quiet(prepare_run, load_config(tmp_path / "cfg.toml"))
+
+
 def test_rig_sensor_scale_is_the_default_counts_scale():
     rig = load_rig("ecp210-2cart")
     d = {"carts": [{"name": c.name} for c in rig.carts]}
@@ -133,6 +169,11 @@ def test_rig_sensor_scale_is_the_default_counts_scale():
     ({"time_scale": -1}, "data.time_scale", "must be finite and > 0"),
     ({"input_scale": True}, "data.input_scale", "not a number or fraction"),
     ({"time_base": "uniform"}, "data.time_base", "must be one of auto, stamps, grid"),
+    ({"rest_offset": "first"}, "data.rest_offset", "must be one of none, initial, final"),
+    ({"rest_offset": 1}, "data.rest_offset", "must be str, got 1"),
+    ({"release": "auto"}, "data.release", "needs its initial state estimated, and a run "
+     "starts every record from rest; fit it with `bayesmodal lsq`"),
+    ({"release": "yes"}, "data.release", "must be 'none' in a run"),
 ])
 def test_bad_lab_file_keys_name_the_key_and_the_fix(data, key, match):
     with pytest.raises(ConfigError, match=match) as info:

@@ -113,7 +113,6 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "ema.frf.is_pulse_train": ('u', 'max_duty'),
     "ema.frf.is_step_input": ('u', 'max_changes'),
     "ema.peaks.mode_indicator": ('frf', 'reliable'),
-    "fit.linear.default_start": ('model',),
     "inference.compare.bayes_factor": ('evidences', 'a', 'b'),
     "inference.compare.information_criteria": ('idata',),
     "inference.compare.kass_raftery": ('two_ln_b',),

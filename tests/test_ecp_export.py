@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import run_cli as _cli
 from ecp_export_writer import ECP_DT, M_PER_COUNT, write_export
 
 from bayesmodal import DataError
@@ -107,3 +108,67 @@ def test_an_export_read_with_a_column_map(tmp_path):
     assert e.n_outputs == 1
     assert np.max(np.abs(e.y_m[:, 0] - y[:, 2])) <= 0.5 * M_PER_COUNT * (1 + 1e-9)
     assert abs(e.dt - ECP_DT) < 1e-6
+
+
+#: The torsional plant's encoders: 16 000 counts per revolution, rad per count.
+RAD_PER_COUNT = 2 * np.pi / 16000
+
+#: A torsional truth: g_v N m/V, disk inertias kg m^2, dampers N m s/rad (free damping).
+THETA_TORSION = np.array([0.12, 0.0025, 0.0023, 0.0021, 0.004, 0.003, 0.005, 0.0, 0.0])
+
+TORSION_RIG = f"""\
+name = "three disks on torsion shafts, the third shaft to the frame"
+[[carts]]
+name = "1"
+mass = "nominal"
+mass_kg = 0.002
+[[carts]]
+name = "2"
+mass = "nominal"
+mass_kg = 0.002
+[[carts]]
+name = "3"
+mass = "nominal"
+mass_kg = 0.002
+[[springs]]
+between = ["1", "2"]
+stiffness_n_m = 2.7
+[[springs]]
+between = ["2", "3"]
+stiffness_n_m = 2.6
+[[springs]]
+between = ["3", "frame"]
+stiffness_n_m = 2.5
+[drive]
+carts = ["1"]
+{"".join(f'[[sensors]]{chr(10)}cart = "{i}"{chr(10)}unit = "count"{chr(10)}'
+         f'm_per_unit = {RAD_PER_COUNT!r}{chr(10)}' for i in (1, 2, 3))}"""
+
+
+def test_a_torsional_export_is_read_the_same_way(tmp_path):
+    # the torsional plant's export has the same columns; only the encoders count angle:
+    # the rig's rad per count (or --m-per-count) converts them, and the model's
+    # "masses" and "springs" are the disks' inertias and the shafts' stiffnesses (the
+    # inertias nominal at 0.002 kg m^2: the fit's default start of 1 kg is a rectilinear
+    # cart's)
+    from bayesmodal.model.rigs import load_rig
+
+    rig_path = tmp_path / "torsion.toml"
+    rig_path.write_text(TORSION_RIG)
+    model = LinearModel(load_rig(str(rig_path)), "free")
+    t = np.arange(N) * ECP_DT
+    v = 0.5 * ((t % 4.0) < 2.0)
+    y = simulate_linear(model, THETA_TORSION, v, ECP_DT)   # rad
+    path = write_export(tmp_path / "torsion.txt", v, y, per_count=RAD_PER_COUNT)
+    code, out, err = _cli(["lsq", str(path), "--rig", str(rig_path), "--json"])
+    assert code == 0 and len(err) == 1 and "ECP Executive export" in err[0], err
+    js = json.loads(out)
+    assert js["identified"] is True
+    theta = np.array(list(js["parameters"].values()))
+    se = np.array(list(js["stderr"].values()))
+    assert np.all(np.abs(theta - THETA_TORSION) < K_SE * se), (theta - THETA_TORSION) / se
+    # the same export read with the rectilinear default (m per count) is not in radians
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # the rounded times
+        e = load_experiment(path)
+    assert np.max(np.abs(e.y_m)) < 0.02 * np.max(np.abs(y))

@@ -35,7 +35,6 @@ KNOWN_CYCLES = (
      "bayesmodal.inference.record_scale", "bayesmodal.inference.records",
      "bayesmodal.inference.sampling"),
     ("bayesmodal._channels", "bayesmodal._tdms", "bayesmodal._uff"),
-    ("bayesmodal.fit.linear", "bayesmodal.identified"),
     ("bayesmodal.inference.likelihood", "bayesmodal.inference.priors"),
 )
 

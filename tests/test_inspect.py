@@ -73,10 +73,34 @@ def test_inspect_a_logger_file(tmp_path):
     assert np.allclose(r.rest_before_m, [40 * ECP_M_PER_COUNT, 20 * ECP_M_PER_COUNT],
                        atol=ECP_M_PER_COUNT)
     assert any("kept as recorded" in w for w in r.warnings)
-    # the fit command reads the file as inspect did
+    # the fit command reads the file as inspect did, less the rest level of 40 counts
+    # before the input (an offset lsq refuses without --rest-offset initial)
     argv = shlex.split(r.fit_command)
     assert argv[:3] == ["bayesmodal", "lsq", str(path)]
-    assert argv[3:] == ARGS
+    assert argv[3:] == [*ARGS, "--rest-offset", "initial"]
+
+
+def test_the_fit_command_removes_an_offset_at_rest_and_runs(tmp_path):
+    from conftest import run_cli
+
+    from bayesmodal.data import Experiment, save_csv
+    from bayesmodal.model.simulate import simulate_linear
+    from bayesmodal.model.system import LinearModel, Rig
+
+    t = np.arange(1200) * 0.005
+    v = 0.5 * (((t - 0.5) % 4.0) < 2.0) * (t >= 0.5)
+    y = simulate_linear(LinearModel(Rig(), "proportional"), [6.2, 1.5, 1.4, 1.1, 1.5, 1e-4],
+                        v, 0.005)
+    path = tmp_path / "offset.csv"
+    save_csv(Experiment(t, v, y + [2e-4, -1e-4, 5e-5]), path)
+    r = inspect_file(path, ReadOptions(t_start=0.0))
+    argv = shlex.split(r.fit_command)
+    assert argv[3:] == ["--t-start", "0.0", "--rest-offset", "initial"]
+    code, _, err = run_cli([*argv[1:], "--damping", "proportional"])
+    assert code == 0 and err == [], err
+    # negative control: the record at rest at 0 needs no option
+    save_csv(Experiment(t, v, y), path)
+    assert inspect_file(path).fit_command == f"bayesmodal lsq {shlex.quote(str(path))}"
 
 
 def test_inspect_names_a_reversed_drive_in_the_fit_command(tmp_path):

@@ -150,5 +150,5 @@ def test_a_driven_record_or_no_hold_is_refused(tmp_path):
 def test_options_are_checked():
     with pytest.raises(ConfigError, match="release must be 'auto'"):
         ReadOptions(release="yes")
-    with pytest.raises(ConfigError, match="rest_offset must be 'none' or 'final'"):
+    with pytest.raises(ConfigError, match=r"rest_offset must be one of \('none', 'initial'"):
         ReadOptions(rest_offset="first")

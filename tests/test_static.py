@@ -118,6 +118,37 @@ def test_static_gain_needs_known_springs():
         steady_state(e, rig=rig)
 
 
+def test_a_logger_s_jittered_stamps_give_the_same_plateaus(tmp_path):
+    # the plateaus are means over samples, whatever their instants: a record kept on its
+    # jittered stamps (steps 2 to 8 ms around 5 ms) is analysed as it comes
+    import json
+
+    from conftest import run_cli
+
+    from bayesmodal.data import save_csv
+
+    rig = Rig()
+    rng = np.random.default_rng(3)
+    n = 8000
+    t = np.arange(n) * 0.005 + 0.005 * rng.uniform(-0.3, 0.3, n)
+    v = np.where((t % 10.0) < 5.0, 0.5, 0.0)
+    y = simulate_linear(LinearModel(rig, "proportional"),
+                        np.array([6.0, 1.56, 1.46, 1.15, 10.0, 1e-4]), v, np.diff(t))
+    y = y + 20e-6 * rng.standard_normal(y.shape)
+    save_csv(Experiment(t, v, y, recorded_stamps=True), tmp_path / "logger.csv")
+    code, out, err = run_cli(["static", str(tmp_path / "logger.csv"), "--json"])
+    assert code == 0 and len(err) == 1 and "kept as recorded" in err[0], err
+    res = json.loads(out)["zero"]
+    k = np.array(rig.springs_n_m)
+    assert abs(res["g_v"] - 6.0) < 4 * res["g_v_se"]
+    ratios = np.array(list(res["ratios"].values()))
+    ses = np.array(list(res["ratios_se"].values()))
+    assert np.all(np.abs(ratios - k[-1] / k[:-1]) < 4 * ses)
+    # durations in seconds become sample counts by the mean step (no uniform grid needed)
+    e = Experiment(t, v, y, recorded_stamps=True)
+    assert steady_state(e, rig=rig, smooth_s=0.1, min_duration_s=1.0).plateaus.on.sum() == 4
+
+
 def test_synthetic_steps_previous_reference_agrees():
     rig = Rig()
     e = _square_wave(rig, 6.0, seed=12)

@@ -10,7 +10,7 @@ from .._errors import DataError
 from .._json import to_jsonable
 from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
 from ..model.system import Rig
-from ..reading import TIME_BASES, ReadOptions, parse_columns, parse_scale
+from ..reading import REST_OFFSETS, TIME_BASES, ReadOptions, parse_columns, parse_scale
 
 
 def add_data_args(p, *, many: bool = False) -> None:
@@ -61,9 +61,11 @@ def add_reader_arguments(p) -> None:
                    help="auto: a cart held displaced by hand, then released; cut the record "
                         "at the release (the last sample before it moves) and estimate the "
                         "initial state (default: no cut)")
-    g.add_argument("--rest-offset", choices=["none", "final"], default=None,
-                   help="final: subtract each output's mean over the record's last 10 %%, "
-                        "where dry friction left the carts at rest (default none)")
+    g.add_argument("--rest-offset", choices=REST_OFFSETS, default=None,
+                   help="initial: subtract each output's mean before the first input (an "
+                        "encoder not zeroed at rest); final: subtract each output's mean "
+                        "over the record's last 10 %%, where dry friction left the carts at "
+                        "rest (default none)")
 
 
 def reader_options(args) -> ReadOptions:
@@ -140,6 +142,8 @@ def load_args(args) -> list[Experiment]:
         if getattr(args, "initial_state", "rest") == "rest":
             if opts.t_start is not None:  # the fit starts the window from rest
                 _check_rest(e, opts, hasattr(args, "initial_state"))
+            if opts.rest_offset == "none":
+                _check_offset(e)
             check_identifiable(e)  # (a free decay has no input: checked by the fit)
     return exps
 
@@ -154,6 +158,17 @@ def _check_rest(e: Experiment, opts: ReadOptions, can_estimate: bool) -> None:
         raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s "
                         f"with {why}, not at rest; {fix}start the window where the carts "
                         "rest at 0 with no input")
+
+
+def _check_offset(e: Experiment) -> None:
+    """Refuse a record whose outputs rest away from 0 before its input."""
+    from .._window import offset_at_rest
+
+    why = offset_at_rest(e.y_m, e.v_volt)
+    if why:
+        raise DataError(f"{e.source or e.name}: before the first input the carts rest with "
+                        f"{why}, not at 0 where the model starts; an encoder not zeroed at "
+                        "rest: remove each output's rest level with --rest-offset initial")
 
 
 def print_json(obj) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .._errors import IdentificationError
@@ -60,7 +62,14 @@ def lsq_summary(res, names=None) -> dict:
         from ..modal import modal_summary
     except ImportError:  # modal module not built yet
         return out
-    out.update(modal_summary(res.model, res.theta))
+    if out["identified"]:
+        out.update(modal_summary(res.model, res.theta))
+        return out
+    # the estimate is not an answer: its modes are printed with --json, but their
+    # warnings (an overdamped mode of a switched-off model) would only hide the verdict
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out.update(modal_summary(res.model, res.theta))
     return out
 
 

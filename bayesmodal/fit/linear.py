@@ -23,8 +23,9 @@ from .._errors import DataError, ModelError
 from ..data import Experiment, check_identifiable
 from ..metrics import fit_percent
 from ..model.simulate import simulate_linear
-from ..model.system import LinearModel, param_kinds
+from ..model.system import LinearModel, default_start
 from ..model.system import log_scale_mask as _log_mask
+from ..structure import check_structure
 
 __all__ = ["LSQResult", "fit_lsq", "default_start"]
 
@@ -100,41 +101,6 @@ class LSQResult:
         return identify(self)
 
 
-def default_start(model: LinearModel) -> np.ndarray:
-    """A neutral starting point: g_v 5.25 N/V (nominal), masses 1 kg, small damping.
-
-    Carts of nominal mass start at their mass and unknown springs at their nominal stiffness;
-    on a rig identified per unit of drive gain (``Rig.per_unit_gain``) masses, dampers and
-    springs start at these values divided by the nominal gain.
-    """
-    n = model.n_carts
-    if model.rig.is_chain:
-        if model.damping == "proportional":
-            tail = [1.0, 1e-4]
-        else:
-            tail = [1.0] * n + [0.1] * (n - 1)
-        return np.array([5.25] + [1.0] * n + tail)
-    rig = model.rig
-    nominal_mass = {f"m{rig.cart_index(c.name)}": c.mass_kg for c in rig.carts
-                    if c.mass_kg is not None}
-    springs = {s.name: s.stiffness_n_m for s in rig.springs}
-    base = {"gain": 5.25, "ground": 1.0, "pair": 0.1, "ca": 1.0, "cb": 1e-4}
-    # per unit of drive gain: the nominal values divided by the nominal gain (the
-    # natural frequencies of the start are the nominal ones)
-    per_unit = 1.0 / base["gain"] if rig.per_unit_gain else 1.0
-    out = []
-    for name, kind in zip(model.names, param_kinds(model), strict=True):
-        if kind == "mass":
-            out.append(nominal_mass.get(name, 1.0) * per_unit)
-        elif kind == "spring":
-            out.append(springs[name] * per_unit)
-        elif kind in ("ground", "pair", "ca"):
-            out.append(base[kind] * (per_unit if kind != "ca" else 1.0))
-        else:
-            out.append(base[kind])
-    return np.array(out)
-
-
 INITIAL_STATES = ("rest", "estimate")
 
 
@@ -156,7 +122,8 @@ def check_records(model: LinearModel, experiments: Sequence[Experiment],
         it starts from rest, or a record where nothing moves.
     ModelError
         Free decays only while ``g_v`` is unknown, or with nothing but the gain to fix the
-        scale of masses and springs; the message names what to add.
+        scale of masses and springs, or a layout whose unknowns no such record can
+        identify (``structure.check_structure``); the message names what to add.
     """
     if initial_state not in INITIAL_STATES:
         raise ModelError(f"initial_state must be one of {INITIAL_STATES}, got {initial_state!r}")
@@ -186,6 +153,8 @@ def check_records(model: LinearModel, experiments: Sequence[Experiment],
             raise ModelError(
                 "free decays fix only the ratios of masses, dampers and springs; add a known "
                 "mass (mass = \"known\", mass_kg) or a known spring (known = true)")
+
+    check_structure(model, experiments, initial_state)
 
 
 def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) -> None:

@@ -71,6 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError
+from ..model.system import param_kinds
 from .noise_spec import NOISE_MODELS, parse_noise
 
 __all__ = [
@@ -487,8 +488,6 @@ def default_priors(
 
 def _layout_priors(model, add) -> None:
     """Default priors of a non-chain rig, by parameter kind (the chain's values)."""
-    from ..fit.linear import param_kinds
-
     springs = {s.name: s for s in model.rig.springs}
     for nm, kind in zip(model.names, param_kinds(model), strict=True):
         if kind == "gain":

@@ -41,6 +41,7 @@ from .._errors import ModelError
 ECP_M_PER_COUNT = 0.0706 / 16000
 
 __all__ = [
+    "default_start",
     "ECP_M_PER_COUNT",
     "Rig",
     "Cart",
@@ -1052,3 +1053,68 @@ def damper_mask(model: LinearModel) -> np.ndarray:
     """The free damping model's dampers (to the frame and across two carts), shape
     (n_params,) bool."""
     return np.array([k in ("ground", "pair") for k in param_kinds(model)])
+
+
+#: Damping ratio a damper at a cart of given mass starts from (``default_start``).
+START_DAMPING_RATIO = 0.05
+
+
+def default_start(model: LinearModel) -> np.ndarray:
+    """A neutral starting point: g_v 5.25 N/V (nominal), masses 1 kg, small damping.
+
+    Carts of nominal mass start at their mass and unknown springs at their nominal stiffness;
+    a damper to the frame at a cart of given mass ``m`` (diagonal stiffness ``k``) starts
+    at ``2 START_DAMPING_RATIO sqrt(m k)``, one across a pair at a tenth of that.  On a rig
+    identified per unit of drive gain (``Rig.per_unit_gain``) masses, dampers and springs
+    start at these values divided by the nominal gain.
+
+    Parameters
+    ----------
+    model : LinearModel
+
+    Returns
+    -------
+    ndarray, shape (n_params,)
+        In ``model.names`` order.
+    """
+    n = model.n_carts
+    if model.rig.is_chain:
+        if model.damping == "proportional":
+            tail = [1.0, 1e-4]
+        else:
+            tail = [1.0] * n + [0.1] * (n - 1)
+        return np.array([5.25] + [1.0] * n + tail)
+    rig = model.rig
+    nominal_mass = {f"m{rig.cart_index(c.name)}": c.mass_kg for c in rig.carts
+                    if c.mass_kg is not None}
+    springs = {s.name: s.stiffness_n_m for s in rig.springs}
+    base = {"gain": 5.25, "ground": 1.0, "pair": 0.1, "ca": 1.0, "cb": 1e-4}
+    # per unit of drive gain: the nominal values divided by the nominal gain (the
+    # natural frequencies of the start are the nominal ones)
+    per_unit = 1.0 / base["gain"] if rig.per_unit_gain else 1.0
+    # the dampers' starts are a 1 kg cart's; a damper at a cart whose mass is given starts
+    # at a damping ratio of START_DAMPING_RATIO, c = 2 zeta sqrt(m k) (a torsional disk of
+    # 2e-3 kg m^2 on 5.3 N m/rad starts at 0.01 N m s/rad, not at a damping ratio of 7,
+    # from which the fit does not find its way)
+    ratio = {}
+    if model.damping == "free":
+        diag = np.diag(rig.stiffness_matrix())
+        mass = {c.name: c.mass_kg for c in rig.carts if c.mass_kg is not None}
+        free = rig.free_carts
+        for name, d in zip([n for n, k in zip(model.names, param_kinds(model), strict=True)
+                            if k in ("ground", "pair")], rig.dampers, strict=True):
+            ends = [e for e in (d.a, d.b) if e in mass]
+            if ends:
+                c = 2 * START_DAMPING_RATIO * np.sqrt(mass[ends[0]] * diag[free.index(ends[0])])
+                ratio[name] = c / base["ground"]
+    out = []
+    for name, kind in zip(model.names, param_kinds(model), strict=True):
+        if kind == "mass":
+            out.append(nominal_mass.get(name, 1.0) * per_unit)
+        elif kind == "spring":
+            out.append(springs[name] * per_unit)
+        elif kind in ("ground", "pair"):
+            out.append(base[kind] * ratio.get(name, 1.0) * per_unit)
+        else:
+            out.append(base[kind])
+    return np.array(out)

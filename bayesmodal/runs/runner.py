@@ -115,6 +115,16 @@ def _check_window_rest(e: Experiment) -> None:
                         "t_start where the carts rest at 0 with no input")
 
 
+def _check_offset(e: Experiment) -> None:
+    from .._window import offset_at_rest
+
+    why = offset_at_rest(e.y_m, e.v_volt)
+    if why:
+        raise DataError(f"{e.source or e.name}: before the first input the carts rest with "
+                        f"{why}, not at 0 where a run starts every record; an encoder not "
+                        "zeroed at rest: set rest_offset = \"initial\" in [data]")
+
+
 def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Experiment, ...]:
     out = []
     for f in files:
@@ -124,6 +134,8 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
             if fitted:
                 if cfg.t_start is not None:  # a run starts every record from rest
                     _check_window_rest(out[-1])
+                if cfg.rest_offset == "none":
+                    _check_offset(out[-1])
                 check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
             raise ConfigError(f"{cfg.source}: [{key}] {exc}") from exc

@@ -44,6 +44,7 @@ from ...model.effects._base import cart_numbers
 from ...model.effects._linear import kernel_order
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
+from ...structure import check_structure
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
 from .forward import REFINES, RESIDUAL_BASED, Cause, forward_select, loro_gain
 from .null import (
@@ -308,6 +309,7 @@ def diagnose(
     train_exps = [exps[i] for i in tr]
     held_exps = [exps[i] for i in held]
     model = LinearModel(rig, "free")
+    check_structure(model, train_exps)  # a layout no record identifies: before any fit
     q = infer_quantum(exps) if quantum_m is None else float(quantum_m)
     if q < 0 or not np.isfinite(q):
         raise ConfigError(f"quantum_m must be finite and >= 0, got {quantum_m!r}")
