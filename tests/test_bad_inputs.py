@@ -525,7 +525,7 @@ INPUTS = [
              entries=("lsq", "sample", "diagnose", "run", "batch"),
              patterns={"run": r"\[rig.springs_n_m\] 3 springs make 3 carts, but two.csv has 2",
                        "batch": r"\[rig.springs_n_m\] 3 springs make 3 carts, but two.csv has 2",
-                       "diagnose": "2 outputs but the rig has 3 carts"}),
+                       "diagnose": "2 outputs but the rig has 3 sensors"}),
 ]
 
 

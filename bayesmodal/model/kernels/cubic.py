@@ -61,7 +61,8 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0,
 
 
 @functools.lru_cache(maxsize=16)
-def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0, springs=None):
+def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
+                 springs: tuple[tuple[int, int], ...] | None = None):
     """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``;
     ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``);
     ``springs``: the springs' ends (``cubic_run``), default the chain's."""
