@@ -31,8 +31,14 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
 
     [[sensors]]                         # optional; default: every free cart, metres
     cart = "1"
-    unit = "count"                      # "m" | "mm" | "count"
-    m_per_unit = 4.4125e-06
+    unit = "count"                      # position "m" | "mm" | "count", velocity "m/s",
+                                        # acceleration "m/s^2" | "g" (9.80665 m/s^2)
+    m_per_unit = 4.4125e-06             # counts only (negative: counting the other way)
+    sign = 1                            # optional: -1 for a sensor facing -x
+
+Several sensors may sit on one cart when their kinds differ (an encoder and an
+accelerometer).  Records hold each sensor's reading in SI units of its kind (m, m/s,
+m/s^2), each along +x.
 
 With no known mass, spring or gain the rig is identified per unit of drive gain
 (``Rig.per_unit_gain``).
@@ -77,7 +83,7 @@ _CART = {"name", "mass", "mass_kg"}
 _SPRING = {"name", "between", "stiffness_n_m", "known", "prior_sd_n_m"}
 _DAMPERS = {"ground", "pairs", "proportional"}
 _DRIVE = {"carts", "shares", "gain_n_v"}
-_SENSOR = {"cart", "unit", "m_per_unit"}
+_SENSOR = {"cart", "unit", "m_per_unit", "sign"}
 
 
 def _keys(table, allowed: set[str], where: str) -> Mapping:
@@ -191,7 +197,8 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                 s = _keys(s, _SENSOR, f"{where}: sensors[{i}]")
                 if "cart" not in s:
                     raise ModelError(f"{where}: sensors[{i}] needs a cart")
-                sensors.append(Sensor(str(s["cart"]), s.get("unit", "m"), s.get("m_per_unit")))
+                sensors.append(Sensor(str(s["cart"]), s.get("unit", "m"), s.get("m_per_unit"),
+                                      s.get("sign", 1)))
         return Rig(carts=tuple(carts), springs=tuple(springs),
                    dampers=None if dampers is None else tuple(dampers), drive=drive,
                    sensors=None if sensors is None else tuple(sensors),
@@ -240,7 +247,7 @@ def rig_to_dict(rig: Rig) -> dict:
         if rig.gain_n_v is not None:
             d["drive"]["gain_n_v"] = rig.gain_n_v
     d["sensors"] = [{"cart": s.cart, "unit": s.unit, "m_per_unit": s.m_per_unit}
-                    for s in rig.sensors]
+                    | ({"sign": -1} if s.sign < 0 else {}) for s in rig.sensors]
     if rig.ties:
         d["ties"] = [list(g) for g in rig.ties]
     return d
