@@ -69,9 +69,11 @@ class Experiment:
     t_s : ndarray, shape (N,)
         Sample times, s; strictly increasing, and uniform unless ``recorded_stamps``.
     v_volt : ndarray, shape (N,)
-        Motor command voltage, V.
-    y_m : ndarray, shape (N, n_carts)
-        Cart positions, m.
+        Motor command voltage, V; for a rig with a force input (``Rig.input ==
+        "force"``) the measured force, N.
+    y_m : ndarray, shape (N, n_outputs)
+        Each sensor's reading in SI units of its kind along +x: positions m (the cart
+        positions of the default rig), velocities m/s, accelerations m/s^2.
     name : str
         Short name (e.g. the file stem).
     source : str
@@ -556,7 +558,7 @@ def _check_plausible(path: Path, exp: Experiment, raw_y: np.ndarray, opts: ReadO
             f"at 1-5 Hz need well under {_MAX_PLAUSIBLE_DT} s); if the time column is in "
             "milliseconds give --time-scale 1/1000 (ReadOptions(time_scale=1e-3))")
     vmax = float(np.max(np.abs(exp.v_volt)))
-    if vmax > _MAX_PLAUSIBLE_V:
+    if vmax > _MAX_PLAUSIBLE_V and opts.input_kind == "voltage":
         raise DataError(
             f"{path}: input up to {vmax:.4g} V is far beyond the rig's +-10 V command; if it "
             "is in converter units give volts per unit, e.g. --input-scale 5/4096 for 12 "
@@ -676,8 +678,9 @@ def load_experiment(
 def options_for_rig(options: ReadOptions, rig, path: str | os.PathLike) -> ReadOptions:
     """Reader options that read a file's output columns as the rig's sensors.
 
-    A rig whose sensors are all positions along +x leaves ``options`` as they are (the
-    encoder scale is ``m_per_count``).  Otherwise the columns get their kinds
+    A force input (``Rig.input``) sets ``input_kind``.  A rig whose sensors are all
+    positions along +x leaves the outputs as they are (the encoder scale is
+    ``m_per_count``).  Otherwise the columns get their kinds
     (``output_kinds``) and, for the ECP ``.mat``/``.txt`` files (raw units), each
     sensor's signed scale (``Sensor.si_per_unit``, unless ``m_per_count`` is given); a
     ``.csv`` holds SI units of each kind along +x already.
@@ -703,9 +706,10 @@ def options_for_rig(options: ReadOptions, rig, path: str | os.PathLike) -> ReadO
     (('position', 'acceleration'), (1e-05, 9.80665))
     """
     sensors = rig.sensors
+    changes = {} if rig.input == "voltage" else {"input_kind": rig.input}
     if all(s.kind == "position" and s.sign > 0 for s in sensors):
-        return options
-    changes = {"output_kinds": tuple(s.kind for s in sensors)}
+        return replace(options, **changes) if changes else options
+    changes["output_kinds"] = tuple(s.kind for s in sensors)
     raw = Path(path).suffix.lower() in (".mat", ".txt")
     if raw and options.m_per_count is None and options.output_scales is None:
         changes["output_scales"] = tuple(s.si_per_unit for s in sensors)

@@ -135,6 +135,10 @@ class ReadOptions:
         files (encoder counts), 1 for ``.csv`` (metres).
     n_outputs : int, optional
         Number of outputs expected; a record with another number is refused.
+    input_kind : {"voltage", "force"}
+        What the input column holds (``Rig.input``): a command voltage, V (checked
+        against the rig's +-10 V), or a measured force, N (after ``input_scale``, N per
+        unit).
     output_kinds : tuple of str, optional
         What each output column measures, ``"position"``, ``"velocity"`` or
         ``"acceleration"`` (``Rig.output_kinds``); default every column a position.  The
@@ -177,6 +181,7 @@ class ReadOptions:
     time_scale: float = 1.0
     m_per_count: float | None = None
     n_outputs: int | None = None
+    input_kind: str = "voltage"
     output_kinds: tuple[str, ...] | None = None
     output_scales: tuple[float, ...] | None = None
     time_base: str = "auto"
@@ -196,6 +201,9 @@ class ReadOptions:
         object.__setattr__(self, "time_scale", _positive("time_scale", self.time_scale))
         object.__setattr__(self, "m_per_count", _positive("m_per_count", self.m_per_count,
                                                           allow_none=True, signed=True))
+        if self.input_kind not in ("voltage", "force"):
+            raise ConfigError(f"input_kind must be 'voltage' or 'force', got "
+                              f"{self.input_kind!r}")
         kinds = ("position", "velocity", "acceleration")
         if self.output_kinds is not None:
             ok = tuple(str(k) for k in self.output_kinds)

@@ -56,6 +56,7 @@ __all__ = [
     "SENSOR_UNITS",
     "SENSOR_KINDS",
     "STANDARD_GRAVITY_M_S2",
+    "INPUT_KINDS",
 ]
 
 #: Nominal springs of the ECP Model 210 three-cart rig, N/m (report Table 1).
@@ -69,6 +70,9 @@ FRAME = "frame"
 #: How a cart's mass enters: estimated without a nominal value, estimated with a nominal
 #: value (the fit's start), or known (fixed, not a parameter).
 MASS_KINDS = ("unknown", "nominal", "known")
+
+#: What a record's input column holds: a command voltage (V) or a measured force (N).
+INPUT_KINDS = ("voltage", "force")
 
 #: Standard gravity, m/s^2 per g (the unit of many accelerometers).
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -319,7 +323,14 @@ class Rig:
     clamped : tuple of str
         Carts fixed to the frame (not degrees of freedom).
     gain_n_v : float, optional
-        Known input gain, N/V (then ``g_v`` is not a parameter); default estimated.
+        Known input gain, N/V (then ``g_v`` is not a parameter); default estimated.  A
+        force input holds it at 1.
+    input : {"voltage", "force"}
+        What the record's input column holds: the motor's command voltage, V, through
+        the drive gain ``g_v``; or the measured force on the driven carts, N (a load cell
+        on a shaker, an instrumented hammer), with the gain fixed at 1 and not a
+        parameter.  The force sensor's own noise is not modelled (docs/accelerometers.md
+        gives the bias that leaves).  ``[drive] input = "force"`` in TOML.
     damping : {"free", "proportional"}, optional
         The damping model the description declares (``[dampers] proportional = true`` or
         ``false`` in TOML); ``LinearModel`` refuses another one.  None (default): not
@@ -354,6 +365,7 @@ class Rig:
     sensors: tuple[Sensor, ...] | None = None
     clamped: tuple[str, ...] = ()
     gain_n_v: float | None = None
+    input: str = "voltage"
     damping: str | None = None
     ties: tuple[tuple[str, ...], ...] = ()
     name: str = field(default="", compare=False)
@@ -504,6 +516,16 @@ class Rig:
             raise ModelError(f"two {twice[0][1]} sensors on cart {twice[0][0]!r}; list one "
                              "sensor of each kind per cart")
 
+        if self.input not in INPUT_KINDS:
+            raise ModelError(f"input must be one of {INPUT_KINDS}, got {self.input!r}")
+        if self.input == "force":
+            if not drive:
+                raise ModelError("a force input needs the carts it pushes; list them in "
+                                 "[drive] carts")
+            if self.gain_n_v is not None and float(self.gain_n_v) != 1.0:
+                raise ModelError(f"a force input has gain 1 (N per N), got gain_n_v="
+                                 f"{self.gain_n_v!r}; drop gain_n_v")
+            set_(self, "gain_n_v", 1.0)
         if self.gain_n_v is not None:
             set_(self, "gain_n_v", _finite_positive(self.gain_n_v, "gain_n_v (N/V)"))
         ties = self.ties or ()

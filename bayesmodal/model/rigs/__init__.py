@@ -28,6 +28,8 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
     carts = ["1"]
     shares = [1.0]                      # optional
     gain_n_v = 6.2                      # optional: a known input gain (else g_v is estimated)
+    input = "voltage"                   # optional: "force" for a measured force in N
+                                        # (gain 1, no g_v; no gain_n_v then)
 
     [[sensors]]                         # optional; default: every free cart, metres
     cart = "1"
@@ -82,7 +84,7 @@ _TOP = {"name", "clamped", "carts", "springs", "dampers", "drive", "sensors", "t
 _CART = {"name", "mass", "mass_kg"}
 _SPRING = {"name", "between", "stiffness_n_m", "known", "prior_sd_n_m"}
 _DAMPERS = {"ground", "pairs", "proportional"}
-_DRIVE = {"carts", "shares", "gain_n_v"}
+_DRIVE = {"carts", "shares", "gain_n_v", "input"}
 _SENSOR = {"cart", "unit", "m_per_unit", "sign"}
 
 
@@ -181,6 +183,7 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                 dampers.append(Damper(*ends))
         drive = ()
         gain = None
+        input_kind = "voltage"
         if "drive" in d:
             t = _keys(d["drive"], _DRIVE, f"{where}: drive")
             dc = _names(t.get("carts", []), f"{where}: drive.carts")
@@ -190,6 +193,7 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                                  f"{list(dc)}, got {shares!r}")
             drive = tuple(Drive(c, s) for c, s in zip(dc, shares, strict=True))
             gain = t.get("gain_n_v")
+            input_kind = t.get("input", "voltage")
         sensors = None
         if "sensors" in d:
             sensors = []
@@ -203,7 +207,8 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                    dampers=None if dampers is None else tuple(dampers), drive=drive,
                    sensors=None if sensors is None else tuple(sensors),
                    clamped=_names(d.get("clamped", []), f"{where}: clamped"),
-                   gain_n_v=gain, damping=damping, ties=_ties(d.get("ties", []), where),
+                   gain_n_v=gain, input=input_kind, damping=damping,
+                   ties=_ties(d.get("ties", []), where),
                    name=str(d.get("name", "")))
     except ModelError as exc:
         msg = str(exc)
@@ -244,7 +249,9 @@ def rig_to_dict(rig: Rig) -> dict:
     if rig.drive:
         d["drive"] = {"carts": [x.cart for x in rig.drive],
                       "shares": [x.share for x in rig.drive]}
-        if rig.gain_n_v is not None:
+        if rig.input == "force":
+            d["drive"]["input"] = "force"
+        elif rig.gain_n_v is not None:
             d["drive"]["gain_n_v"] = rig.gain_n_v
     d["sensors"] = [{"cart": s.cart, "unit": s.unit, "m_per_unit": s.m_per_unit}
                     | ({"sign": -1} if s.sign < 0 else {}) for s in rig.sensors]
