@@ -161,3 +161,15 @@ def test_reader_options_check_lengths(tmp_path):
     _write_txt(path, np.arange(50) * 0.01, [np.zeros(50)], np.zeros(50))
     with pytest.raises(DataError, match="1 output columns but output_kinds lists 2"):
         load_experiment(path, options=ReadOptions(output_kinds=("position", "velocity")))
+
+
+def test_diagnose_refuses_accelerometer_records_with_one_line():
+    from bayesmodal.data import Experiment
+    from bayesmodal.discrepancy.diagnosis import diagnose
+
+    rig = two_cart([{"cart": "1", "unit": "g"}, {"cart": "2", "unit": "g"}])
+    t = np.arange(100) * 0.01
+    e = Experiment(t, np.r_[1.0, np.zeros(99)], np.zeros((100, 2)))
+    with pytest.raises(ModelError, match="diagnose: needs position sensors only") as info:
+        diagnose(e, rig=rig, posterior=False, rng=1)
+    assert "\n" not in str(info.value)
