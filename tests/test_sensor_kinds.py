@@ -173,3 +173,26 @@ def test_diagnose_refuses_accelerometer_records_with_one_line():
     with pytest.raises(ModelError, match="diagnose: needs position sensors only") as info:
         diagnose(e, rig=rig, posterior=False, rng=1)
     assert "\n" not in str(info.value)
+
+
+def test_lsq_on_an_encoder_and_an_accelerometer_under_a_voltage():
+    """A voltage-driven rig read by an encoder on cart 1 and an accelerometer on cart 2
+    (mixed kinds): white noise on each, every estimate within 4 standard errors."""
+    from bayesmodal.data import Experiment
+    from bayesmodal.fit import fit_lsq
+    from bayesmodal.model.simulate import simulate_linear
+
+    rig = two_cart([{"cart": "1", "unit": "count", "m_per_unit": 4.4125e-6},
+                    {"cart": "2", "unit": "g"}])
+    model = LinearModel(rig, "free")
+    assert model.names == ("g_v", "m1", "m2", "c1", "c2", "c12")
+    truth = np.array([6.2, 1.5, 1.4, 2.0, 1.5, 0.5])
+    rng = np.random.default_rng(17)
+    dt, n = 0.005, 2000
+    t = np.arange(n) * dt
+    v = np.where((t % 5.0 >= 0.1) & (t % 5.0 < 0.15), 3.0, 0.0)
+    y = simulate_linear(model, truth, v, dt)
+    y = y + rng.normal(0.0, [2e-5, 0.02], y.shape)
+    res = fit_lsq(Experiment(t, v, y), model, theta0=truth * 1.1)
+    z = (res.theta - truth) / res.stderr
+    assert np.all(np.abs(z) < 4), dict(zip(model.names, z, strict=True))
