@@ -21,6 +21,11 @@ The requirement is a ratio of at most ``EXTENSION_MAX_RATIO``; ``headline`` pick
 figures the project tracks: the Coulomb friction kernel on the rig-like input (at most
 ``EXTENSION_MAX_RATIO``) and the costlier of the ``BEST_COMBINED`` models (at most
 ``COMBINED_MAX_RATIO``).
+
+``sensor_kinds``: the linear simulator with an accelerometer on every cart (modal
+recursion read through ``lambda^2`` gains, plus the input's feedthrough) against the same
+simulator with an encoder on every cart, in the same run; at most
+``ACCELERATION_MAX_RATIO``.
 """
 
 from __future__ import annotations
@@ -36,9 +41,10 @@ from .model.effects import EXTENSIONS
 from .model.simulate import LinearSimulator, simulate_linear
 from .model.system import LinearModel, Rig
 
-__all__ = ["BEST_COMBINED", "BUSY_LOAD_PER_CORE", "COMBINED", "COMBINED_MAX_RATIO",
-           "EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear", "extension_theta", "headline",
-           "machine_load", "rig_input", "time_per_call"]
+__all__ = ["ACCELERATION_MAX_RATIO", "BEST_COMBINED", "BUSY_LOAD_PER_CORE", "COMBINED",
+           "COMBINED_MAX_RATIO", "EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear",
+           "bench_sensor_kinds", "extension_theta", "headline", "machine_load", "rig_input",
+           "time_per_call"]
 
 #: Report Table 3 (free damping), the centre of the benchmark parameter cloud.
 _TABLE3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
@@ -280,6 +286,70 @@ def bench_stamps(n_samples: int = 8000, batch: int = 64, *, rng=0, quick: bool =
         "ratio_per_round": [float(r) for r in ratios],
         "target": STAMPS_MAX_RATIO,
         "meets_target": bool(ratio <= STAMPS_MAX_RATIO),
+    }
+
+
+#: Largest accepted cost of acceleration outputs, in position-output evaluations.
+ACCELERATION_MAX_RATIO = 1.3
+
+
+def bench_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0, dt: float = 0.005,
+                       quick: bool = False, rounds: int = 3) -> dict:
+    """Time acceleration outputs against position outputs of the linear simulator.
+
+    Both simulate the benchmark's three-cart model, parameter cloud and random input
+    (``bench_linear``'s) as ``reused_linear`` times them (validation, matrices, modal form
+    and recursion into a reused buffer): one with a position output per cart, one with an
+    acceleration output per cart (``LinearSimulator(..., outputs=...)``).  The rounds
+    alternate, in CPU time of the process.
+
+    Parameters
+    ----------
+    n_samples : int
+        Record length N.
+    batch : int
+        Parameter sets per call.
+    rng : int or numpy.random.Generator
+        Seed for the input and the parameter cloud.
+    dt : float
+        Sample interval, s.
+    quick : bool
+        Shorter timing (for tests).
+    rounds : int
+        Alternating rounds; the ratio is their median.
+
+    Returns
+    -------
+    dict
+        ``n_samples, batch, us_per_eval_position, us_per_eval_acceleration`` (per
+        parameter set, medians), ``ratio`` (acceleration / position, median over rounds),
+        ``ratio_per_round``, ``target`` (``ACCELERATION_MAX_RATIO``), ``meets_target``.
+    """
+    model, theta, u = _bench_problem(n_samples, batch, rng)
+    n = model.n_carts
+    position = reused_linear(model, theta, u, dt)
+    sim = LinearSimulator(u, dt, n, outputs=[(i, 2) for i in range(n)])
+
+    def acceleration():
+        M, C, K, b = model.matrices(model.check(theta))
+        return sim.run_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
+
+    min_time = 0.2 if quick else 1.0
+    t_p, t_a = [], []
+    for _ in range(rounds):
+        t_p.append(time_per_call(position, min_time_s=min_time, clock=time.process_time))
+        t_a.append(time_per_call(acceleration, min_time_s=min_time, clock=time.process_time))
+    ratios = np.array(t_a) / np.array(t_p)
+    ratio = float(np.median(ratios))
+    return {
+        "n_samples": int(n_samples),
+        "batch": int(batch),
+        "us_per_eval_position": float(np.median(t_p)) / batch * 1e6,
+        "us_per_eval_acceleration": float(np.median(t_a)) / batch * 1e6,
+        "ratio": ratio,
+        "ratio_per_round": [float(r) for r in ratios],
+        "target": ACCELERATION_MAX_RATIO,
+        "meets_target": bool(ratio <= ACCELERATION_MAX_RATIO),
     }
 
 

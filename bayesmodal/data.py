@@ -46,6 +46,7 @@ __all__ = [
     "file_sha256",
     "save_csv",
     "check_identifiable",
+    "options_for_rig",
 ]
 
 
@@ -68,9 +69,11 @@ class Experiment:
     t_s : ndarray, shape (N,)
         Sample times, s; strictly increasing, and uniform unless ``recorded_stamps``.
     v_volt : ndarray, shape (N,)
-        Motor command voltage, V.
-    y_m : ndarray, shape (N, n_carts)
-        Cart positions, m.
+        Motor command voltage, V; for a rig with a force input (``Rig.input ==
+        "force"``) the measured force, N.
+    y_m : ndarray, shape (N, n_outputs)
+        Each sensor's reading in SI units of its kind along +x: positions m (the cart
+        positions of the default rig), velocities m/s, accelerations m/s^2.
     name : str
         Short name (e.g. the file stem).
     source : str
@@ -500,6 +503,13 @@ def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) 
         raise DataError(f"{path}: {len(xs)} outputs, but {opts.n_outputs} were expected")
     scale_y = opts.m_per_count if opts.m_per_count is not None else (
         ECP_M_PER_COUNT if kind in ("mat", "txt") else 1.0)
+    for what, given in (("output_kinds", opts.output_kinds),
+                        ("output_scales", opts.output_scales)):
+        if given is not None and len(given) != len(xs):
+            raise DataError(f"{path}: {len(xs)} output columns but {what} lists "
+                            f"{len(given)}; give one per column, in the rig's sensor order")
+    if opts.output_scales is not None:
+        scale_y = np.asarray(opts.output_scales)
     raw_y = np.column_stack([cols[k] for k in xs])
     t = cols["t"] * opts.time_scale
     v = cols["v"] * opts.input_scale
@@ -516,18 +526,23 @@ def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) 
             warnings.warn(f"{path}: {base.message}", stacklevel=4)
         t, stamps = base.t_s, base.recorded_stamps
     exp = Experiment(t, v, y, name=name, source=str(path), recorded_stamps=stamps)
-    _check_plausible(path, exp, raw_y, opts, kind)
+    pos = (slice(None) if opts.output_kinds is None else
+           [i for i, k in enumerate(opts.output_kinds) if k == "position"])
+    _check_plausible(path, exp, raw_y, opts, kind, pos)
     # the static response says which way the drive is wired (a guess: a warning; the
-    # 0.5 Hz band does not see a millisecond's jitter)
-    sign = drive_sign(exp.v_volt, exp.y_m, exp.mean_dt)
+    # 0.5 Hz band does not see a millisecond's jitter); velocities and accelerations
+    # have none
+    sign = (drive_sign(exp.v_volt, exp.y_m[:, pos], exp.mean_dt)
+            if opts.output_kinds is None or pos else None)
     if sign is not None and sign.reversed:
         warnings.warn(f"{path}: {sign.message()}", stacklevel=4)
     return exp
 
 
 def _check_plausible(path: Path, exp: Experiment, raw_y: np.ndarray, opts: ReadOptions,
-                     kind: str) -> None:
-    """Refuse the silent misreads: sample index as time, converter units, mm or counts."""
+                     kind: str, pos=slice(None)) -> None:
+    """Refuse the silent misreads: sample index as time, converter units, mm or counts
+    (the displacement checks on the position columns ``pos``)."""
     t = exp.t_s
     t_role = (opts.column_map or {}).get("t", "t")
     if (opts.time_scale == 1.0 and np.all(t == np.round(t))
@@ -543,12 +558,15 @@ def _check_plausible(path: Path, exp: Experiment, raw_y: np.ndarray, opts: ReadO
             f"at 1-5 Hz need well under {_MAX_PLAUSIBLE_DT} s); if the time column is in "
             "milliseconds give --time-scale 1/1000 (ReadOptions(time_scale=1e-3))")
     vmax = float(np.max(np.abs(exp.v_volt)))
-    if vmax > _MAX_PLAUSIBLE_V:
+    if vmax > _MAX_PLAUSIBLE_V and opts.input_kind == "voltage":
         raise DataError(
             f"{path}: input up to {vmax:.4g} V is far beyond the rig's +-10 V command; if it "
             "is in converter units give volts per unit, e.g. --input-scale 5/4096 for 12 "
             "bits over 5 V (ReadOptions(input_scale=...))")
-    peak = float(np.max(np.abs(exp.y_m)))
+    if isinstance(pos, list) and not pos:
+        return  # no position column: nothing to bound
+    peak = float(np.max(np.abs(exp.y_m[:, pos])))
+    raw_y = raw_y[:, pos]
     if peak > _MAX_PLAUSIBLE_M:
         if kind == "csv" and opts.m_per_count is None:
             unit = ("in mm? give --m-per-count 0.001" if peak < 1000 else
@@ -655,6 +673,47 @@ def load_experiment(
     t, v, y = _window.select(str(path), exp.t_s, exp.v_volt, exp.y_m, opts)  # all by default
     return Experiment(t, v, y, name=exp.name, source=exp.source,
                       sha256=file_sha256(path), recorded_stamps=exp.recorded_stamps)
+
+
+def options_for_rig(options: ReadOptions, rig, path: str | os.PathLike) -> ReadOptions:
+    """Reader options that read a file's output columns as the rig's sensors.
+
+    A force input (``Rig.input``) sets ``input_kind``.  A rig whose sensors are all
+    positions along +x leaves the outputs as they are (the encoder scale is
+    ``m_per_count``).  Otherwise the columns get their kinds
+    (``output_kinds``) and, for the ECP ``.mat``/``.txt`` files (raw units), each
+    sensor's signed scale (``Sensor.si_per_unit``, unless ``m_per_count`` is given); a
+    ``.csv`` holds SI units of each kind along +x already.
+
+    Parameters
+    ----------
+    options : ReadOptions
+    rig : Rig
+    path : str or path
+        The file to read (its suffix says whether it holds raw units).
+
+    Returns
+    -------
+    ReadOptions
+
+    Examples
+    --------
+    >>> from bayesmodal.model.system import Cart, Drive, Rig, Sensor, Spring
+    >>> rig = Rig(carts=(Cart("1"),), springs=(Spring("1", "frame", 500.0),),
+    ...           drive=(Drive("1"),), sensors=(Sensor("1", "count", 1e-5), Sensor("1", "g")))
+    >>> o = options_for_rig(ReadOptions(), rig, "hammer.txt")
+    >>> o.output_kinds, o.output_scales
+    (('position', 'acceleration'), (1e-05, 9.80665))
+    """
+    sensors = rig.sensors
+    changes = {} if rig.input == "voltage" else {"input_kind": rig.input}
+    if all(s.kind == "position" and s.sign > 0 for s in sensors):
+        return replace(options, **changes) if changes else options
+    changes["output_kinds"] = tuple(s.kind for s in sensors)
+    raw = Path(path).suffix.lower() in (".mat", ".txt")
+    if raw and options.m_per_count is None and options.output_scales is None:
+        changes["output_scales"] = tuple(s.si_per_unit for s in sensors)
+    return replace(options, **changes)
 
 
 def check_identifiable(experiment: Experiment) -> None:

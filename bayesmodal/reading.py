@@ -138,6 +138,18 @@ class ReadOptions:
         files (encoder counts), 1 for ``.csv`` (metres).
     n_outputs : int, optional
         Number of outputs expected; a record with another number is refused.
+    input_kind : {"voltage", "force"}
+        What the input column holds (``Rig.input``): a command voltage, V (checked
+        against the rig's +-10 V), or a measured force, N (after ``input_scale``, N per
+        unit).
+    output_kinds : tuple of str, optional
+        What each output column measures, ``"position"``, ``"velocity"`` or
+        ``"acceleration"`` (``Rig.output_kinds``); default every column a position.  The
+        plausibility check of displacements reads the position columns only.
+    output_scales : tuple of float, optional
+        SI units of each output's kind (m, m/s, m/s^2) per unit of its column, signed
+        (``Sensor.si_per_unit``: 9.80665 for an accelerometer in g, -1 for a sensor facing
+        -x); replaces ``m_per_count`` for every column.
     time_base : {"auto", "stamps", "grid"}
         ``"auto"``: stamps rounded or jittered within half a step are put on their
         fitted uniform grid, stamps scattered further but independently (a logger's
@@ -174,6 +186,9 @@ class ReadOptions:
     time_scale: float = 1.0
     m_per_count: float | None = None
     n_outputs: int | None = None
+    input_kind: str = "voltage"
+    output_kinds: tuple[str, ...] | None = None
+    output_scales: tuple[float, ...] | None = None
     time_base: str = "auto"
     t_start: float | None = None
     t_end: float | None = None
@@ -191,6 +206,24 @@ class ReadOptions:
         object.__setattr__(self, "time_scale", _positive("time_scale", self.time_scale))
         object.__setattr__(self, "m_per_count", _positive("m_per_count", self.m_per_count,
                                                           allow_none=True, signed=True))
+        if self.input_kind not in ("voltage", "force"):
+            raise ConfigError(f"input_kind must be 'voltage' or 'force', got "
+                              f"{self.input_kind!r}")
+        kinds = ("position", "velocity", "acceleration")
+        if self.output_kinds is not None:
+            ok = tuple(str(k) for k in self.output_kinds)
+            bad = [k for k in ok if k not in kinds]
+            if bad or not ok:
+                raise ConfigError(f"output_kinds must list {kinds} values, one per output "
+                                  f"column, got {self.output_kinds!r}")
+            object.__setattr__(self, "output_kinds", ok)
+        if self.output_scales is not None:
+            sc = tuple(_positive("output_scales", x, signed=True) for x in self.output_scales)
+            if not sc or (self.output_kinds is not None
+                          and len(sc) != len(self.output_kinds)):
+                raise ConfigError(f"output_scales needs one scale per output column (as "
+                                  f"output_kinds), got {self.output_scales!r}")
+            object.__setattr__(self, "output_scales", sc)
         if self.n_outputs is not None:
             n = int(self.n_outputs)
             if n != self.n_outputs or n < 1:

@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 
 from bayesmodal.bench import (
+    ACCELERATION_MAX_RATIO,
     BEST_COMBINED,
     BUSY_LOAD_PER_CORE,
     COMBINED,
     COMBINED_MAX_RATIO,
     EXTENSION_MAX_RATIO,
     bench_extensions,
+    bench_sensor_kinds,
     headline,
     machine_load,
     rig_input,
@@ -54,6 +56,7 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
     assert set(out["machine"]) == {"load_average", "cores", "busy"}
     st = out["stamps"]
     assert st["n_distinct_steps"] >= 2 and st["target"] == 1.5
+    assert out["sensor_kinds"]["target"] == ACCELERATION_MAX_RATIO
     assert st["meets_target"] == (st["ratio"] <= st["target"])
     s = out["sampler"]
     assert s["n_samples"] == 300
@@ -72,6 +75,15 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
                  "--no-extensions", "--no-sampler"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert "extensions" not in out and "sampler" not in out
+
+
+def test_bench_sensor_kinds_reports_the_median_ratio_of_paired_rounds():
+    out = bench_sensor_kinds(n_samples=300, batch=4, quick=True, rounds=3)
+    assert out["us_per_eval_position"] > 0 and out["us_per_eval_acceleration"] > 0
+    assert len(out["ratio_per_round"]) == 3
+    assert out["ratio"] == np.median(out["ratio_per_round"])
+    assert out["target"] == ACCELERATION_MAX_RATIO == 1.3
+    assert out["meets_target"] == (out["ratio"] <= 1.3)
 
 
 def test_rig_input_has_pulses_steps_and_a_sweep():

@@ -7,6 +7,7 @@ from ..bench import (
     EXTENSION_MAX_RATIO,
     bench_extensions,
     bench_linear,
+    bench_sensor_kinds,
     bench_stamps,
     headline,
     machine_load,
@@ -42,7 +43,8 @@ def register(sub) -> None:
 def run(args) -> int:
     out = {"machine": machine_load(),
            "linear": bench_linear(args.samples, args.batch, quick=args.quick),
-           "stamps": bench_stamps(args.samples, args.batch, quick=args.quick)}
+           "stamps": bench_stamps(args.samples, args.batch, quick=args.quick),
+           "sensor_kinds": bench_sensor_kinds(args.samples, args.batch, quick=args.quick)}
     if not args.no_extensions:
         names = None if args.extensions is None else tuple(
             n.strip() for n in args.extensions.split(",") if n.strip())
@@ -72,6 +74,10 @@ def run(args) -> int:
         print(f"on a logger's recorded stamps ({st['n_distinct_steps']} distinct steps): "
               f"{st['us_per_eval_stamps']:.1f} us/eval, {st['ratio']:.2f}x the uniform "
               f"simulator (target <= {st['target']:g}x)")
+        sk = out["sensor_kinds"]
+        print(f"acceleration outputs: {sk['us_per_eval_acceleration']:.1f} us/eval, "
+              f"{sk['ratio']:.2f}x position outputs (target <= {sk['target']:g}x: "
+              f"{'met' if sk['meets_target'] else 'NOT MET'})")
         if "extensions" in out:
             print(f"model extensions (cost per evaluation vs the linear simulator, median of "
                   f"rounds; target <= {EXTENSION_MAX_RATIO:g}x, combinations "

@@ -8,7 +8,13 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._json import to_jsonable
-from ..data import ECP_M_PER_COUNT, Experiment, check_identifiable, load_experiment
+from ..data import (
+    ECP_M_PER_COUNT,
+    Experiment,
+    check_identifiable,
+    load_experiment,
+    options_for_rig,
+)
 from ..model.system import Rig
 from ..reading import REST_OFFSETS, TIME_BASES, ReadOptions, parse_columns, parse_scale
 
@@ -129,10 +135,13 @@ def load_args(args) -> list[Experiment]:
                 and Path(p).suffix.lower() in (".mat", ".txt")):
             # encoder files in counts: the rig's sensor scale unless --m-per-count says so
             scales = {s.m_per_unit for s in rig.sensors if s.unit == "count"}
-            if len(scales) == 1:
+            if len(scales) == 1 and all(s.kind == "position" and s.sign > 0
+                                        for s in rig.sensors):
                 from dataclasses import replace
 
                 o = replace(opts, m_per_count=scales.pop())
+        if rig is not None:
+            o = options_for_rig(o, rig, p)
         exps.append(load_experiment(Path(p), options=o))
     for e in exps:  # before any output folder is made
         if rig is not None and e.n_outputs != rig.n_outputs:

@@ -108,7 +108,15 @@ def format_lsq(summary: dict, res, names: list[str]) -> str:
         lines.append(f"  {follower:>4s} = {head} (tied in the rig description)")
     for name, row in zip(names, np.atleast_2d(res.fit_percent), strict=True):
         lines.append(f"fit percent, {name}: {percent(row)} (carts 1..{len(row)})")
-    lines.append(f"RMS residual: {values(1e3 * np.asarray(res.sigma_m), unit='mm', digits=3)}")
+    kinds = res.model.rig.output_kinds
+    if all(k == "position" for k in kinds):
+        lines.append("RMS residual: "
+                     + values(1e3 * np.asarray(res.sigma_m), unit='mm', digits=3))
+    else:  # each sensor in its own SI unit
+        units = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+        lines.append("RMS residual: " + ", ".join(
+            values([x], unit=units[k], digits=3)
+            for x, k in zip(np.ravel(res.sigma_m), kinds, strict=True)))
     if "omega_rad_s" in summary:
         lines.append(f"natural frequencies: {values(summary['omega_rad_s'], unit='rad/s')}")
     if "zeta" in summary:

@@ -120,12 +120,18 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     return summary, idata
 
 
-def _print_text(summary: dict, out: Path) -> None:
+def _print_text(summary: dict, out: Path, kinds: tuple[str, ...] = ()) -> None:
     print(f"damping: {summary['damping']}, noise: {summary['noise']}  -> {out}")
     print(f"{'parameter':>10s} {'median':>12s}   90 % interval")
+    # a noise level is in its sensor's SI unit
+    sensor_unit = {"velocity": "m/s", "acceleration": "m/s^2"}
     for nm, d in summary["parameters"].items():
+        unit = param_unit(nm)
+        j = nm[6:]
+        if nm.startswith("sigma_") and j.isdigit() and int(j) <= len(kinds):
+            unit = sensor_unit.get(kinds[int(j) - 1], unit)
         print(f"{nm:>10s} {sig(d['median'], 5):>12s}   [{sig(d['lo'], 5)}, {sig(d['hi'], 5)}] "
-              f"{param_unit(nm)}".rstrip())
+              f"{unit}".rstrip())
     for key, label in (("omega_rad_s", "natural frequencies (rad/s)"),
                        ("zeta", "damping ratios")):
         d = summary[key]
@@ -145,12 +151,13 @@ def _print_text(summary: dict, out: Path) -> None:
 
 def run(args) -> int:
     exps = load_args(args)
-    damping = damping_of(args, load_rig(args))
+    rig = load_rig(args)
+    damping = damping_of(args, rig)
     out = Path(args.out or f"runs/sample-{damping}-{args.noise}")
     summary, _ = sample_to_dir(exps, args, damping, out)
     if args.json:
         print_json(summary)
     elif not args.quiet:
-        _print_text(summary, out)
+        _print_text(summary, out, rig.output_kinds)
         sys.stdout.flush()
     return 0

@@ -12,6 +12,12 @@ FRF estimation (:mod:`.frf`):
 - :func:`impulse_response` -- IRF by inverse FFT; :func:`free_decay_segments`;
 - :func:`spectrum`, :func:`spectrogram`, :func:`band_coherence`, :func:`peak_prominence`.
 
+FRF forms (:mod:`.forms`): receptance, mobility or accelerance from the sensor kind;
+:func:`to_receptance`, :func:`receptance_estimate` (residues in receptance units, mode
+shapes from mixed sensors).  Hammer tests (:mod:`.impact`): :func:`find_impacts` (refuses
+a double impact), :func:`force_window`, :func:`impact_frf` (force and exponential
+windows, H1/H2/Hv over the hits), :func:`correct_exponential_window`.
+
 Modal parameter fits (one module each):
 
 - :func:`circle_fit`, :func:`circle_fit_modes` -- single-mode circle fit (11b);
@@ -35,6 +41,7 @@ from .analyze import METHODS, EMAResult, check_resonances, default_band, identif
 from .beam import CANTILEVER_BETA_L, CantileverBeam
 from .circle import CircleFit, CircleFitModes, circle_fit, circle_fit_modes, fit_circle
 from .examples import LECTURE_POLES, LECTURE_SHAPES, ModalSystem, lecture_irfs, lecture_system
+from .forms import FRF_FORMS, form_units, orders_of, receptance_estimate, to_receptance
 from .frf import (
     FRF,
     IRF,
@@ -55,6 +62,13 @@ from .frf import (
     step_increments,
     welch_frf,
     zoh_factor,
+)
+from .impact import (
+    Impacts,
+    correct_exponential_window,
+    find_impacts,
+    force_window,
+    impact_frf,
 )
 from .lsce import (
     ErrorCurve,
@@ -108,6 +122,16 @@ __all__ = [
     "step_increments",
     "welch_frf",
     "zoh_factor",
+    "FRF_FORMS",
+    "form_units",
+    "orders_of",
+    "receptance_estimate",
+    "to_receptance",
+    "Impacts",
+    "correct_exponential_window",
+    "find_impacts",
+    "force_window",
+    "impact_frf",
     "ErrorCurve",
     "LSCEResult",
     "StabilizationDiagram",

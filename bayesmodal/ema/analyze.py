@@ -26,6 +26,7 @@ third mode in the sine sweeps, report section 5) is reported as not identified.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -33,6 +34,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import check_identifiable
 from .circle import circle_fit_modes
+from .forms import form_units, orders_of, receptance_estimate
 from .frf import (
     FRF,
     free_decay_segments,
@@ -200,6 +202,8 @@ def identify(
     reference: int = 0,
     stabilization_orders=None,
     frf_method: str = "auto",
+    output_kinds: Sequence[str] | None = None,
+    input_kind: str = "voltage",
 ) -> EMAResult:
     """Experimental modal analysis of one experiment.
 
@@ -233,6 +237,14 @@ def identify(
         How the FRF is estimated (``frf_from_experiment``).  A step record (``"step"``,
         or ``"transient"`` ending at another input level) is analysed through its
         increments: each step is an impulse and LSCE fits the decays after the steps.
+    output_kinds : sequence of str, optional
+        Sensor kind of each output (``Rig.output_kinds``): the FRF is read in the
+        sensors' form (receptance, mobility or accelerance when they share one kind) and
+        the residues are returned in receptance units, divided by ``lambda^p`` per output
+        (``forms.receptance_estimate``), so that mode shapes from mixed sensors compare.
+        Default: every output a position.
+    input_kind : {"voltage", "force"}
+        What the input is (``Rig.input``), for the FRF's units (per V or per N).
 
     Notes
     -----
@@ -257,9 +269,16 @@ def identify(
     if frf_method in ("step", "transient") or (frf_method == "auto" and is_step_input(u)):
         if frf_method != "transient" or u[-1] != u[0]:
             u, y = step_increments(u, y)
+    orders = None if output_kinds is None else orders_of(output_kinds)
+    if orders is not None and orders.size != y.shape[1]:
+        raise ConfigError(f"output_kinds lists {orders.size} kinds for {y.shape[1]} outputs; "
+                          "give one per output (Rig.output_kinds)")
     if frf is None:
         check_identifiable(experiment)
         frf = frf_from_experiment(experiment, method=frf_method)
+        if orders is not None and np.all(orders == orders[0]):
+            frf = replace(frf, derivative_order=int(orders[0]),
+                          units=form_units(int(orders[0]), input_kind))
     full = frf
     frf = full.reliable()
     pre_notes = []
@@ -316,6 +335,10 @@ def identify(
     if n_found < n_modes:
         pre_notes.append(f"{n_found} of the {n_modes} modes sought identified in "
                          f"{band[0]:.4g}..{band[1]:.4g} rad/s")
+    if orders is not None and np.any(orders > 0):
+        est = receptance_estimate(est, orders)
+        pre_notes.append("residues in receptance units: each output's divided by "
+                         f"lambda^p, p = {orders.tolist()} (its sensor's derivative order)")
     est = replace(est, notes=tuple(pre_notes) + est.notes)
     return EMAResult(est, frf, fitted, np.array(band), det, stab)
 

@@ -54,7 +54,9 @@ __all__ = [
     "peak_prominence",
 ]
 
-ESTIMATORS = ("H1", "H2")
+#: FRF estimators: H1 (output noise), H2 (input noise), Hv (both: the geometric mean of
+#: the two magnitudes, with their common phase).
+ESTIMATORS = ("H1", "H2", "Hv")
 
 #: Input power, relative to its local envelope, below which an FRF value is not trusted.
 RELIABLE_INPUT_POWER = 1e-2
@@ -305,6 +307,11 @@ def _estimate(Syu, Suu, Syy, estimator):
         # H2 = S_yy / S_uy with S_uy = conj(S_yu)
         with np.errstate(divide="ignore", invalid="ignore"):
             H = Syy / np.conj(Syu)
+    elif estimator == "Hv":
+        # one input: H1 and H2 share the phase of S_yu, and |Hv| = sqrt(|H1| |H2|) =
+        # sqrt(S_yy / S_uu) (the total-least-squares estimate for equal noise shares)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            H = np.sqrt(Syy / Suu[:, None]) * Syu / np.abs(Syu)
     else:
         raise DataError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -336,7 +343,7 @@ def welch_frf(
         Outputs, e.g. cart positions, m.
     dt : float
         Sample interval, s.
-    estimator : {"H1", "H2"}
+    estimator : {"H1", "H2", "Hv"}
     window : str or tuple
         Any window ``scipy.signal.get_window`` accepts (``"hann"``, ``"boxcar"``,
         ``("tukey", 0.25)``, ...).
@@ -515,7 +522,7 @@ def pulse_frf(
         interpolates the spectrum of a complete transient without adding information).
     pad : int
         Zero-padding factor used when ``n_fft`` is not given.
-    estimator : {"H1", "H2"}
+    estimator : {"H1", "H2", "Hv"}
     zoh : bool
         Divide out the zero-order hold (see module notes).
     baseline : bool

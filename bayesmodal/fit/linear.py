@@ -164,8 +164,23 @@ def _check_experiments(model: LinearModel, experiments: Sequence[Experiment]) ->
 def initial_state_guess(model: LinearModel, experiment: Experiment) -> np.ndarray:
     """Initial state from a record's first samples, shape (2 n_carts,): m and m/s.
 
-    Sensed carts take the first sample and the first difference; the others start at 0.
+    Carts with a position sensor take the first sample and the first difference, a
+    velocity sensor gives its cart's first velocity; the others start at 0.
     """
+    spec = getattr(model, "output_spec", None)
+    if spec is not None:
+        n = model.n_carts
+        x0 = np.zeros(2 * n)
+        first_step = (experiment.dt if experiment.is_uniform
+                      else experiment.t_s[1] - experiment.t_s[0])
+        for j, (dof, order) in enumerate(spec):
+            col = experiment.y_m[:, j]
+            if order == 0:
+                x0[dof] = col[0]
+                x0[n + dof] = (col[1] - col[0]) / first_step
+            elif order == 1:
+                x0[n + dof] = col[0]
+        return x0
     n = model.n_carts
     out = model.output_index
     idx = np.arange(n) if out is None else out

@@ -34,6 +34,10 @@ sigma_k        LogUniform(1e-7, 0.1) m               log
 phi_k          Uniform(-1, 1)                        tanh
 =============  ====================================  ==========
 
+A velocity sensor's ``sigma_k`` is LogUniform(1e-7, 1) m/s, an accelerometer's
+LogUniform(1e-5, 100) m/s^2 (``SIGMA_PRIOR_BOUNDS``).  A rig with a force input has no
+``g_v``: the input is in newtons.
+
 Model extensions (``default_priors(..., extension=...)``) add their own parameters after the
 linear ones, each with ``Uniform(lo, hi)`` on its ``ParamSpec.bounds``, e.g.
 
@@ -82,6 +86,7 @@ __all__ = [
     "TRANSFORMS",
     "default_priors",
     "noise_names",
+    "SIGMA_PRIOR_BOUNDS",
 ]
 
 #: Transforms from the sampling coordinate z to the physical parameter.
@@ -218,6 +223,14 @@ class Normal:
         a = norm.cdf(self.lo, self.mu, self.sd)
         b = norm.cdf(self.hi, self.mu, self.sd)
         return norm.ppf(a + np.asarray(u, dtype=float) * (b - a), self.mu, self.sd)
+
+
+#: Bounds of the LogUniform prior of a sensor's noise level, by sensor kind, SI (m, m/s,
+#: m/s^2): from below an encoder count to a centimetre, and the same spans for the
+#: velocity and acceleration sensors of lab rigs (a MEMS accelerometer's noise is
+#: 1e-3..1e-1 m/s^2).
+SIGMA_PRIOR_BOUNDS = {"position": (1e-7, 0.1), "velocity": (1e-7, 1.0),
+                      "acceleration": (1e-5, 100.0)}
 
 
 def noise_names(n_outputs: int, noise: str) -> tuple[str, ...]:
@@ -477,9 +490,12 @@ def default_priors(
         for spec in ext.specs(model.rig):
             lo, hi = (float(b) for b in spec.bounds)
             add(spec.name, Uniform(lo, hi), "log" if lo > 0 else "identity")
+    kinds = (model.rig.output_kinds if n_out == model.n_outputs
+             else ("position",) * n_out)
     for nm in noise_names(n_out, noise):
         if nm.startswith("sigma"):
-            add(nm, LogUniform(1e-7, 0.1), "log")
+            j = int(nm.rsplit("_", 1)[1]) - 1 if nm[6:].isdigit() else 0
+            add(nm, LogUniform(*SIGMA_PRIOR_BOUNDS[kinds[min(j, n_out - 1)]]), "log")
         else:
             add(nm, Uniform(-1.0, 1.0), "tanh")
     ps = PriorSet(tuple(names), tuple(priors), tuple(trs))

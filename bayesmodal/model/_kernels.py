@@ -83,10 +83,12 @@ def direct_kernel(n_states: int, n_out: int, width: int):
     return _compile(lines, f"direct s={s} o={n_out} w={w}")
 
 
-def _modal_state_and_outputs(nm: int, n_out: int, w: int, row0: int) -> list[str]:
+def _modal_state_and_outputs(nm: int, n_out: int, w: int, row0: int,
+                             feed: bool = False) -> list[str]:
     """Kernel lines loading each mode's state ``wr, wi`` of lane ``b`` and writing the
     outputs ``Y = Re(sum_m q_m w_m)``, the output residues ``q`` from row ``row0`` of
-    ``Q`` on (shared by the uniform-step and the per-step modal kernels)."""
+    ``Q`` on (shared by the uniform-step and the per-step modal kernels); ``feed`` adds
+    ``D[i] u[k]`` (rows of ``D`` per output)."""
     lines = []
     for m in range(nm):
         lines.append(f"            wr{m} = W[{2 * m * w} + b]")
@@ -97,6 +99,8 @@ def _modal_state_and_outputs(nm: int, n_out: int, w: int, row0: int) -> list[str
             f" - Q[{(row0 + 2 * (i * nm + m) + 1) * w} + b] * wi{m}"
             for m in range(nm)
         )
+        if feed:
+            terms += f" + D[{i * w} + b] * uk"
         lines.append(f"            Y[yo + {i * w} + b] = {terms}")
     return lines
 
@@ -126,6 +130,28 @@ def modal_kernel(n_modes: int, n_out: int, width: int):
         lines.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + uk")
         lines.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m}")
     return _compile(lines, f"modal m={nm} o={n_out} w={w}")
+
+
+@functools.lru_cache(maxsize=64)
+def modal_feed_kernel(n_modes: int, n_out: int, width: int):
+    """Compiled ``kernel(Q, u, W, D, Y)``: :func:`modal_kernel` with a feedthrough of the
+    input, ``Y[k, i] = sum_m Re(G[i, m] w_m[k]) + D[i] u[k]`` (``D`` ``(n_out, width)``
+    flat: acceleration outputs carry the force of the input held from the sample)."""
+    nm, w = n_modes, width
+    lines = [
+        "def kernel(Q, u, W, D, Y):",
+        "    for k in range(u.shape[0]):",
+        "        uk = u[k]",
+        f"        yo = k * {n_out * w}",
+        f"        for b in range({w}):",
+    ]
+    lines += _modal_state_and_outputs(nm, n_out, w, 2 * nm, feed=True)
+    for m in range(nm):
+        lines.append(f"            mr = Q[{2 * m * w} + b]")
+        lines.append(f"            mi = Q[{(2 * m + 1) * w} + b]")
+        lines.append(f"            W[{2 * m * w} + b] = mr * wr{m} - mi * wi{m} + uk")
+        lines.append(f"            W[{(2 * m + 1) * w} + b] = mi * wr{m} + mr * wi{m}")
+    return _compile(lines, f"modal feed m={nm} o={n_out} w={w}")
 
 
 @functools.lru_cache(maxsize=64)

@@ -26,6 +26,17 @@ the modal state by the first step's ``gamma_0`` keeps one output gain ``G`` for 
 and the input enters with the weight ``r_j = gamma_j / gamma_0 = (mu_j - 1) / (mu_0 - 1)``
 (``beta`` and ``lambda`` cancel): ``w[k+1] = mu_j w[k] + r_j v[k]``, two more multiplies
 per mode and step than the uniform recursion.
+
+Velocity and acceleration outputs.  An eigenvector of ``A`` for the state ``(x, x')``
+has velocity rows ``lambda`` times its position rows, so a velocity output is the modal
+sum with the gains ``lambda_m G[i, m]``.  An acceleration output is the velocity rows of
+``x' = A x + B u`` at the sample: ``A V = V diag(lambda)`` gives the modal sum with the
+gains ``lambda_m^2 G[i, m]``, and ``B u_k`` adds the feedthrough ``(M^-1 b)_i u_k`` of
+the input held from ``t_k`` (``y_k = C_out x_k + D u_k``, ``C_out`` over the full
+state).  The recursion is the same; only the output gains change, plus one multiply-add
+per acceleration output and sample.  ``lambda_m = log(mu_m) / dt`` is exact while every
+``|Im lambda| dt < pi`` (checked by a bound, as for recorded stamps); lanes outside it
+and lanes without a modal form take the full-state recursion and the output matrix.
 """
 
 from __future__ import annotations
@@ -41,6 +52,7 @@ from ._kernels import (
     direct_kernel,
     direct_steps_kernel,
     modal_affine_sums_kernel,
+    modal_feed_kernel,
     modal_kernel,
     modal_steps_kernel,
     modal_sums_kernel,
@@ -253,7 +265,11 @@ class LinearSimulator:
         Sample interval, s; or the recorded steps ``t[k+1] - t[k]`` of a record whose
         stamps jitter (each distinct step discretised once, see :func:`step_groups`).
     n_out : int
-        Number of leading states returned (the cart positions).
+        Number of outputs: the leading states (the cart positions), or ``len(outputs)``.
+    outputs : sequence of (int, int), optional
+        Degree of freedom and time derivative (0 position, 1 velocity, 2 acceleration) of
+        each output, for the second-order methods (:meth:`run_second_order`,
+        :meth:`prepare_second_order`); default the first ``n_out`` positions.
 
     Examples
     --------
@@ -265,7 +281,7 @@ class LinearSimulator:
     (1, 200, 3)
     """
 
-    def __init__(self, u: np.ndarray, dt: float, n_out: int) -> None:
+    def __init__(self, u: np.ndarray, dt: float, n_out: int, outputs=None) -> None:
         u = np.ascontiguousarray(u, dtype=np.float64)
         if u.ndim != 1 or u.size < 1:
             raise DataError(f"input u must be a non-empty 1-D array, got shape {u.shape}")
@@ -276,6 +292,21 @@ class LinearSimulator:
         self.dt, self.step_values, self.step_index = _check_steps(dt, u.size)
         self._time_key = self.dt if self.step_values is None else tuple(self.step_values)
         self.n_out = int(n_out)
+        self.outputs = None
+        if outputs is not None:
+            spec = np.array([(int(d), int(o)) for d, o in outputs], dtype=np.int64)
+            spec = spec.reshape(-1, 2)
+            if spec.shape[0] != self.n_out:
+                raise ModelError(f"outputs lists {spec.shape[0]} outputs but n_out is "
+                                 f"{self.n_out}; give one (dof, order) pair per output")
+            if np.any(spec[:, 0] < 0) or np.any((spec[:, 1] < 0) | (spec[:, 1] > 2)):
+                raise ModelError(f"outputs must be (dof >= 0, order 0, 1 or 2) pairs, got "
+                                 f"{spec.tolist()}")
+            # all positions in order: the plain path, bit for bit
+            if not (np.all(spec[:, 1] == 0) and np.array_equal(spec[:, 0],
+                                                               np.arange(self.n_out))):
+                self.outputs = spec
+        self._outputs_key = None if self.outputs is None else self.outputs.tobytes()
         self._buffers: dict[tuple[int, int], np.ndarray] = {}
 
     def _buffer(self, n_chunks: int, width: int) -> np.ndarray:
@@ -306,6 +337,9 @@ class LinearSimulator:
         B = np.asarray(B, dtype=float)
         if A.ndim != 3 or B.ndim != 2 or A.shape[:2] != B.shape or A.shape[1] != A.shape[2]:
             raise ModelError(f"A must be (nb, s, s) and B (nb, s); got {A.shape} and {B.shape}")
+        if self.outputs is not None:
+            raise ModelError("outputs other than the leading states need the second-order "
+                             "form; use run_second_order")
         x0b = self._initial(x0, A.shape[0], A.shape[1])
         ok, mu, G, w0 = _modal_form(A, B, x0b, self.dt, self.n_out)
         steps = None
@@ -361,33 +395,43 @@ class LinearSimulator:
                 f"masses (nb, n), C and K (nb, n, n), b (nb, n) expected; got {masses.shape}, "
                 f"{C.shape}, {K.shape}, {b.shape}"
             )
-        if self.n_out > n:
+        spec = self.outputs
+        if spec is None and self.n_out > n:
             raise ModelError(f"n_out = {self.n_out} exceeds the {n} positions")
+        if spec is not None and spec[:, 0].max() >= n:
+            raise ModelError(f"outputs read degree of freedom {int(spec[:, 0].max())} of a "
+                             f"system with {n}")
+        n_pos = n if spec is not None else self.n_out
         x0b = np.ascontiguousarray(self._initial(x0, nb, 2 * n))
-        ok, mu, G, w0, A, B = self._second_order_form(masses, C, K, b, x0b, self.dt)
+        ok, mu, G, w0, A, B = self._second_order_form(masses, C, K, b, x0b, self.dt, n_pos)
         steps = None
         if self.step_values is not None:
             steps = _steps_from_poles(mu, self.step_values, masses, C, K)
             if steps is None:  # some pole may alias on the first step: each step anew
-                forms = [(ok, mu, G)] + [self._second_order_form(masses, C, K, b, x0b, h)[:3]
-                                         for h in self.step_values[1:]]
+                forms = [(ok, mu, G)] + [
+                    self._second_order_form(masses, C, K, b, x0b, h, n_pos)[:3]
+                    for h in self.step_values[1:]]
                 ok, steps = _steps_form(forms)
             else:
                 ok = ok & np.all(np.isfinite(steps[1]), axis=(0, 2))
-        return (self._time_key, self.n_out, ok, mu, G, w0, A, B, x0b,
-                {"masses": masses, "C": C, "K": K, "b": b}, steps)
+        feed = None
+        if spec is not None:
+            ok, G, feed = _output_form(spec, ok, mu, G, masses, C, K, b, self.dt)
+        return (self._time_key, self.n_out, self._outputs_key, ok, mu, G, w0, A, B, x0b,
+                {"masses": masses, "C": C, "K": K, "b": b}, steps, feed)
 
-    def _second_order_form(self, masses, C, K, b, x0b, dt):
-        """``ok, mu, G, w0, A, B`` of a batch for step ``dt``: the compiled modal form,
-        the general one for the lanes it cannot handle (``A, B`` None if none)."""
+    def _second_order_form(self, masses, C, K, b, x0b, dt, n_pos):
+        """``ok, mu, G, w0, A, B`` of a batch for step ``dt`` and the first ``n_pos``
+        positions: the compiled modal form, the general one for the lanes it cannot handle
+        (``A, B`` None if none)."""
         nb, n = masses.shape
         mu = np.zeros((nb, n), complex)
-        G = np.zeros((nb, self.n_out, n), complex)
+        G = np.zeros((nb, n_pos, n), complex)
         w0 = np.zeros((nb, n), complex)
         ok = np.zeros(nb, bool)
-        modal_form_mck(masses, C, K, b, x0b, dt, self.n_out, mu, G, w0, ok)
+        modal_form_mck(masses, C, K, b, x0b, dt, n_pos, mu, G, w0, ok)
         # static-gain check of the compiled modal form against K^-1 b
-        dc_exact = np.linalg.solve(K, b[..., None])[:, : self.n_out, 0]
+        dc_exact = np.linalg.solve(K, b[..., None])[:, :n_pos, 0]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             dc_modal = np.real(np.sum(G / (1.0 - mu)[:, None, :], axis=2))
             err = np.max(np.abs(dc_modal - dc_exact), axis=1)
@@ -398,7 +442,7 @@ class LinearSimulator:
         if not np.all(ok):
             A, B = _second_order_state_space(masses, C, K, b)
             bad = np.flatnonzero(~ok)
-            ok2, mu2, G2, w02 = _modal_form(A[bad], B[bad], x0b[bad], dt, self.n_out)
+            ok2, mu2, G2, w02 = _modal_form(A[bad], B[bad], x0b[bad], dt, n_pos)
             if mu2 is not None:
                 good = bad[ok2]
                 mu[good], G[good], w0[good] = mu2[ok2], G2[ok2], w02[ok2]
@@ -422,9 +466,9 @@ class LinearSimulator:
         ndarray
             A view of the simulator's buffer (valid until the next call).
         """
-        ok, mu, G, w0, A, B, x0b, second_order, steps = self._own(prepared)
+        ok, mu, G, w0, A, B, x0b, second_order, steps, feed = self._own(prepared)
         return self._dispatch(ok, mu, G, w0, A, B, x0b, lanes_last=lanes_last, steps=steps,
-                              **second_order)
+                              feed=feed, **second_order)
 
     def _initial(self, x0, nb: int, s: int) -> np.ndarray:
         if x0 is None:
@@ -457,7 +501,11 @@ class LinearSimulator:
             Those of ``_resid_kernels.ar1_sums(y, run_prepared(prepared))`` (or
             ``ar1_sums_affine`` of the two responses), bit for bit.
         """
-        ok, mu, G, w0, A, B, x0b, second_order, steps = self._own(prepared)
+        ok, mu, G, w0, A, B, x0b, second_order, steps, feed = self._own(prepared)
+        if self.outputs is not None:
+            raise ModelError("residual sums are computed for position outputs only; "
+                             "simulate velocity or acceleration outputs with run_prepared "
+                             "and form the residuals")
         if steps is not None:
             raise ModelError("residual sums are computed on a uniform grid only; simulate "
                              "the recorded steps with run_prepared and form the residuals")
@@ -475,15 +523,17 @@ class LinearSimulator:
     def _own(self, prepared: tuple) -> tuple:
         """The modal form of :meth:`prepare_second_order` without its ``dt`` and ``n_out``,
         after checking that they are this simulator's."""
-        key, n_out, *form = prepared
-        if key != self._time_key or n_out != self.n_out:
-            raise ModelError(f"prepared form is for dt={key}, n_out={n_out}; this simulator "
-                             f"has dt={self._time_key}, n_out={self.n_out}: prepare it here")
+        key, n_out, out_key, *form = prepared
+        if key != self._time_key or n_out != self.n_out or out_key != self._outputs_key:
+            raise ModelError(f"prepared form is for dt={key}, n_out={n_out} and other "
+                             f"outputs; this simulator has dt={self._time_key}, "
+                             f"n_out={self.n_out}: prepare it here")
         return tuple(form)
 
     def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
                   sums_against: np.ndarray | None = None, affine: np.ndarray | None = None,
-                  steps: tuple | None = None, **second_order) -> np.ndarray:
+                  steps: tuple | None = None, feed: np.ndarray | None = None,
+                  **second_order) -> np.ndarray:
         """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct
         (with ``sums_against``: return the residual sums, see :meth:`residual_sums`)."""
         nb, s = x0b.shape
@@ -504,8 +554,8 @@ class LinearSimulator:
             gv = (None if affine is None
                   else np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0))
             if steps is not None:
-                self._run_steps(c, real, ok, steps, G, w0, A, B, x0b, second_order, Y,
-                                width)
+                A, B = self._run_steps(c, real, ok, steps, G, w0, A, B, x0b, second_order,
+                                       Y, width, feed)
                 continue
             if np.all(ok[real]):
                 # blocks on 64 bytes: off it the kernel took 17-18.5 instead of 11.6 us
@@ -528,8 +578,26 @@ class LinearSimulator:
                     modal_sums_kernel(nm, self.n_out, width)(
                         Q.ravel(), self.u, W.ravel(), sums_against.ravel(), sums[c].reshape(-1))
                     continue
+                if feed is not None:  # acceleration outputs: the input's feedthrough
+                    D = aligned_empty((self.n_out, width))
+                    D[:] = feed[real].T
+                    modal_feed_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
+                                                             D.ravel(), Y[c].reshape(-1))
+                    continue
                 modal_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
                                                     Y[c].reshape(-1))
+            elif self.outputs is not None:
+                if A is None:
+                    A, B = _second_order_state_space(**second_order)
+                if direct is None:
+                    direct = discretize_zoh(A, B, self.dt)
+                P = aligned_empty((s * s + s, width))
+                P[: s * s] = direct.Ad[real].reshape(width, s * s).T
+                P[s * s :] = direct.Bd[real].T
+                X = np.ascontiguousarray(x0b[real].T)
+                Xs = np.empty((self.u.size, s, width))
+                direct_kernel(s, s, width)(P.ravel(), self.u, X.ravel(), Xs.reshape(-1))
+                _outputs_of_states(self.outputs, Xs, self.u, A[real], B[real], Y[c])
             else:
                 if direct is None:
                     if A is None:
@@ -568,7 +636,8 @@ class LinearSimulator:
             return y[0, :nb]
         return y.reshape(n_chunks * width, self.u.size, self.n_out)[:nb]
 
-    def _run_steps(self, c, real, ok, steps, G, w0, A, B, x0b, second_order, Y, width):
+    def _run_steps(self, c, real, ok, steps, G, w0, A, B, x0b, second_order, Y, width,
+                   feed=None):
         """Chunk ``c`` (lanes ``real``) over the recorded steps: the modal recursion with a
         pole and an input weight per distinct step when all its lanes allow, else the
         full-state recursion with the exact ZOH of each distinct step."""
@@ -594,7 +663,9 @@ class LinearSimulator:
             W[1::2] = w0[real].imag.T
             modal_steps_kernel(nm, self.n_out, width)(Q.ravel(), idx, self.u, W.ravel(),
                                                       Y[c].reshape(-1))
-            return
+            if feed is not None:
+                _add_feedthrough(Y[c], self.u, feed[real])
+            return A, B
         if A is None:
             A, B = _second_order_state_space(**second_order)
         rows = s * s + s
@@ -604,8 +675,59 @@ class LinearSimulator:
             P[j * rows : j * rows + s * s] = d.Ad.reshape(width, s * s).T
             P[j * rows + s * s : (j + 1) * rows] = d.Bd.T
         X = np.ascontiguousarray(x0b[real].T)
-        direct_steps_kernel(s, self.n_out, width)(P.ravel(), idx, self.u, X.ravel(),
-                                                  Y[c].reshape(-1))
+        if self.outputs is None:
+            direct_steps_kernel(s, self.n_out, width)(P.ravel(), idx, self.u, X.ravel(),
+                                                      Y[c].reshape(-1))
+            return A, B
+        Xs = np.empty((self.u.size, s, width))
+        direct_steps_kernel(s, s, width)(P.ravel(), idx, self.u, X.ravel(), Xs.reshape(-1))
+        _outputs_of_states(self.outputs, Xs, self.u, A[real], B[real], Y[c])
+        return A, B
+
+
+def _output_form(spec, ok, mu, G, masses, C, K, b, dt):
+    """Output gains and feedthrough of the outputs ``spec`` (n_out, 2) from the modal
+    form of all positions: ``ok`` (nb,), ``G_out`` (nb, n_out, m), ``feed`` (nb, n_out)
+    (None without acceleration outputs).
+
+    ``lambda = log(mu) / dt`` is exact while ``|Im lambda| dt < pi``, which the bound of
+    :func:`_steps_from_poles` guarantees; lanes outside it are left to the full-state
+    recursion.
+    """
+    dofs, orders = spec[:, 0], spec[:, 1]
+    G_out = G[:, dofs, :]
+    if np.any(orders > 0):
+        inv_m = 1.0 / masses[:, :, None]
+        bound = (np.sqrt(np.sum((inv_m * C) ** 2, axis=(1, 2)))
+                 + np.sqrt(np.sqrt(np.sum((inv_m * K) ** 2, axis=(1, 2)))))
+        ok = ok & np.isfinite(bound) & (bound * dt < np.pi)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            lam = np.log(mu) / dt  # (lanes without a modal form hold zeros: not used)
+            G_out = G_out * lam[:, None, :] ** orders[None, :, None]
+        ok = ok & np.all(np.isfinite(G_out), axis=(1, 2))
+    feed = None
+    if np.any(orders == 2):
+        feed = np.where(orders == 2, (b / masses)[:, dofs], 0.0)
+    return ok, G_out, feed
+
+
+def _add_feedthrough(Yc, u, feed_lanes):
+    """``Yc[k, i, :] += feed[:, i] u[k]`` in place (acceleration outputs)."""
+    Yc += u[:, None, None] * feed_lanes.T[None]
+
+
+def _outputs_of_states(spec, Xs, u, A, B, Yc):
+    """Outputs ``spec`` of full states ``Xs`` (N, s, width) into ``Yc`` (N, n_out, width):
+    positions and velocities are states, accelerations the velocity rows of
+    ``A x + B u`` at each sample."""
+    n = Xs.shape[1] // 2
+    for i, (dof, order) in enumerate(spec):
+        if order < 2:
+            Yc[:, i, :] = Xs[:, dof + n * order, :]
+        else:
+            row = n + dof
+            Yc[:, i, :] = (np.einsum("wj,kjw->kw", A[:, row, :], Xs)
+                           + u[:, None] * B[None, :, row])
 
 
 def _steps_from_poles(mu0, values, masses, C, K):
@@ -719,7 +841,9 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
     Returns
     -------
     y : ndarray, shape (N, n_outputs) or (nb, N, n_outputs)
-        Positions of the sensed carts (``model.rig.sensors``; every cart for a chain), m.
+        What each sensor reads (``model.rig.sensors``; every cart's position for a
+        chain), in SI along +x: position m, velocity m/s, acceleration m/s^2 (at the
+        sample, with the input held from it: the feedthrough of the input included).
 
     Raises
     ------
@@ -741,6 +865,11 @@ def simulate_linear(model, theta: np.ndarray, u: np.ndarray, dt: float, x0=None)
         raise ModelError(f"theta must have shape (n_params,) or (nb, n_params), got {theta.shape}")
     M, C, K, b = model.matrices(theta)
     masses = np.diagonal(M, axis1=1, axis2=2)
+    spec = getattr(model, "output_spec", None)
+    if spec is not None:  # velocity or acceleration sensors: each output as it is read
+        y = LinearSimulator(u, dt, len(spec), outputs=spec).run_second_order(
+            masses, C, K, b, x0)
+        return y[0] if single else y
     y = LinearSimulator(u, dt, model.n_carts).run_second_order(masses, C, K, b, x0)
     out = getattr(model, "output_index", None)
     if out is not None:  # sensors on some carts, or in another order (non-chain rigs)

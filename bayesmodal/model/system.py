@@ -55,6 +55,9 @@ __all__ = [
     "FRAME",
     "MASS_KINDS",
     "SENSOR_UNITS",
+    "SENSOR_KINDS",
+    "STANDARD_GRAVITY_M_S2",
+    "INPUT_KINDS",
 ]
 
 #: Nominal springs of the ECP Model 210 three-cart rig, N/m (report Table 1).
@@ -69,8 +72,23 @@ FRAME = "frame"
 #: value (the fit's start), or known (fixed, not a parameter).
 MASS_KINDS = ("unknown", "nominal", "known")
 
-#: Sensor units and their fixed scale in metres per unit (None: the scale must be given).
-SENSOR_UNITS = {"m": 1.0, "mm": 1e-3, "count": None}
+#: What a record's input column holds: a command voltage (V) or a measured force (N).
+INPUT_KINDS = ("voltage", "force")
+
+#: Standard gravity, m/s^2 per g (the unit of many accelerometers).
+STANDARD_GRAVITY_M_S2 = 9.80665
+
+#: Sensor units and their fixed scale in SI units of their kind (m, m/s, m/s^2) per unit
+#: (None: the scale must be given).
+SENSOR_UNITS = {"m": 1.0, "mm": 1e-3, "count": None, "m/s": 1.0, "m/s^2": 1.0,
+                "g": STANDARD_GRAVITY_M_S2}
+
+#: The quantity each sensor unit measures.
+SENSOR_KINDS = {"m": "position", "mm": "position", "count": "position",
+                "m/s": "velocity", "m/s^2": "acceleration", "g": "acceleration"}
+
+#: Time derivative of the position each kind measures.
+SENSOR_ORDERS = {"position": 0, "velocity": 1, "acceleration": 2}
 
 
 def _pair_name(i: int, n: int) -> str:
@@ -193,37 +211,77 @@ class Drive:
 
 @dataclass(frozen=True)
 class Sensor:
-    """A position sensor on a cart.
+    """A sensor on a cart: its position, velocity or acceleration.
 
     Parameters
     ----------
     cart : str
-    unit : {"m", "mm", "count"}
-        Unit of the raw record.
+    unit : {"m", "mm", "count", "m/s", "m/s^2", "g"}
+        Unit of the raw record; it sets the kind (``SENSOR_KINDS``): position (m, mm,
+        encoder counts), velocity (m/s) or acceleration (m/s^2, or g = 9.80665 m/s^2).
     m_per_unit : float, optional
-        Metres per unit; fixed for ``"m"`` and ``"mm"``, required for ``"count"``.
+        SI units of the kind (m, m/s or m/s^2) per unit of the record; fixed by the unit
+        except for ``"count"``, where it is required (metres per count).  A negative value
+        stands for a sensor counting the other way (folded into ``sign``).
+    sign : {1, -1}
+        -1 for a sensor mounted or wired the other way round (positive towards -x).
+
+    Examples
+    --------
+    >>> s = Sensor("2", "g", sign=-1)
+    >>> s.kind, s.si_per_unit
+    ('acceleration', -9.80665)
     """
 
     cart: str
     unit: str = "m"
     m_per_unit: float | None = None
+    sign: int = 1
 
     def __post_init__(self) -> None:
+        where = f"sensor on cart {self.cart!r}"
         if self.unit not in SENSOR_UNITS:
-            raise ModelError(f"sensor on cart {self.cart!r}: unit {self.unit!r} is not "
-                             f"supported; use one of {tuple(SENSOR_UNITS)}")
+            raise ModelError(f"{where}: unit {self.unit!r} is not supported; use one of "
+                             f"{tuple(SENSOR_UNITS)}")
+        if isinstance(self.sign, bool) or self.sign not in (1, -1):
+            raise ModelError(f"{where}: sign must be 1 or -1, got {self.sign!r}")
+        sign = int(self.sign)
         fixed = SENSOR_UNITS[self.unit]
+        scale = self.m_per_unit
+        if scale is not None:
+            try:
+                scale = float(scale)
+            except (TypeError, ValueError):
+                raise ModelError(f"{where}: m_per_unit must be a number, got "
+                                 f"{self.m_per_unit!r}") from None
+            if np.isfinite(scale) and scale < 0:  # a scale counting the other way
+                scale, sign = -scale, -sign
         if fixed is None:
-            if self.m_per_unit is None:
-                raise ModelError(f"sensor on cart {self.cart!r}: unit 'count' needs "
-                                 "m_per_unit (metres per count)")
-            object.__setattr__(self, "m_per_unit", _finite_positive(
-                self.m_per_unit, f"sensor on cart {self.cart!r}: m_per_unit"))
+            if scale is None:
+                raise ModelError(f"{where}: unit 'count' needs m_per_unit (metres per count)")
+            scale = _finite_positive(scale, f"{where}: m_per_unit")
         else:
-            if self.m_per_unit is not None and float(self.m_per_unit) != fixed:
-                raise ModelError(f"sensor on cart {self.cart!r}: unit {self.unit!r} is "
-                                 f"{fixed} m per unit, got m_per_unit={self.m_per_unit!r}")
-            object.__setattr__(self, "m_per_unit", fixed)
+            if scale is not None and scale != fixed:
+                raise ModelError(f"{where}: unit {self.unit!r} is {fixed} SI units per unit, "
+                                 f"got m_per_unit={self.m_per_unit!r}; drop m_per_unit")
+            scale = fixed
+        object.__setattr__(self, "m_per_unit", scale)
+        object.__setattr__(self, "sign", sign)
+
+    @property
+    def kind(self) -> str:
+        """``"position"``, ``"velocity"`` or ``"acceleration"``."""
+        return SENSOR_KINDS[self.unit]
+
+    @property
+    def order(self) -> int:
+        """Time derivative of the position measured: 0, 1 or 2."""
+        return SENSOR_ORDERS[self.kind]
+
+    @property
+    def si_per_unit(self) -> float:
+        """Signed scale from the record's unit to SI (m, m/s or m/s^2 along +x)."""
+        return self.sign * self.m_per_unit
 
 
 def _as_tuple(items, kind, what: str) -> tuple:
@@ -266,7 +324,14 @@ class Rig:
     clamped : tuple of str
         Carts fixed to the frame (not degrees of freedom).
     gain_n_v : float, optional
-        Known input gain, N/V (then ``g_v`` is not a parameter); default estimated.
+        Known input gain, N/V (then ``g_v`` is not a parameter); default estimated.  A
+        force input holds it at 1.
+    input : {"voltage", "force"}
+        What the record's input column holds: the motor's command voltage, V, through
+        the drive gain ``g_v``; or the measured force on the driven carts, N (a load cell
+        on a shaker, an instrumented hammer), with the gain fixed at 1 and not a
+        parameter.  The force sensor's own noise is not modelled (docs/accelerometers.md
+        gives the bias that leaves).  ``[drive] input = "force"`` in TOML.
     damping : {"free", "proportional"}, optional
         The damping model the description declares (``[dampers] proportional = true`` or
         ``false`` in TOML); ``LinearModel`` refuses another one.  None (default): not
@@ -301,6 +366,7 @@ class Rig:
     sensors: tuple[Sensor, ...] | None = None
     clamped: tuple[str, ...] = ()
     gain_n_v: float | None = None
+    input: str = "voltage"
     damping: str | None = None
     ties: tuple[tuple[str, ...], ...] = ()
     name: str = field(default="", compare=False)
@@ -445,10 +511,22 @@ class Rig:
             if s.cart in clamped:
                 raise ModelError(f"sensor on clamped cart {s.cart!r}; it never moves, "
                                  "remove it")
-        scarts = [s.cart for s in sensors]
-        if len(set(scarts)) != len(scarts):
-            raise ModelError(f"duplicate sensor on {scarts}; list each cart once")
+        placed = [(s.cart, s.kind) for s in sensors]
+        twice = sorted({p for p in placed if placed.count(p) > 1})
+        if twice:
+            raise ModelError(f"two {twice[0][1]} sensors on cart {twice[0][0]!r}; list one "
+                             "sensor of each kind per cart")
 
+        if self.input not in INPUT_KINDS:
+            raise ModelError(f"input must be one of {INPUT_KINDS}, got {self.input!r}")
+        if self.input == "force":
+            if not drive:
+                raise ModelError("a force input needs the carts it pushes; list them in "
+                                 "[drive] carts")
+            if self.gain_n_v is not None and float(self.gain_n_v) != 1.0:
+                raise ModelError(f"a force input has gain 1 (N per N), got gain_n_v="
+                                 f"{self.gain_n_v!r}; drop gain_n_v")
+            set_(self, "gain_n_v", 1.0)
         if self.gain_n_v is not None:
             set_(self, "gain_n_v", _finite_positive(self.gain_n_v, "gain_n_v (N/V)"))
         ties = self.ties or ()
@@ -518,6 +596,7 @@ class Rig:
             and self.dampers == chain.dampers
             and self.drive == chain.drive
             and [s.cart for s in self.sensors] == names
+            and all(s.kind == "position" for s in self.sensors)
             and not self.clamped
             and self.gain_n_v is None
             and not self.ties
@@ -554,12 +633,41 @@ class Rig:
         return [c.name for c in self.carts].index(name) + 1
 
     def output_matrix(self) -> np.ndarray:
-        """Output matrix in metres, shape (n_outputs, n_carts): ``y = C_out x``."""
+        """Which cart each sensor reads, shape (n_outputs, n_carts): ``y = C_out x`` for
+        position sensors (m), ``C_out x'`` for velocity and ``C_out x''`` for acceleration
+        sensors."""
         free = self.free_carts
         out = np.zeros((self.n_outputs, self.n_carts))
         for i, s in enumerate(self.sensors):
             out[i, free.index(s.cart)] = 1.0
         return out
+
+    @property
+    def output_kinds(self) -> tuple[str, ...]:
+        """Kind of each sensor in record order: ``"position"``, ``"velocity"`` or
+        ``"acceleration"``."""
+        return tuple(s.kind for s in self.sensors)
+
+    @property
+    def positions_only(self) -> bool:
+        """True when every sensor measures a position."""
+        return all(s.kind == "position" for s in self.sensors)
+
+    def require_positions(self, what: str) -> None:
+        """Raise ModelError unless every sensor measures a position.
+
+        Parameters
+        ----------
+        what : str
+            What needs position outputs, for the message (e.g. ``"the cubic_spring
+            extension"``).
+        """
+        if not self.positions_only:
+            kinds = sorted({k for k in self.output_kinds if k != "position"})
+            raise ModelError(
+                f"{what}: needs position sensors only (m, mm, count), this rig has "
+                f"{' and '.join(kinds)} sensors; fit the linear model (fit_lsq, "
+                "sample_posterior), which simulates every sensor kind")
 
     def input_vector(self) -> np.ndarray:
         """Drive shares per degree of freedom, shape (n_carts,); ``b = g_v * input_vector``."""
@@ -695,7 +803,8 @@ def _layout(rig: Rig, damping: str) -> _Layout:
             names.append(s.name)
             positive.append(True)
     outputs = np.array([free.index(s.cart) for s in rig.sensors])
-    if outputs.size == n and np.array_equal(outputs, np.arange(n)):
+    if (outputs.size == n and np.array_equal(outputs, np.arange(n))
+            and rig.positions_only):
         outputs = None
     if rig.ties:
         names, positive, (gain, mass_idx, c_idx, k_idx) = _apply_ties(
@@ -833,6 +942,17 @@ class LinearModel:
     def output_index(self) -> np.ndarray | None:
         """Degree of freedom of each output, shape (n_outputs,); None for all, in order."""
         return None if self._chain else self._layout.outputs
+
+    @functools.cached_property
+    def output_spec(self) -> np.ndarray | None:
+        """Degree of freedom and time derivative (0 position, 1 velocity, 2 acceleration)
+        of each output, shape (n_outputs, 2) int; None when every sensor reads a position
+        (the outputs are then the positions ``output_index`` picks)."""
+        if self.rig.positions_only:
+            return None
+        free = self.rig.free_carts
+        return np.array([(free.index(s.cart), s.order) for s in self.rig.sensors],
+                        dtype=np.int64)
 
     @property
     def n_states(self) -> int:

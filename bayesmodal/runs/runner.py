@@ -27,7 +27,7 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, one_line
 from ..config import RunConfig, load_config
-from ..data import Experiment, check_identifiable, load_experiment
+from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
 from ..inference.moves import parse_moves
 from ..inference.noise_spec import parse_noise
 from ..metrics import fit_percent
@@ -129,8 +129,10 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
     out = []
     for f in files:
         try:
-            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count,
-                                       options=cfg.read_options()))
+            opts = cfg.read_options()
+            if cfg.rig is not None:  # the rig's sensors say what each column holds
+                opts = options_for_rig(opts, cfg.make_rig(), f)
+            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count, options=opts))
             if fitted:
                 if cfg.t_start is not None:  # a run starts every record from rest
                     _check_window_rest(out[-1])

@@ -279,6 +279,7 @@ def diagnose(
     if not exps:
         raise DataError("no experiments given")
     rig = Rig() if rig is None else rig
+    rig.require_positions("diagnose")  # its effects simulate positions only
     if LinearModel(rig, "free").output_index is not None:
         # the diagnostics read output j as the position of cart j
         raise ModelError("diagnose needs a sensor on every moving cart, in cart order; "

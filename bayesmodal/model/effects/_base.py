@@ -145,6 +145,11 @@ class Extension(ABC):
 
     def unsupported(self, rig: Rig) -> str | None:
         """Why the effect cannot act on ``rig`` (one line with the fix), None if it can."""
+        if not rig.positions_only:
+            kinds = sorted({k for k in rig.output_kinds if k != "position"})
+            return (f"{self.name}: the effects simulate position sensors only (m, mm, "
+                    f"count), this rig has {' and '.join(kinds)} sensors; fit the linear "
+                    "model (fit_lsq, sample_posterior), which simulates every sensor kind")
         driven = [d.cart for d in rig.drive if d.share != 0.0]
         if (self.needs == "drive" or self.side == "input") and not driven:
             return (f"{self.name} acts on the motor input, and this rig has no drive; "

@@ -28,11 +28,19 @@ rectilinear rig (see docs/rigs.md for a walk-through)::
     carts = ["1"]
     shares = [1.0]                      # optional
     gain_n_v = 6.2                      # optional: a known input gain (else g_v is estimated)
+    input = "voltage"                   # optional: "force" for a measured force in N
+                                        # (gain 1, no g_v; no gain_n_v then)
 
     [[sensors]]                         # optional; default: every free cart, metres
     cart = "1"
-    unit = "count"                      # "m" | "mm" | "count"
-    m_per_unit = 4.4125e-06
+    unit = "count"                      # position "m" | "mm" | "count", velocity "m/s",
+                                        # acceleration "m/s^2" | "g" (9.80665 m/s^2)
+    m_per_unit = 4.4125e-06             # counts only (negative: counting the other way)
+    sign = 1                            # optional: -1 for a sensor facing -x
+
+Several sensors may sit on one cart when their kinds differ (an encoder and an
+accelerometer).  Records hold each sensor's reading in SI units of its kind (m, m/s,
+m/s^2), each along +x.
 
 With no known mass, spring or gain the rig is identified per unit of drive gain
 (``Rig.per_unit_gain``).
@@ -76,8 +84,8 @@ _TOP = {"name", "clamped", "carts", "springs", "dampers", "drive", "sensors", "t
 _CART = {"name", "mass", "mass_kg"}
 _SPRING = {"name", "between", "stiffness_n_m", "known", "prior_sd_n_m"}
 _DAMPERS = {"ground", "pairs", "proportional"}
-_DRIVE = {"carts", "shares", "gain_n_v"}
-_SENSOR = {"cart", "unit", "m_per_unit"}
+_DRIVE = {"carts", "shares", "gain_n_v", "input"}
+_SENSOR = {"cart", "unit", "m_per_unit", "sign"}
 
 
 def _keys(table, allowed: set[str], where: str) -> Mapping:
@@ -175,6 +183,7 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                 dampers.append(Damper(*ends))
         drive = ()
         gain = None
+        input_kind = "voltage"
         if "drive" in d:
             t = _keys(d["drive"], _DRIVE, f"{where}: drive")
             dc = _names(t.get("carts", []), f"{where}: drive.carts")
@@ -184,6 +193,7 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                                  f"{list(dc)}, got {shares!r}")
             drive = tuple(Drive(c, s) for c, s in zip(dc, shares, strict=True))
             gain = t.get("gain_n_v")
+            input_kind = t.get("input", "voltage")
         sensors = None
         if "sensors" in d:
             sensors = []
@@ -191,12 +201,14 @@ def rig_from_dict(d: Mapping, *, where: str = "rig") -> Rig:
                 s = _keys(s, _SENSOR, f"{where}: sensors[{i}]")
                 if "cart" not in s:
                     raise ModelError(f"{where}: sensors[{i}] needs a cart")
-                sensors.append(Sensor(str(s["cart"]), s.get("unit", "m"), s.get("m_per_unit")))
+                sensors.append(Sensor(str(s["cart"]), s.get("unit", "m"), s.get("m_per_unit"),
+                                      s.get("sign", 1)))
         return Rig(carts=tuple(carts), springs=tuple(springs),
                    dampers=None if dampers is None else tuple(dampers), drive=drive,
                    sensors=None if sensors is None else tuple(sensors),
                    clamped=_names(d.get("clamped", []), f"{where}: clamped"),
-                   gain_n_v=gain, damping=damping, ties=_ties(d.get("ties", []), where),
+                   gain_n_v=gain, input=input_kind, damping=damping,
+                   ties=_ties(d.get("ties", []), where),
                    name=str(d.get("name", "")))
     except ModelError as exc:
         msg = str(exc)
@@ -237,10 +249,12 @@ def rig_to_dict(rig: Rig) -> dict:
     if rig.drive:
         d["drive"] = {"carts": [x.cart for x in rig.drive],
                       "shares": [x.share for x in rig.drive]}
-        if rig.gain_n_v is not None:
+        if rig.input == "force":
+            d["drive"]["input"] = "force"
+        elif rig.gain_n_v is not None:
             d["drive"]["gain_n_v"] = rig.gain_n_v
     d["sensors"] = [{"cart": s.cart, "unit": s.unit, "m_per_unit": s.m_per_unit}
-                    for s in rig.sensors]
+                    | ({"sign": -1} if s.sign < 0 else {}) for s in rig.sensors]
     if rig.ties:
         d["ties"] = [list(g) for g in rig.ties]
     return d

@@ -1,0 +1,158 @@
+"""Coverage of the 90 % intervals on a two-cart rig read by accelerometers under a force.
+
+Each replicate makes a hammer test with the independent reference simulator of
+``tests/accel_reference.py`` (equations of motion written by hand, ``solve_ivp``,
+accelerations from the right-hand side; white accelerometer noise and a logger's
+quantisation of force and accelerations), samples the posterior of the rig with both
+springs and both masses unknown (``[drive] input = "force"``, accelerometers in m/s^2,
+white-noise likelihood) with emcee, and records whether the 90 % equal-tailed intervals
+of the masses, stiffnesses, dampers, omega and zeta hold the truth.
+
+Usage::
+
+    python benchmarks/accel_coverage.py --replicates 100 --processes 2 --out cov.json
+
+The coverage of one quantity over R replicates has binomial standard error
+``sqrt(0.9 * 0.1 / R)`` (0.03 for R = 100); the target is 80-97 %.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+sys.path.insert(0, str(_HERE.parent / "tests"))
+
+import numpy as np  # noqa: E402
+from accel_reference import NAMES, measured_record  # noqa: E402
+
+#: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m), in NAMES order.
+TRUTH = np.array([1.5, 1.2, 1.2, 0.8, 0.3, 600.0, 450.0])
+GROUPS = ("mass", "stiffness", "damping", "omega", "zeta")
+
+
+@dataclass(frozen=True)
+class Config:
+    n_samples: int = 2000
+    dt: float = 0.004
+    n_walkers: int = 24
+    n_steps: int = 1500
+    burn: int = 500
+
+
+def rig():
+    from bayesmodal.model.system import Cart, Drive, Rig, Sensor, Spring
+
+    return Rig(carts=(Cart("1"), Cart("2")),
+               springs=(Spring("1", "2", 600.0, known=False, name="k1"),
+                        Spring("2", "frame", 450.0, known=False, name="k2")),
+               drive=(Drive("1"),), input="force",
+               sensors=(Sensor("1", "m/s^2"), Sensor("2", "m/s^2")))
+
+
+def quantities(model, theta: np.ndarray) -> dict[str, np.ndarray]:
+    """Masses, stiffnesses, dampers, omega and zeta of draws ``theta`` (S, 7)."""
+    from bayesmodal.inference import propagate_modes
+
+    ms = propagate_modes(model, theta, methods=("eig",))
+    return {"mass": theta[:, 0:2], "stiffness": theta[:, 5:7], "damping": theta[:, 2:5],
+            "omega": ms.omega_rad_s, "zeta": ms.zeta}
+
+
+def replicate(args: tuple[Config, int]) -> dict:
+    """One replicate: interval hits and widths per quantity group."""
+    cfg, seed = args
+    from bayesmodal.data import Experiment
+    from bayesmodal.inference import credible_interval, sample_posterior
+    from bayesmodal.model.system import LinearModel
+
+    model = LinearModel(rig(), "free")
+    assert model.names == NAMES
+    t, f, y = measured_record(TRUTH, np.random.default_rng([seed, 40]), n=cfg.n_samples,
+                              dt=cfg.dt)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # short chains; convergence is recorded below
+        run = sample_posterior(Experiment(t, f, y), model, noise="white",
+                               n_walkers=cfg.n_walkers, n_steps=cfg.n_steps, burn=cfg.burn,
+                               rng=seed, warn=False)
+    post = quantities(model, run.flat_draws[:, : model.n_params])
+    true = quantities(model, TRUTH[None])
+    hits, width = {}, {}
+    for k, s in post.items():
+        iv = credible_interval(s, 0.9)
+        hits[k] = iv.contains(true[k][0]).tolist()
+        width[k] = (iv.hi - iv.lo).tolist()
+    return {"seed": seed, "hits": hits, "width": width,
+            "converged": run.diagnostics.converged, "max_rhat": run.diagnostics.max_rhat,
+            "seconds": time.perf_counter() - t0}
+
+
+def run_coverage(cfg: Config, replicates: int, processes: int = 1, seed0: int = 0,
+                 progress: bool = False) -> list[dict]:
+    tasks = [(cfg, seed0 + r) for r in range(replicates)]
+    if processes > 1:
+        import multiprocessing as mp
+
+        with mp.get_context("fork").Pool(processes) as pool:
+            out = []
+            for i, res in enumerate(pool.imap_unordered(replicate, tasks)):
+                out.append(res)
+                if progress:
+                    print(f"\r{i + 1}/{len(tasks)}", end="", file=sys.stderr, flush=True)
+    else:
+        out = []
+        for i, task in enumerate(tasks):
+            out.append(replicate(task))
+            if progress:
+                print(f"\r{i + 1}/{len(tasks)}", end="", file=sys.stderr, flush=True)
+    if progress:
+        print(file=sys.stderr)
+    return out
+
+
+def tabulate(results: list[dict]) -> dict:
+    """Coverage per quantity group, pooled and per component."""
+    r = len(results)
+    table = {"replicates": r,
+             "converged_fraction": float(np.mean([x["converged"] for x in results])),
+             "se": float(np.sqrt(0.9 * 0.1 / r))}
+    for k in GROUPS:
+        h = np.array([x["hits"][k] for x in results], dtype=float)
+        table[k] = {"coverage": float(h.mean()), "per_component": h.mean(axis=0).tolist()}
+    return table
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--replicates", type=int, default=100)
+    p.add_argument("--processes", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--steps", type=int, default=Config.n_steps)
+    p.add_argument("--burn", type=int, default=Config.burn)
+    p.add_argument("--walkers", type=int, default=Config.n_walkers)
+    p.add_argument("--out", default=None, help="write the raw results and table as JSON")
+    a = p.parse_args(argv)
+    cfg = Config(n_walkers=a.walkers, n_steps=a.steps, burn=a.burn)
+    res = run_coverage(cfg, a.replicates, a.processes, progress=True)
+    table = tabulate(res)
+    print(f"{table['replicates']} replicates (converged {100 * table['converged_fraction']:.0f}"
+          f" %), binomial se {100 * table['se']:.1f} %; 90 % intervals cover:")
+    for k in GROUPS:
+        pc = ", ".join(f"{100 * c:.0f}" for c in table[k]["per_component"])
+        print(f"  {k:9s} {100 * table[k]['coverage']:.0f} % ({pc})")
+    if a.out:
+        Path(a.out).write_text(json.dumps({"config": cfg.__dict__, "table": table,
+                                           "results": res}, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

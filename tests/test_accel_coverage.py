@@ -1,0 +1,60 @@
+"""Known-truth checks on a two-cart rig read by accelerometers under a measured force.
+
+The data come from the independent reference simulator of ``tests/accel_reference.py``;
+the full coverage study (100 replicates) is ``benchmarks/accel_coverage.py``, reported
+in docs/accelerometers.md.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from accel_reference import measured_record, simulate
+
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _benchmark():
+    path = REPO / "benchmarks" / "accel_coverage.py"
+    spec = importlib.util.spec_from_file_location("bayesmodal_accel_coverage", path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up while being created
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_reference_agrees_with_the_package_simulator():
+    """The two simulators agree to the reference integrator's tolerance (rtol 1e-10 per
+    step, at most about a hundred DOP853 steps between hits: 1e-8 of the largest
+    acceleration): a check of the reference itself before it is trusted."""
+    cov = _benchmark()
+    model = LinearModel(cov.rig(), "free")
+    t, f, _ = measured_record(cov.TRUTH, np.random.default_rng(0), n=1000)
+    ref = simulate(cov.TRUTH, f, 0.004)
+    ours = simulate_linear(model, cov.TRUTH, f, 0.004)
+    assert np.max(np.abs(ours - ref)) < 1e-8 * np.max(np.abs(ref))
+    # negative control: a 1 % heavier cart 1 is far outside that
+    off = simulate_linear(model, cov.TRUTH * np.r_[1.01, np.ones(6)], f, 0.004)
+    assert np.max(np.abs(off - ref)) > 1e-3 * np.max(np.abs(ref))
+
+
+@pytest.mark.slow
+def test_reduced_coverage_of_the_90_percent_intervals():
+    """Ten replicates: the pooled coverage of the 11 quantities (masses, stiffnesses,
+    dampers, omega, zeta) within 3 binomial standard errors of 90 % (pooling correlated
+    quantities narrows the error little, so the single-quantity error is used)."""
+    cov = _benchmark()
+    r = 10
+    cfg = cov.Config(n_walkers=24, n_steps=1200, burn=400)
+    res = cov.run_coverage(cfg, r, processes=1, seed0=5000)
+    hits = np.concatenate([np.concatenate([np.ravel(x["hits"][k]) for k in cov.GROUPS])
+                           for x in res])
+    se = np.sqrt(0.9 * 0.1 / r)
+    assert abs(hits.mean() - 0.9) < 3 * se, cov.tabulate(res)

@@ -1,0 +1,79 @@
+"""docs/accelerometers.md says true things about the records it uses.
+
+The records ``data/accel_hammer.csv`` and ``data/accel_sweep.csv`` are made by
+``data/make_accel_examples.py`` from the rig of ``data/accel_rig.toml``; tests/test_docs.py
+runs the page's commands, this file checks what the page claims about them.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesmodal.data import load_experiment, options_for_rig
+from bayesmodal.fit import fit_lsq
+from bayesmodal.modal import state_space_modes
+from bayesmodal.model.rigs import load_rig
+from bayesmodal.model.system import LinearModel
+from bayesmodal.reading import ReadOptions
+
+REPO = Path(__file__).resolve().parents[1]
+PAGE = REPO / "docs" / "accelerometers.md"
+RIG = REPO / "data" / "accel_rig.toml"
+
+
+def _maker():
+    spec = importlib.util.spec_from_file_location("make_accel_examples",
+                                                  REPO / "data" / "make_accel_examples.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _read(name):
+    rig = load_rig(RIG)
+    path = REPO / "data" / name
+    return rig, load_experiment(path, options=options_for_rig(ReadOptions(), rig, path))
+
+
+def test_page_shows_lines_of_the_rig_file():
+    shown = re.search(r"^```toml\n(.*?)^```$", PAGE.read_text(encoding="utf-8"),
+                      re.M | re.S).group(1)
+    rig_text = RIG.read_text(encoding="utf-8")
+    for line in shown.splitlines():
+        assert line in rig_text, line
+
+
+@pytest.mark.parametrize("name, make", [("accel_hammer.csv", "hammer"),
+                                        ("accel_sweep.csv", "sweep")])
+def test_records_are_what_the_script_makes(name, make):
+    """Equal to the script's output within one logger step (the simulation's round-off
+    may move a value across a step boundary on another machine)."""
+    mod = _maker()
+    made = getattr(mod, make)()
+    _, e = _read(name)
+    np.testing.assert_allclose(e.t_s, made.t_s, atol=1e-12)
+    assert np.max(np.abs(e.v_volt - made.v_volt)) <= mod.STEP_FORCE * 1.000001
+    assert np.max(np.abs(e.y_m - made.y_m)) <= mod.STEP_ACC * 1.000001
+    # (the file keeps 6 digits of values on the logger's steps)
+    assert np.mean(np.isclose(e.y_m, made.y_m, rtol=1e-6, atol=1e-12)) > 0.99
+
+
+def test_quoted_truth_and_fit():
+    mod = _maker()
+    rig, e = _read("accel_hammer.csv")
+    model = LinearModel(rig, "free")
+    truth = np.array([mod.TRUE[n] for n in model.names])
+    modes = state_space_modes(model, truth)
+    np.testing.assert_allclose(modes.omega_rad_s, [11.45, 33.82], atol=0.005)
+    np.testing.assert_allclose(modes.zeta, [0.0341, 0.0168], atol=0.00005)
+    res = fit_lsq(e, model)
+    rel = np.abs(res.theta - truth) / truth
+    assert np.all(rel[:2] < 2e-4) and np.all(rel[2:] < 1e-2)
+    z = (res.theta - truth) / res.stderr
+    assert abs(z[1]) == pytest.approx(7.6, abs=0.05)
+    assert abs(rel[1] * 100) == pytest.approx(0.016, abs=0.0005)
