@@ -32,6 +32,7 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 sys.path.insert(0, str(_HERE.parent / "tests"))
 
 import numpy as np  # noqa: E402
+from _replicates import map_replicates  # noqa: E402
 from accel_reference import NAMES, measured_record  # noqa: E402
 
 #: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m), in NAMES order.
@@ -99,24 +100,7 @@ def replicate(args: tuple[Config, int]) -> dict:
 def run_coverage(cfg: Config, replicates: int, processes: int = 1, seed0: int = 0,
                  progress: bool = False) -> list[dict]:
     tasks = [(cfg, seed0 + r) for r in range(replicates)]
-    if processes > 1:
-        import multiprocessing as mp
-
-        with mp.get_context("fork").Pool(processes) as pool:
-            out = []
-            for i, res in enumerate(pool.imap_unordered(replicate, tasks)):
-                out.append(res)
-                if progress:
-                    print(f"\r{i + 1}/{len(tasks)}", end="", file=sys.stderr, flush=True)
-    else:
-        out = []
-        for i, task in enumerate(tasks):
-            out.append(replicate(task))
-            if progress:
-                print(f"\r{i + 1}/{len(tasks)}", end="", file=sys.stderr, flush=True)
-    if progress:
-        print(file=sys.stderr)
-    return out
+    return map_replicates(replicate, tasks, processes, progress)
 
 
 def tabulate(results: list[dict]) -> dict:

@@ -32,8 +32,10 @@ from pathlib import Path
 # ``coverage`` package that numba probes at import; drop the folder from the path.
 _HERE = Path(__file__).resolve().parent
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+sys.path.insert(0, str(_HERE.parent / "tests"))
 
 import numpy as np  # noqa: E402
+from _replicates import map_replicates  # noqa: E402
 
 #: True parameters (proportional damping; free damping uses TRUTH_FREE).
 TRUTH_PROPORTIONAL = (6.2, 1.57, 1.46, 1.14, 1.6, 1e-4)
@@ -120,24 +122,7 @@ def replicate(args: tuple[Config, str, int]) -> dict:
 def run_coverage(cfg: Config, settings, replicates: int, processes: int = 1,
                  seed0: int = 0, progress: bool = False) -> list[dict]:
     tasks = [(cfg, s, seed0 + r) for s in settings for r in range(replicates)]
-    if processes > 1:
-        import multiprocessing as mp
-
-        with mp.get_context("fork").Pool(processes) as pool:
-            out = []
-            for i, res in enumerate(pool.imap_unordered(replicate, tasks)):
-                out.append(res)
-                if progress:
-                    print(f"\r{i + 1}/{len(tasks)}", end="", file=sys.stderr, flush=True)
-    else:
-        out = []
-        for i, task in enumerate(tasks):
-            out.append(replicate(task))
-            if progress:
-                print(f"\r{i + 1}/{len(tasks)}", end="", file=sys.stderr, flush=True)
-    if progress:
-        print(file=sys.stderr)
-    return out
+    return map_replicates(replicate, tasks, processes, progress)
 
 
 def tabulate(results: list[dict]) -> dict:
