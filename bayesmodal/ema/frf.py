@@ -491,6 +491,31 @@ def step_increments(u, y) -> tuple[np.ndarray, np.ndarray]:
     return np.diff(u, prepend=u[:1]), np.diff(y, axis=0, prepend=y[:1])
 
 
+def summed_spectra(segments, n_fft: int):
+    """Auto and cross spectra summed over input-output segments (zero-padded FFTs).
+
+    Parameters
+    ----------
+    segments : iterable of (ndarray (L,), ndarray (L, n_out))
+        Input and output samples of each segment (windowed as wanted).
+    n_fft : int
+        FFT length, at least the longest segment.
+
+    Returns
+    -------
+    Suu : ndarray, shape (n_fft // 2 + 1,)
+    Syu, Syy : ndarray, shape (n_fft // 2 + 1, n_out)
+    """
+    Suu = Syu = Syy = 0.0
+    for useg, yseg in segments:
+        U = np.fft.rfft(useg, n_fft)
+        Y = np.fft.rfft(yseg, n_fft, axis=0)
+        Suu = Suu + np.abs(U) ** 2
+        Syu = Syu + Y * U.conj()[:, None]
+        Syy = Syy + np.abs(Y) ** 2
+    return Suu, Syu, Syy
+
+
 def pulse_frf(
     u,
     y,
@@ -556,16 +581,10 @@ def pulse_frf(
         n_fft = int(pad) * longest
     if n_fft < longest:
         raise DataError(f"n_fft = {n_fft} is shorter than the longest segment ({longest})")
-    Suu = 0.0
-    Syu = 0.0
-    Syy = 0.0
-    for a, b in zip(starts, stops, strict=True):
-        ys = y[a:b] - (y[a] if baseline else 0.0)
-        U = np.fft.rfft(u[a:b], n_fft)
-        Y = np.fft.rfft(ys, n_fft, axis=0)
-        Suu = Suu + np.abs(U) ** 2
-        Syu = Syu + Y * U.conj()[:, None]
-        Syy = Syy + np.abs(Y) ** 2
+    Suu, Syu, Syy = summed_spectra(
+        ((u[a:b], y[a:b] - (y[a] if baseline else 0.0)) for a, b in zip(starts, stops,
+                                                                          strict=True)),
+        n_fft)
     w = 2 * np.pi * np.fft.rfftfreq(n_fft, dt)
     # every frequency of the grid is kept (impulse_response needs the whole grid); where
     # the input has no energy at all H is set to 0 and input_power is 0, so that

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import DataError
-from .frf import ESTIMATORS, FRF, _check_io, _estimate, zoh_factor
+from .frf import ESTIMATORS, FRF, _check_io, _estimate, summed_spectra, zoh_factor
 from .result import ModalEstimate
 
 __all__ = ["Impacts", "correct_exponential_window", "find_impacts", "force_window",
@@ -224,13 +224,8 @@ def impact_frf(
     if n_fft < length:
         raise DataError(f"n_fft = {n_fft} is shorter than the segments ({length})")
     win = np.ones(length) if tau_s is None else np.exp(-np.arange(length) * dt / tau_s)
-    Suu = Syu = Syy = 0.0
-    for a in starts:
-        U = np.fft.rfft(fw[a : a + length] * win, n_fft)
-        Y = np.fft.rfft(y[a : a + length] * win[:, None], n_fft, axis=0)
-        Suu = Suu + np.abs(U) ** 2
-        Syu = Syu + Y * U.conj()[:, None]
-        Syy = Syy + np.abs(Y) ** 2
+    Suu, Syu, Syy = summed_spectra(
+        ((fw[a : a + length] * win, y[a : a + length] * win[:, None]) for a in starts), n_fft)
     w = 2 * np.pi * np.fft.rfftfreq(n_fft, dt)
     keep = w > 0
     with np.errstate(divide="ignore", invalid="ignore"):
