@@ -632,6 +632,12 @@ class Rig:
         """1-based position of a cart in ``carts`` (its parameter number)."""
         return [c.name for c in self.carts].index(name) + 1
 
+    @property
+    def sensor_dofs(self) -> np.ndarray:
+        """Degree of freedom each sensor measures, shape (n_outputs,), in sensor order."""
+        free = self.free_carts
+        return np.array([free.index(s.cart) for s in self.sensors])
+
     def output_matrix(self) -> np.ndarray:
         """Which cart each sensor reads, shape (n_outputs, n_carts): ``y = C_out x`` for
         position sensors (m), ``C_out x'`` for velocity and ``C_out x''`` for acceleration
@@ -802,7 +808,7 @@ def _layout(rig: Rig, damping: str) -> _Layout:
             k_pat.append(pat)
             names.append(s.name)
             positive.append(True)
-    outputs = np.array([free.index(s.cart) for s in rig.sensors])
+    outputs = rig.sensor_dofs
     if (outputs.size == n and np.array_equal(outputs, np.arange(n))
             and rig.positions_only):
         outputs = None

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..._errors import ModelError
 from ..system import LinearModel, Rig, state_space_from
 
 
@@ -61,7 +60,7 @@ def kernel_order(rig: Rig) -> KernelOrder:
     d = driven[0] if len(driven) == 1 else None
     perm = np.arange(n) if d is None else np.r_[d, [i for i in range(n) if i != d]]
     inverse = np.argsort(perm)
-    outputs = np.array([free.index(s.cart) for s in rig.sensors])
+    outputs = rig.sensor_dofs
     if outputs.size == n and np.array_equal(outputs, np.arange(n)):
         outputs = None
     springs, index = [], []
@@ -72,18 +71,6 @@ def kernel_order(rig: Rig) -> KernelOrder:
             index.append(i)
     return KernelOrder(perm, inverse, bool(np.array_equal(perm, np.arange(n))), d, outputs,
                        tuple(springs), tuple(index))
-
-
-def require_one_drive(rig: Rig, what: str) -> int:
-    """The driven degree of freedom; ModelError unless the motor drives exactly one cart."""
-    d = kernel_order(rig).driven
-    if d is None:
-        carts = [dr.cart for dr in rig.drive if dr.share != 0.0]
-        raise ModelError(
-            f"{what} acts at the driven cart, and this rig's motor drives "
-            f"{'no cart' if not carts else 'carts ' + ', '.join(carts)}; describe a rig "
-            "whose [drive] has exactly one cart")
-    return d
 
 
 def to_kernel(order: KernelOrder, a: np.ndarray, axis: int = -1) -> np.ndarray:

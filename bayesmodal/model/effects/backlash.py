@@ -22,16 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..._errors import ModelError
 from ..kernels import backlash_run, expm_batched, zoh
 from ..system import LinearModel, Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
-from ._linear import kernel_order, linear_parts, parts_from, require_one_drive
-
-
-def _driven_mass(rig: Rig, theta_lin: np.ndarray) -> np.ndarray:
-    """Mass of the driven cart with the motor, kg, shape (...,)."""
-    d = require_one_drive(rig, "backlash")
-    return LinearModel(rig, "free").matrices(theta_lin)[0][..., d, d]
+from ._linear import kernel_order, linear_parts, parts_from
 
 
 @dataclass(frozen=True)
@@ -70,7 +65,12 @@ class Backlash(Extension):
     def _valid_extension(self, rig, theta_lin, theta_ext):
         gap, m_p = theta_ext[..., 0], theta_ext[..., 1]
         ok = np.isfinite(gap) & np.isfinite(m_p) & (gap >= 0) & (m_p > 0)
-        return ok & (m_p < _driven_mass(rig, theta_lin))
+        why = self.unsupported(rig)
+        if why:
+            raise ModelError(why)
+        # the mass of the driven cart with the motor, kg
+        d = kernel_order(rig).driven
+        return ok & (m_p < LinearModel(rig, "free").matrices(theta_lin)[0][..., d, d])
 
     def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
         h = dt / self.n_sub
