@@ -18,7 +18,7 @@ from .._errors import ConfigError, DataError, ModelError, one_line
 
 #: Sub-command modules, in help order.
 COMMANDS = ("report", "inspect", "lsq", "static", "modal", "bench", "sample", "compare", "ema",
-            "diagnose", "crossval", "run", "batch", "rerun")
+            "diagnose", "identify", "crossval", "run", "batch", "rerun")
 
 
 class CLIError(Exception):

@@ -27,6 +27,8 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..data import Experiment
+from ..fit.effects import fit_extension_lsq
+from ..model.effects import get_extension
 from .coverage_reference import calibration_summary
 from .noise_spec import parse_noise
 from .predictive import PredictiveScores, predict_new_record, score_samples
@@ -317,18 +319,26 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
 
 
 def _own_lsq(spec: CrossvalSpec, exps: Sequence[Experiment]) -> dict:
-    """Each record's own least-squares estimates of g_v, omega and zeta."""
+    """Each record's own least-squares estimates of g_v, omega and zeta, by the model the
+    study samples (with its extension: a linear fit's damping ratios carry what the
+    extension explains, e.g. dry friction read as viscous damping)."""
     from ..fit.linear import fit_lsq
     from .propagate import propagate_modes
 
     model = _model(spec)
+    ext = None if spec.extension is None else get_extension(spec.extension)
     out = {}
     for e in exps:
         fit = fit_lsq([e], model)
-        ms = propagate_modes(model, fit.theta[None], methods=("eig",))
-        out[e.name] = {"g_v": float(fit.theta[0]),
+        theta, fp = fit.theta, fit.fit_percent
+        if ext is not None:
+            xfit = fit_extension_lsq([e], ext, model.rig, linear=fit,
+                                     damper_scales=(1.0, 0.3))
+            theta, fp = xfit.theta[: model.n_params], xfit.fit_percent
+        ms = propagate_modes(model, theta[None], methods=("eig",))
+        out[e.name] = {"g_v": float(theta[0]),
                        "omega_rad_s": ms.omega_rad_s[0].tolist(), "zeta": ms.zeta[0].tolist(),
-                       "fit_percent": np.asarray(fit.fit_percent).ravel().tolist()}
+                       "fit_percent": np.asarray(fp).ravel().tolist()}
     return out
 
 

@@ -26,11 +26,16 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ConfigError, DataError, one_line
+from .._progress import progress_bar
+from .._window import motion_at_start, offset_at_rest
 from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
+from ..fit.linear import fit_lsq
 from ..inference.moves import parse_moves
 from ..inference.noise_spec import parse_noise
+from ..inference.records import RecordsLikelihood, choose_noise, record_priors
 from ..metrics import fit_percent
+from ..model.effects import get_extension
 from ..model.system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
@@ -106,7 +111,6 @@ def _prior(ov):
 
 
 def _check_window_rest(e: Experiment) -> None:
-    from .._window import motion_at_start
 
     why = motion_at_start(e.y_m, e.v_volt, e.dt)
     if why:
@@ -116,7 +120,6 @@ def _check_window_rest(e: Experiment) -> None:
 
 
 def _check_offset(e: Experiment) -> None:
-    from .._window import offset_at_rest
 
     why = offset_at_rest(e.y_m, e.v_volt)
     if why:
@@ -181,7 +184,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         # several effects make one combined model, named "a+b" (extensions.Combined)
         extension = "+".join(cfg.extensions)
         try:
-            from ..model.effects import get_extension
 
             get_extension(extension)
         except ValueError as exc:
@@ -194,8 +196,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     spec = parse_noise(cfg.noise)
     noise = spec.name
     if spec.kind == "ar:auto":
-        from ..fit.linear import fit_lsq
-        from ..inference.records import choose_noise
 
         if extension is not None:
             raise ConfigError(f"{src}: [likelihood.noise] 'ar:auto' is built for the linear "
@@ -205,7 +205,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         base = default_priors(model, noise=noise, n_outputs=model.n_carts,
                               extension=extension)
     else:
-        from ..inference.records import RecordsLikelihood, record_priors
 
         try:
             base = record_priors(RecordsLikelihood(model, exps, noise, extension, layout))
@@ -319,7 +318,6 @@ class _Stages:
     disabled)."""
 
     def __init__(self, names, enabled: bool, title: str) -> None:
-        from .._progress import progress_bar
 
         self.bar = progress_bar(len(names), desc=title, unit="stage", enabled=enabled)
 
@@ -353,7 +351,6 @@ def _verdict_detail(diag: dict) -> str:
 
 def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolder,
                   progress: bool) -> dict:
-    from .._progress import progress_bar
     from .crosscheck import lsce_check, residual_check
     from .plots import plot_residual_acf, plot_residuals
 
@@ -507,7 +504,6 @@ def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
     percentages at the posterior median against the linear least-squares fit."""
     if prep.extension is None:
         return {}
-    from ..metrics import fit_percent
 
     lik = run.likelihood
     ext = lik.extension
@@ -600,7 +596,7 @@ def _config_text(cfg: RunConfig) -> str:
 
 
 def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
-              t_start: float, started: str, caught: list) -> dict:
+              t_start: float, started: str, caught: list, start=None) -> dict:
     from .. import __version__
     from ..inference import sample_posterior, to_inference_data, write_run
     from .provenance import data_digests, dependency_versions
@@ -623,7 +619,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                 moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
                 warn=False, extension=prep.extension, restart=cfg.restart, prune=cfg.prune,
                 layout=cfg.layout, temperature=temperature, init=cfg.init,
-                threads=cfg.threads)
+                threads=cfg.threads, start=start)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
@@ -687,7 +683,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
 
 
 def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bool = False,
-                force: bool = False, progress: bool = False) -> RunOutcome:
+                force: bool = False, progress: bool = False, start=None) -> RunOutcome:
     """Sample a prepared configuration into ``out_dir``.
 
     Parameters
@@ -703,6 +699,9 @@ def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bo
         Start over, deleting the run files already in the folder.
     progress : bool
         Progress bars (tqdm) on stderr.
+    start : ndarray, shape (n_mechanical,), optional
+        Where the sampler's start search begins (the model's parameters, e.g. a fit the
+        caller already has); default the least-squares fit.  Ignored by a resumed chain.
 
     Returns
     -------
@@ -738,7 +737,8 @@ def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bo
             folder.write_status("running", config=cfg.name, config_hash=chash,
                                 steps=cfg.steps, started=started, action=action)
             try:
-                summary = _pipeline(prepared, folder, action, progress, t0, started, caught)
+                summary = _pipeline(prepared, folder, action, progress, t0, started, caught,
+                                    start)
             except BaseException as exc:
                 logger.exception("run failed")
                 folder.write_status("failed", error=f"{type(exc).__name__}: {exc}",

@@ -137,6 +137,10 @@ class Extension(ABC):
     #: Parameters of a realistic size on the three-cart rig ``Rig()`` (benchmarks and
     #: tests), in ``extension_names`` order.
     typical: tuple[float, ...] = ()
+    #: The effect a posterior samples in this one's place, when this one's likelihood is
+    #: too rough for a sampler (stick-slip friction's has narrow spikes that trap walkers):
+    #: a registry name with the same parameters and more, or None (sampled as it is).
+    sampled_as: str | None = None
 
     #: What the effect needs on the rig: ``""`` (any rig), ``"drive"`` (a motor on at least
     #: one cart: every input-side effect needs one) or ``"one_drive"`` (a motor on exactly one cart:

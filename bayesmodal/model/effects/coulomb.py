@@ -76,6 +76,10 @@ class CoulombFriction(Extension):
     name = "coulomb_friction"
     signatures = ("friction", "stick", "decay", "consistency", "amplitude_damping")
     typical = (0.1, 0.15, 0.08, 0.15, 0.2, 0.12)
+    #: the stick-slip posterior has spikes 25-30 nats above its bulk (R-hat 1.8 after
+    #: 15 000 steps on the measured records); LuGre's levels Fc, Fs are the same forces
+    #: with a continuous likelihood (runs/records_friction.toml)
+    sampled_as = "lugre_friction"
     description = "per-cart Coulomb friction with stick-slip (static level Fs >= Fc)"
     exact = False
     #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the

@@ -1,0 +1,389 @@
+"""From records to modal parameters a user can trust: one workflow, stage by stage.
+
+:func:`identify` takes the linear model's run configuration (its records, rig, noise and
+sampler) and, each stage in its own place in the output folder, so that an interrupted
+workflow continues where it stopped:
+
+1. ``linear/``: the linear model's posterior, residual checks and leave-one-record-out
+   check (``bayesmodal run`` of that configuration);
+2. ``diagnosis.json``: what the linear model gets wrong and why (``diagnose``: forward
+   selection of the effects by held-out gain, on the training records);
+3. ``final/``: the joint posterior of the model the diagnosis found (the linear core with
+   its effects), warm-started from the diagnosis' fit, with its own leave-one-record-out
+   check; skipped when the diagnosis found nothing;
+4. ``identify.json`` and ``report.html``: the rig's modal parameters from that model
+   with intervals, the linear model's beside them, the causes with their held-out gains,
+   and each held-out record's own estimate against the interval for it.
+
+What the diagnosis does on its own where the records call for it (``DiagnosisSpec``):
+the records are weighed by their spread when there are several (otherwise the record
+held longest away from rest outweighs the others), the record that drives the carts
+furthest is cut at its rests (so that an effect only it reaches, such as an end stop, is
+tested on parts of itself), and the end stop of the driven cart is a candidate wherever
+the rig has one driven cart.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import ConfigError
+from .._json import to_jsonable
+from ..config import RunConfig
+from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
+from ..inference.threads import resolve_threads
+from ..model.effects import EXTENSIONS, get_extension
+from ..segments import split_at_rest, split_records
+from .folder import RunFolder, atomic_write_json, now_iso
+from .identify_summary import summarize, write_identify_report
+from .runner import execute_run, prepare_run
+
+__all__ = ["DiagnosisSpec", "FinalSpec", "IdentifySpec", "IdentifyOutcome", "identify",
+           "final_config", "warm_start", "diagnosis_records", "sampled_effects"]
+
+#: Stages in order, as named in progress lines and ``identify.json``.
+STAGES = ("linear", "diagnosis", "final", "summary")
+
+
+@dataclass(frozen=True)
+class DiagnosisSpec:
+    """How the diagnosis stage runs ``diagnose`` (its options of the same names).
+
+    Attributes
+    ----------
+    n_null : int
+        Null data sets of the calibration (19 is the least a 5 % test allows).
+    max_effects : int
+        Largest number of effects forward selection puts in the model.
+    candidates : tuple of str or None
+        The effects tried; None: ``DEFAULT_CANDIDATES`` plus the end stop of the driven
+        cart where the rig has exactly one.
+    weights : {"auto", "none", "spread"}
+        ``"auto"``: ``"spread"`` with several training records, else ``"none"``.
+    split : {"auto", "none"}
+        ``"auto"``: cut the record whose driven cart moves furthest at its rests (when it
+        has rests and there are other records), so that its parts predict each other.
+    seed : int
+    n_starts : int
+    global_search : bool
+    """
+
+    n_null: int = 19
+    max_effects: int = 4
+    candidates: tuple[str, ...] | None = None
+    weights: str = "auto"
+    split: str = "auto"
+    seed: int = 0
+    n_starts: int = 3
+    global_search: bool = True
+
+    def __post_init__(self) -> None:
+        if self.weights not in ("auto", "none", "spread"):
+            raise ConfigError(f"diagnosis weights must be auto, none or spread, got "
+                              f"{self.weights!r}")
+        if self.split not in ("auto", "none"):
+            raise ConfigError(f"diagnosis split must be auto or none, got {self.split!r}")
+        if self.n_null < 19:
+            raise ConfigError(f"diagnosis n_null must be >= 19 (a 5 % test), got {self.n_null}")
+        if self.max_effects < 1:
+            raise ConfigError(f"diagnosis max_effects must be >= 1, got {self.max_effects}")
+
+
+@dataclass(frozen=True)
+class FinalSpec:
+    """The sampler of the found model's posterior (``[sampler]`` keys of a run config).
+
+    The defaults are those that converge on the measured ECP records
+    (``runs/records_friction.toml``): walkers started at the posterior mode, a
+    mode-jumping move, stranded walkers pruned after ``prune`` steps.  ``per_record``
+    None keeps the linear configuration's; ``crossval`` None too.
+    """
+
+    walkers: int = 56
+    steps: int = 12000
+    burn: int = 1000
+    thin: int = 616
+    prune: int | None = 500
+    moves: str = "de:0.8,de-jump:0.2"
+    init: str = "laplace"
+    threads: int | str = "auto"
+    per_record: dict | None = None
+    crossval: bool | None = None
+    crossval_steps: int | None = None
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.burn < self.steps:
+            raise ConfigError(f"final burn must be in [0, steps), got burn {self.burn}, "
+                              f"steps {self.steps}")
+
+
+@dataclass(frozen=True)
+class IdentifySpec:
+    """One identification: the linear run, the diagnosis and the final model's sampler.
+
+    Attributes
+    ----------
+    linear : RunConfig
+        The linear model's run configuration (records, rig, noise, layout, sampler).
+    diagnosis : DiagnosisSpec
+    final : FinalSpec
+    """
+
+    linear: RunConfig
+    diagnosis: DiagnosisSpec = field(default_factory=DiagnosisSpec)
+    final: FinalSpec = field(default_factory=FinalSpec)
+
+    def diagnosis_key(self) -> str:
+        """What the diagnosis depends on: the linear configuration and its options."""
+        blob = json.dumps({"linear": self.linear.hash(), "diagnosis": asdict(self.diagnosis)},
+                          sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class IdentifyOutcome:
+    """What :func:`identify` produced.
+
+    Attributes
+    ----------
+    out_dir : Path
+    summary : dict
+        ``identify.json``'s content.
+    stage_s : dict
+        Wall time of each stage this call ran, s (0 for a stage reused from the folder).
+    """
+
+    out_dir: Path
+    summary: dict
+    stage_s: dict
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(f"identify: {text}", file=sys.stderr, flush=True)
+
+
+def diagnosis_records(experiments, rig, spec: DiagnosisSpec):
+    """The records the diagnosis fits: cut as ``spec.split`` says, with the training
+    indices (all of them).
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        The run's records.
+    rig : Rig
+        Tells which output reads the driven cart.
+    spec : DiagnosisSpec
+
+    Returns
+    -------
+    experiments : list of Experiment
+    train : list of int
+    split : list of str
+        Names of the records cut at rest (empty when none was).
+    """
+    exps = list(experiments)
+    train = list(range(len(exps)))
+    if spec.split == "none" or len(exps) < 2:
+        return exps, train, []
+    drive = _driven_output(rig)
+    peaks = [float(np.max(np.abs(e.y_m[:, drive]))) for e in exps]
+    k = int(np.argmax(peaks))
+    if sum(p == peaks[k] for p in peaks) > 1:
+        return exps, train, []
+    try:
+        parts = split_at_rest(exps[k])
+    except ConfigError:
+        return exps, train, []
+    if len(parts) < 2:
+        return exps, train, []
+    cut, train = split_records(exps, [k], train)
+    return cut, train, [exps[k].name]
+
+
+def _driven_output(rig) -> int:
+    """The output reading the driven cart (the first driven one), else the first."""
+    driven = np.flatnonzero(rig.input_vector())
+    hits = np.flatnonzero(rig.sensor_dofs == driven[0]) if driven.size else []
+    return int(hits[0]) if len(hits) else 0
+
+
+def _candidates(rig, spec: DiagnosisSpec) -> list[str]:
+    if spec.candidates is not None:
+        return list(spec.candidates)
+    out = list(DEFAULT_CANDIDATES)
+    if "end_stop" not in out and EXTENSIONS["end_stop"].unsupported(rig) is None:
+        out.append("end_stop")
+    return out
+
+
+def sampled_effects(effects) -> tuple[str, ...]:
+    """The effects the posterior samples for the diagnosis' ``effects``: each replaced by
+    its ``sampled_as`` twin where it has one (stick-slip friction by LuGre friction).
+
+    Parameters
+    ----------
+    effects : sequence of str
+        Registry names (``Diagnosis.effects``).
+
+    Returns
+    -------
+    tuple of str
+    """
+    return tuple(EXTENSIONS[e].sampled_as or e for e in effects)
+
+
+def warm_start(rig, effects: tuple[str, ...], diagnosis: dict) -> np.ndarray:
+    """The final model's parameter vector at the diagnosis' fit: its linear parameters
+    within the found model, and every effect parameter the diagnosis fitted (a twin's
+    extra parameters at their null values).
+
+    Parameters
+    ----------
+    rig : Rig
+    effects : tuple of str
+        The sampled effects (``sampled_effects``).
+    diagnosis : dict
+        ``Diagnosis.as_dict()``.
+
+    Returns
+    -------
+    ndarray, shape (n_params,)
+    """
+    ext = get_extension(list(effects))
+    lin_names = ext.linear_model(rig).names
+    lin = np.array([diagnosis["linear_parameters"][n]["after"] for n in lin_names])
+    theta = ext.null_theta(rig, lin)
+    names = ext.names(rig)
+    for name, iv in diagnosis["parameters"].items():
+        if name in names:
+            theta[names.index(name)] = iv["median"]
+    return ext.check(rig, theta)
+
+
+def final_config(spec: IdentifySpec, effects: tuple[str, ...]) -> RunConfig:
+    """The run configuration of the found model: the linear one with ``effects`` and the
+    final sampler (``spec.final``).
+
+    Parameters
+    ----------
+    spec : IdentifySpec
+    effects : tuple of str
+        The sampled effects (``sampled_effects``).
+
+    Returns
+    -------
+    RunConfig
+        Named ``<linear name>_final``.
+    """
+    f = spec.final
+    base = spec.linear
+    return replace(
+        base, name=f"{base.name}_final", extensions=tuple(effects), walkers=f.walkers,
+        steps=f.steps, burn=f.burn, thin=f.thin, prune=f.prune, moves=f.moves, init=f.init,
+        threads=resolve_threads(f.threads), restart=None,
+        per_record=dict(base.per_record if f.per_record is None else f.per_record),
+        crossval=base.crossval if f.crossval is None else f.crossval,
+        crossval_steps=base.crossval_steps if f.crossval_steps is None else f.crossval_steps,
+        out_dir="")
+
+
+def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> dict:
+    """The diagnosis stage: ``diagnosis.json`` (reused when its key matches)."""
+    path = folder.path / "diagnosis.json"
+    key = spec.diagnosis_key()
+    if path.is_file():
+        old = json.loads(path.read_text(encoding="utf-8"))
+        if old.get("key") == key:
+            return old
+    rig = prep.model.rig
+    d = spec.diagnosis
+    exps, train, cut = diagnosis_records(prep.experiments, rig, d)
+    weights = d.weights if d.weights != "auto" else ("spread" if len(train) > 1 else "none")
+    t0 = time.perf_counter()
+    res = diagnose(exps, rig=rig, train=train, candidates=_candidates(rig, d),
+                   n_null=d.n_null, posterior=False, rng=d.seed, n_starts=d.n_starts,
+                   max_effects=d.max_effects, global_search=d.global_search,
+                   progress=progress, weights=weights)
+    out = {"key": key, "finished": now_iso(), "elapsed_s": time.perf_counter() - t0,
+           "split_at_rest": cut, "weights": weights,
+           "candidates": _candidates(rig, d), "diagnosis": res.as_dict()}
+    atomic_write_json(path, to_jsonable(out))
+    return out
+
+
+def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
+             progress: bool = False) -> IdentifyOutcome:
+    """Run the identification workflow into ``out_dir`` (module docstring), resuming
+    every stage already done there.
+
+    Parameters
+    ----------
+    spec : IdentifySpec
+    out_dir : str or path
+        The workflow's folder (created): ``linear/``, ``diagnosis.json``, ``final/``,
+        ``identify.json``, ``report.html``.
+    force : bool
+        Start every stage over (the folder's runs are deleted).
+    progress : bool
+        One line per stage on stderr, and the stages' own progress.
+
+    Returns
+    -------
+    IdentifyOutcome
+
+    Raises
+    ------
+    ConfigError
+        The linear configuration does not fit its data, or a stage's folder holds a run
+        of another configuration (``force`` to start over).
+    """
+    folder = RunFolder(out_dir)
+    folder.path.mkdir(parents=True, exist_ok=True)
+    stage_s: dict[str, float] = {}
+    prep = prepare_run(spec.linear)
+
+    _say(progress, f"1/4 linear model posterior -> {folder.path / 'linear'}")
+    t0 = time.perf_counter()
+    linear = execute_run(prep, folder.path / "linear", resume=not force, force=force,
+                         progress=progress)
+    stage_s["linear"] = time.perf_counter() - t0 if linear.action != "none" else 0.0
+
+    _say(progress, "2/4 diagnosis: what the linear model gets wrong")
+    t0 = time.perf_counter()
+    if force:
+        (folder.path / "diagnosis.json").unlink(missing_ok=True)
+    diag = _diagnose(spec, prep, folder, progress)
+    stage_s["diagnosis"] = time.perf_counter() - t0
+
+    effects = sampled_effects(diag["diagnosis"]["effects"])
+    final = None
+    if effects:
+        cfg = final_config(spec, effects)
+        _say(progress, f"3/4 the found model's posterior ({'+'.join(effects)}) -> "
+             f"{folder.path / 'final'}")
+        start = warm_start(prep.model.rig, effects, diag["diagnosis"])
+        t0 = time.perf_counter()
+        final = execute_run(prepare_run(cfg), folder.path / "final", resume=not force,
+                            force=force, progress=progress, start=start)
+        stage_s["final"] = time.perf_counter() - t0 if final.action != "none" else 0.0
+    else:
+        _say(progress, "3/4 no effect found: the linear model is the final model")
+        stage_s["final"] = 0.0
+
+    _say(progress, "4/4 summary and report")
+    t0 = time.perf_counter()
+    summary = summarize(linear.summary, diag, None if final is None else final.summary,
+                        effects)
+    stage_s["summary"] = time.perf_counter() - t0
+    summary["stage_s"] = stage_s
+    atomic_write_json(folder.path / "identify.json", to_jsonable(summary))
+    write_identify_report(folder.path, summary)
+    return IdentifyOutcome(folder.path, summary, stage_s)

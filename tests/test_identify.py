@@ -1,0 +1,206 @@
+"""``identify``: records to modal parameters with the model that explains them.
+
+Records from tests/identify_records.py (the independent reference simulators, noise and
+counts; one rig per seed, a different input per record).  The default suite runs the
+workflow on one cart with a hidden amplifier offset (input-side effects only, so that it
+stays short) and on a clean rig (negative control); the slow suite hides stick-slip
+friction, which the final posterior samples as LuGre friction.
+"""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from identify_records import write_records
+from scipy.stats import norm
+
+from bayesmodal.config import parse_config
+from bayesmodal.model.rigs import load_rig
+from bayesmodal.model.system import Rig
+from bayesmodal.runs.identify import (
+    DiagnosisSpec,
+    FinalSpec,
+    IdentifySpec,
+    diagnosis_records,
+    final_config,
+    identify,
+    sampled_effects,
+    warm_start,
+)
+from bayesmodal.runs.identify_summary import summarize
+
+#: a two-sided tail of 1e-4: an estimate this many Laplace sds from the truth is an error
+Z_FAR = float(norm.isf(5e-5))
+INPUT_CANDIDATES = ("input_offset", "drive_deadband", "input_saturation")
+
+
+def _spec(paths, *, rig="ecp210-1cart", candidates=INPUT_CANDIDATES, steps=400):
+    raw = {"data": {"files": [str(p) for p in paths]}, "rig": {"file": rig},
+           "sampler": {"walkers": 16, "steps": steps, "burn": steps // 2, "thin": 5,
+                       "seed": 1},
+           "outputs": {"predictive_draws": 10, "pointwise_loglik": False, "plots": False},
+           "crossval": {"enabled": True, "steps": steps, "draws": 40}}
+    cfg = parse_config(raw, source="<test>", name="rig")
+    return IdentifySpec(cfg, DiagnosisSpec(candidates=candidates, max_effects=2,
+                                           global_search=False, n_starts=1),
+                        FinalSpec(walkers=16, steps=steps, burn=steps // 2, thin=5,
+                                  prune=None, threads=1))
+
+
+@pytest.fixture(scope="module")
+def offset_run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("identify_offset")
+    paths, theta = write_records(folder, "one_cart", 3, n_records=2, n_samples=1600,
+                                 v_offset=0.1)
+    spec = _spec(paths)
+    return spec, identify(spec, folder / "out"), folder
+
+
+def test_names_the_hidden_offset_and_samples_it(offset_run):
+    _, res, _ = offset_run
+    s = res.summary
+    assert s["found"] == ["input_offset"] and s["final_model"] == "linear+input_offset"
+    (cause,) = s["causes"]
+    diag = json.loads((res.out_dir / "diagnosis.json").read_text())["diagnosis"]
+    iv = diag["parameters"]["v_offset"]
+    sd = (iv["hi"] - iv["lo"]) / (2 * norm.isf(0.05))
+    assert abs(cause["parameters"]["v_offset"] - 0.1) < Z_FAR * sd, iv
+    assert cause["heldout_delta_lpd"] > 0 and cause["heldout_fit_after"] > \
+        cause["heldout_fit_before"]
+    # the final run sampled the found model, and its summary has the linear core's modes
+    final = json.loads((res.out_dir / "final" / "summary.json").read_text())
+    assert final["run"]["config"]["extensions"] == ["input_offset"]
+    assert s["final"]["modal"]["omega_rad_s"] == final["omega_rad_s"]
+    assert s["linear"]["modal"]["omega_rad_s"] != final["omega_rad_s"]
+    # each record left out in turn: its own estimate against the others' interval
+    assert [r["record"] for r in s["final"]["heldout"]] == ["record_1", "record_2"]
+    for r in s["final"]["heldout"]:
+        for c in r["omega_rad_s"]:
+            assert c["inside"] == (c["lo"] <= c["own"] <= c["hi"])
+
+
+def test_report_tells_the_story(offset_run):
+    _, res, _ = offset_run
+    html = (res.out_dir / "report.html").read_text()
+    s = res.summary
+    f1 = s["final"]["modal"]["omega_rad_s"]["median"][0] / (2 * np.pi)
+    assert "What the records say" in html and "input offset" in html
+    assert f"{f1:.4g} Hz" in html
+    assert "final/report.html" in html and (res.out_dir / "final" / "report.html").is_file()
+
+
+def test_rerun_reuses_every_stage(offset_run):
+    spec, res, folder = offset_run
+    before = json.loads((res.out_dir / "diagnosis.json").read_text())["finished"]
+    again = identify(spec, folder / "out")
+    assert again.stage_s["linear"] == 0.0 and again.stage_s["final"] == 0.0
+    assert json.loads((res.out_dir / "diagnosis.json").read_text())["finished"] == before
+    assert again.summary["causes"] == res.summary["causes"]
+
+
+def test_cli_refuses_two_configs_in_one_line(tmp_path):
+    cfg = tmp_path / "rig.toml"
+    cfg.write_text('[data]\nfiles = ["x.csv"]\n')
+    bad = subprocess.run([sys.executable, "-m", "bayesmodal", "identify", str(cfg), str(cfg)],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2, bad.stderr
+    assert "give one CONFIG" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_clean_rig_keeps_the_linear_model(tmp_path):
+    paths, _ = write_records(tmp_path, "one_cart", 5, n_records=2, n_samples=1600)
+    res = identify(_spec(paths), tmp_path / "out")
+    s = res.summary
+    assert s["found"] == [] and s["final_model"] == "linear"
+    assert not (tmp_path / "out" / "final").exists()
+    assert s["final"] == s["linear"]
+    assert "the linear model is the final one" in (tmp_path / "out" / "report.html").read_text()
+
+
+def test_diagnosis_cuts_the_record_that_moves_furthest(tmp_path):
+    # 6000 samples of 5 ms: 3.3 s between the pulses, in which friction stops the cart
+    paths, _ = write_records(tmp_path, "one_cart", 3, n_records=2, n_samples=6000,
+                             noise=False, friction={1: (0.6, 0.8)})
+    from bayesmodal.data import load_experiment
+
+    exps = [load_experiment(p) for p in paths]
+    rig = load_rig("ecp210-1cart")
+    cut, train, names = diagnosis_records(exps, rig, DiagnosisSpec())
+    peaks = [np.abs(e.y_m[:, 0]).max() for e in exps]
+    assert names == [exps[int(np.argmax(peaks))].name]
+    assert len(cut) > len(exps) and train == list(range(len(cut)))
+    # one record, or no cutting asked: the records as given
+    assert diagnosis_records(exps[:1], rig, DiagnosisSpec())[2] == []
+    assert diagnosis_records(exps, rig, DiagnosisSpec(split="none"))[0] == exps
+
+
+def test_stick_slip_friction_is_sampled_as_lugre_from_the_diagnosis_fit():
+    assert sampled_effects(("coulomb_friction", "input_offset")) == (
+        "lugre_friction", "input_offset")
+    rig = Rig()
+    lin = {n: {"after": v} for n, v in zip(
+        ("g_v", "m1", "m2", "m3", "c1", "c2", "c3", "c12", "c23"),
+        (6.2, 1.56, 1.46, 1.15, 2.9, 1.8, 2.0, 0.1, 0.05), strict=True)}
+    pars = {f"Fc{i}": {"median": 0.1 * i} for i in (1, 2, 3)}
+    pars.update({f"Fs{i}": {"median": 0.15 * i} for i in (1, 2, 3)})
+    pars["v_offset"] = {"median": 0.02}
+    theta = warm_start(rig, ("lugre_friction", "input_offset"),
+                       {"linear_parameters": lin, "parameters": pars})
+    from bayesmodal.model.effects import get_extension
+
+    ext = get_extension(["lugre_friction", "input_offset"])
+    named = dict(zip(ext.names(rig), theta, strict=True))
+    assert named["g_v"] == 6.2 and named["Fc2"] == pytest.approx(0.2)
+    assert named["Fs3"] == pytest.approx(0.45) and named["v_offset"] == 0.02
+    # LuGre's own bristle parameters start at their catalogue values
+    spec = {p.name: p for p in ext.specs(rig)}
+    assert named["sigma0"] == spec["sigma0"].null
+
+
+def test_final_config_keeps_the_records_and_takes_the_final_sampler(tmp_path):
+    paths, _ = write_records(tmp_path, "one_cart", 3, n_records=2, n_samples=400)
+    spec = _spec(paths)
+    cfg = final_config(spec, ("lugre_friction",))
+    assert cfg.data_files == spec.linear.data_files and cfg.rig == spec.linear.rig
+    assert cfg.extensions == ("lugre_friction",) and cfg.walkers == spec.final.walkers
+    assert cfg.name == "rig_final" and cfg.hash() != spec.linear.hash()
+
+
+def test_summary_without_crossval_has_no_heldout_rows():
+    lin = {"omega_rad_s": {"median": [10.0], "lo": [9.9], "hi": [10.1]},
+           "zeta": {"median": [0.05], "lo": [0.04], "hi": [0.06]},
+           "diagnostics": {"converged": True, "max_rhat": 1.0, "min_ess": 1000}}
+    fin = {**lin, "zeta": {"median": [0.04], "lo": [0.035], "hi": [0.045]}}
+    diag = {"diagnosis": {"effects": ["input_offset"], "causes": [], "gain": {}}}
+    s = summarize(lin, diag, fin, ("input_offset",))
+    assert s["final"]["heldout"] == [] and s["linear"]["heldout"] == []
+    # the linear model's zeta is 25 % above the final one's
+    assert s["ignoring_causes"][0]["zeta"] == pytest.approx(25.0)
+
+
+@pytest.mark.slow
+def test_names_stick_slip_friction_and_samples_lugre(tmp_path):
+    paths, _ = write_records(tmp_path, "one_cart", 4, n_records=2, n_samples=2400,
+                             friction={1: (0.6, 0.8)})
+    spec = _spec(paths, candidates=("coulomb_friction",) + INPUT_CANDIDATES, steps=600)
+    res = identify(spec, tmp_path / "out")
+    s = res.summary
+    assert s["found"][0] == "coulomb_friction" and s["sampled"][0] == "lugre_friction"
+    final = json.loads((res.out_dir / "final" / "summary.json").read_text())
+    assert final["run"]["config"]["extensions"][0] == "lugre_friction"
+    # dry friction read as viscous damping: the linear model's zeta is the larger
+    assert s["ignoring_causes"][0]["zeta"] > 0
+
+
+@pytest.mark.slow
+def test_cli_runs_the_workflow_on_data_files(tmp_path):
+    paths, _ = write_records(tmp_path, "one_cart", 3, n_records=2, n_samples=1600,
+                             v_offset=0.1)
+    p = subprocess.run([sys.executable, "-m", "bayesmodal", "identify", *map(str, paths),
+                        "--rig", "ecp210-1cart", "--out", str(tmp_path / "out"),
+                        "--steps", "600", "--walkers", "16", "--max-effects", "1"],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "input offset at motor input" in p.stdout and "report: file://" in p.stdout
