@@ -79,6 +79,25 @@ problem in a file is collected and reported at once, each naming the file and th
                                 # and the final state in float64; "full" keeps the
                                 # float64 checkpoint
 
+    [identify]                  # optional: the whole workflow (bayesmodal identify):
+    enabled = true              # this configuration is the linear model's; after its run,
+                                # diagnose, then sample the model with the causes found
+    null = 19                   # null data sets of the diagnosis' calibration
+    max_effects = 4             # most effects the diagnosis puts in the model
+    split = "auto"              # or "none": cut the record that moves furthest at rest
+    weights = "auto"            # or "none", "spread": weighing of the records' fits
+    candidates = ["coulomb_friction", "input_offset"]   # the effects tried (default:
+                                # the catalogue's defaults and the driven cart's end stop)
+    seed = 0                    # seed of the diagnosis' null simulations
+    starts = 3                  # local fits per candidate from its best grid points
+    global_search = true        # also differential evolution for stick-slip models
+    walkers = 56                # walkers of the found model's posterior
+    steps = 12000               # its steps per walker
+    burn = 1000                 # its burn-in
+    thin = 616                  # its thinning
+    prune = 500                 # step at which its stranded walkers are pruned (< burn)
+    crossval_steps = 3000       # steps per fold of its leave-one-record-out check
+
     [evidence]                  # optional nested-sampling evidence (dynesty), slow
     enabled = false             # compute the Bayesian evidence of the model
     nlive = 250                 # live points
@@ -146,7 +165,18 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
                 "ema": bool, "checkpoint_every_s": (int, float), "pointwise_loglik": bool,
                 "chain": str},
     "evidence": {"enabled": bool, "nlive": int, "dlogz": (int, float)},
+    "identify": {"enabled": bool, "null": int, "max_effects": int, "split": str,
+                 "weights": str, "seed": int, "candidates": list, "starts": int,
+                 "global_search": bool, "walkers": int, "steps": int, "burn": int,
+                 "thin": int, "prune": int, "crossval_steps": int},
 }
+
+#: ``[identify]`` keys of the diagnosis stage (``runs.identify.DiagnosisSpec`` fields).
+IDENTIFY_DIAGNOSIS_KEYS = {"null": "n_null", "max_effects": "max_effects", "split": "split",
+                           "weights": "weights", "seed": "seed", "candidates": "candidates",
+                           "starts": "n_starts", "global_search": "global_search"}
+#: ``[identify]`` keys of the found model's sampler (``runs.identify.FinalSpec`` fields).
+IDENTIFY_FINAL_KEYS = ("walkers", "steps", "burn", "thin", "prune", "crossval_steps")
 
 
 @dataclass(frozen=True)
@@ -209,6 +239,7 @@ class RunConfig:
     t_start: float | None = None
     t_end: float | None = None
     rest_offset: str = "none"
+    identify: dict | None = None  # the [identify] table (the workflow), None without
 
     #: Fields left out of the hash at their defaults (configs written before them keep
     #: their hashes).
@@ -217,7 +248,8 @@ class RunConfig:
                      "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
                      "crossval_steps": None, "columns": None, "input_scale": 1.0,
                      "time_scale": 1.0, "time_base": "auto", "init": "ball", "prune": None,
-                     "t_start": None, "t_end": None, "rest_offset": "none"}
+                     "t_start": None, "t_end": None, "rest_offset": "none",
+                     "identify": None}
 
     def read_options(self):
         """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
@@ -568,6 +600,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
             kw[f"crossval_{key}"] = v
     if kw.get("crossval") and len(files) < 2:
         err("crossval.enabled", "leave-one-record-out needs at least two [data.files]")
+    _parse_identify(raw.get("identify"), err, kw)
 
     noise = values.get(("likelihood", "noise"), "ar1")
     from .inference.noise_spec import NOISE_MODELS, parse_noise  # noqa: PLC0415
@@ -762,6 +795,38 @@ def load_config(path: str | os.PathLike, *, check_files: bool = True) -> RunConf
         raise ConfigError(f"{path}: not valid TOML ({exc})") from exc
     return parse_config(raw, source=str(path), base=path.parent, name=path.stem,
                         check_files=check_files)
+
+
+def _parse_identify(table, err, kw) -> None:
+    """``[identify]``: the workflow's options (types are checked by ``_SCHEMA``)."""
+    if not isinstance(table, dict) or not table.get("enabled", False):
+        return
+    opts = {k: v for k, v in table.items() if k != "enabled"}
+    for key, allowed in (("split", ("auto", "none")), ("weights", ("auto", "none", "spread"))):
+        if key in opts and opts[key] not in allowed:
+            err(f"identify.{key}", f"must be one of {allowed}, got {opts[key]!r}")
+    cands = opts.get("candidates")
+    if cands is not None:
+        unknown = [c for c in cands if c not in EXTENSIONS]
+        if unknown or not cands:
+            err("identify.candidates", f"unknown effects {unknown}; known: {list(EXTENSIONS)}"
+                if unknown else "must name at least one effect")
+        opts["candidates"] = tuple(cands)
+    for key, lo in (("null", 19), ("max_effects", 1), ("starts", 1), ("walkers", 4),
+                    ("steps", 10),
+                    ("burn", 0), ("thin", 1), ("prune", 1), ("crossval_steps", 10)):
+        if isinstance(opts.get(key), int) and opts[key] < lo:
+            err(f"identify.{key}", f"must be >= {lo}, got {opts[key]}"
+                + (" (19 null data sets are the fewest a 5 % test allows)" if key == "null"
+                   else ""))
+    steps, burn = opts.get("steps", 12000), opts.get("burn", 1000)
+    if isinstance(steps, int) and isinstance(burn, int) and burn >= steps:
+        err("identify.burn", f"must be < identify.steps ({steps}), got {burn}")
+    prune = opts.get("prune")
+    if isinstance(prune, int) and isinstance(burn, int) and prune >= burn:
+        err("identify.prune", f"must be < identify.burn ({burn}), got {prune}: stranded "
+            "walkers are pruned within the burn-in")
+    kw["identify"] = opts
 
 
 def _parse_rig(table, values, kw, base: Path, err) -> None:

@@ -359,6 +359,9 @@ def config_page() -> str:
             elif (section, key) in CONFIG_CHECKED_ONLY:
                 default = CONFIG_CHECKED_ONLY[(section, key)]
                 field_name = None
+            elif section == "identify":  # one field, the table; defaults of the specs
+                default = _identify_default(key)
+                field_name = "identify"
             else:
                 field_name = next((f for f in (CONFIG_FIELDS.get((section, key)),
                                                f"{section}_{key}", key) if f in fields), None)
@@ -379,6 +382,21 @@ def config_page() -> str:
         raise KeyError(f"RunConfig fields no key sets: {missing}; add them to "
                        "CONFIG_FIELDS or CONFIG_DERIVED")
     return "".join(out)
+
+
+def _identify_default(key: str) -> str:
+    """The default of an ``[identify]`` key: the value its spec field takes."""
+    from bayesmodal.config import IDENTIFY_DIAGNOSIS_KEYS
+    from bayesmodal.runs.identify import DiagnosisSpec, FinalSpec
+
+    words = {"enabled": "false", "candidates": "the default candidates and the driven "
+             "cart's end stop", "thin": "about 1000 retained draws",
+             "crossval_steps": "[crossval] steps", "prune": "min(500, burn / 2)"}
+    if key in words:
+        return words[key]
+    if key in IDENTIFY_DIAGNOSIS_KEYS:
+        return f"`{getattr(DiagnosisSpec(), IDENTIFY_DIAGNOSIS_KEYS[key])}`"
+    return f"`{getattr(FinalSpec(), key)}`"
 
 
 def _type(t) -> str:

@@ -10,13 +10,14 @@ friction, which the final posterior samples as LuGre friction.
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from identify_records import write_records
 from scipy.stats import norm
 
-from bayesmodal.config import parse_config
+from bayesmodal.config import load_config
 from bayesmodal.model.rigs import load_rig
 from bayesmodal.model.system import Rig
 from bayesmodal.runs.identify import (
@@ -27,6 +28,7 @@ from bayesmodal.runs.identify import (
     final_config,
     identify,
     sampled_effects,
+    spec_from_config,
     warm_start,
 )
 from bayesmodal.runs.identify_summary import summarize
@@ -36,17 +38,25 @@ Z_FAR = float(norm.isf(5e-5))
 INPUT_CANDIDATES = ("input_offset", "drive_deadband", "input_saturation")
 
 
-def _spec(paths, *, rig="ecp210-1cart", candidates=INPUT_CANDIDATES, steps=400):
-    raw = {"data": {"files": [str(p) for p in paths]}, "rig": {"file": rig},
-           "sampler": {"walkers": 16, "steps": steps, "burn": steps // 2, "thin": 5,
-                       "seed": 1},
-           "outputs": {"predictive_draws": 10, "pointwise_loglik": False, "plots": False},
-           "crossval": {"enabled": True, "steps": steps, "draws": 40}}
-    cfg = parse_config(raw, source="<test>", name="rig")
-    return IdentifySpec(cfg, DiagnosisSpec(candidates=candidates, max_effects=2,
-                                           global_search=False, n_starts=1),
-                        FinalSpec(walkers=16, steps=steps, burn=steps // 2, thin=5,
-                                  prune=None, threads=1))
+def _toml(paths, *, rig="ecp210-1cart", candidates=INPUT_CANDIDATES, steps=400) -> str:
+    """A run configuration of the linear model on ``paths`` that asks for the workflow,
+    with samplers short enough for a test."""
+    files = ", ".join(f'"{p}"' for p in paths)
+    names = ", ".join(f'"{c}"' for c in candidates)
+    return (f'[data]\nfiles = [{files}]\n[rig]\nfile = "{rig}"\n'
+            f"[sampler]\nwalkers = 16\nsteps = {steps}\nburn = {steps // 2}\nthin = 5\n"
+            "seed = 1\n"
+            "[outputs]\npredictive_draws = 10\npointwise_loglik = false\nplots = false\n"
+            f"[crossval]\nenabled = true\nsteps = {steps}\ndraws = 40\n"
+            f"[identify]\nenabled = true\ncandidates = [{names}]\nmax_effects = 2\n"
+            f"global_search = false\nstarts = 1\nwalkers = 16\nsteps = {steps}\n"
+            f"burn = {steps // 2}\nthin = 5\n")
+
+
+def _spec(paths, folder, **kw):
+    cfg = folder / "rig.toml"
+    cfg.write_text(_toml(paths, **kw))
+    return spec_from_config(load_config(cfg)), cfg
 
 
 @pytest.fixture(scope="module")
@@ -54,12 +64,12 @@ def offset_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("identify_offset")
     paths, theta = write_records(folder, "one_cart", 3, n_records=2, n_samples=1600,
                                  v_offset=0.1)
-    spec = _spec(paths)
-    return spec, identify(spec, folder / "out"), folder
+    spec, cfg = _spec(paths, folder)
+    return spec, identify(spec, folder / "out"), folder, cfg
 
 
 def test_names_the_hidden_offset_and_samples_it(offset_run):
-    _, res, _ = offset_run
+    _, res, _, _ = offset_run
     s = res.summary
     assert s["found"] == ["input_offset"] and s["final_model"] == "linear+input_offset"
     (cause,) = s["causes"]
@@ -82,7 +92,7 @@ def test_names_the_hidden_offset_and_samples_it(offset_run):
 
 
 def test_report_tells_the_story(offset_run):
-    _, res, _ = offset_run
+    _, res, _, _ = offset_run
     html = (res.out_dir / "report.html").read_text()
     s = res.summary
     f1 = s["final"]["modal"]["omega_rad_s"]["median"][0] / (2 * np.pi)
@@ -91,8 +101,21 @@ def test_report_tells_the_story(offset_run):
     assert "final/report.html" in html and (res.out_dir / "final" / "report.html").is_file()
 
 
+def test_run_and_batch_of_the_config_reuse_the_folder(offset_run):
+    _, res, _, cfg = offset_run
+    p = subprocess.run([sys.executable, "-m", "bayesmodal", "run", str(cfg), "--out",
+                        str(res.out_dir)], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert p.stdout.startswith("Final model: ") and "input offset" in p.stdout
+    from bayesmodal.runs.batch import run_one
+
+    item = run_one(str(cfg), str(res.out_dir))
+    assert item.action == "identify" and item.error is None
+    assert item.omega_rad_s == res.summary["final"]["modal"]["omega_rad_s"]["median"]
+
+
 def test_rerun_reuses_every_stage(offset_run):
-    spec, res, folder = offset_run
+    spec, res, folder, _ = offset_run
     before = json.loads((res.out_dir / "diagnosis.json").read_text())["finished"]
     again = identify(spec, folder / "out")
     assert again.stage_s["linear"] == 0.0 and again.stage_s["final"] == 0.0
@@ -111,7 +134,7 @@ def test_cli_refuses_two_configs_in_one_line(tmp_path):
 
 def test_clean_rig_keeps_the_linear_model(tmp_path):
     paths, _ = write_records(tmp_path, "one_cart", 5, n_records=2, n_samples=1600)
-    res = identify(_spec(paths), tmp_path / "out")
+    res = identify(_spec(paths, tmp_path)[0], tmp_path / "out")
     s = res.summary
     assert s["found"] == [] and s["final_model"] == "linear"
     assert not (tmp_path / "out" / "final").exists()
@@ -161,7 +184,9 @@ def test_stick_slip_friction_is_sampled_as_lugre_from_the_diagnosis_fit():
 
 def test_final_config_keeps_the_records_and_takes_the_final_sampler(tmp_path):
     paths, _ = write_records(tmp_path, "one_cart", 3, n_records=2, n_samples=400)
-    spec = _spec(paths)
+    spec, _ = _spec(paths, tmp_path)
+    assert spec.linear.identify is None  # the linear run is the configuration without it
+    assert spec.diagnosis.candidates == INPUT_CANDIDATES and spec.final.steps == 400
     cfg = final_config(spec, ("lugre_friction",))
     assert cfg.data_files == spec.linear.data_files and cfg.rig == spec.linear.rig
     assert cfg.extensions == ("lugre_friction",) and cfg.walkers == spec.final.walkers
@@ -184,7 +209,8 @@ def test_summary_without_crossval_has_no_heldout_rows():
 def test_names_stick_slip_friction_and_samples_lugre(tmp_path):
     paths, _ = write_records(tmp_path, "one_cart", 4, n_records=2, n_samples=2400,
                              friction={1: (0.6, 0.8)})
-    spec = _spec(paths, candidates=("coulomb_friction",) + INPUT_CANDIDATES, steps=600)
+    spec, _ = _spec(paths, tmp_path, candidates=("coulomb_friction",) + INPUT_CANDIDATES,
+                    steps=600)
     res = identify(spec, tmp_path / "out")
     s = res.summary
     assert s["found"][0] == "coulomb_friction" and s["sampled"][0] == "lugre_friction"
@@ -204,3 +230,37 @@ def test_cli_runs_the_workflow_on_data_files(tmp_path):
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     assert "input offset at motor input" in p.stdout and "report: file://" in p.stdout
+
+
+def test_stage_table_reads_every_stage_of_the_folder(offset_run):
+    _, res, _, _ = offset_run
+    bench = str(Path(__file__).resolve().parents[1] / "benchmarks")
+    sys.path.insert(0, bench)
+    try:
+        from identify_stages import stage_table
+    finally:
+        sys.path.remove(bench)
+    rows = stage_table(res.out_dir)
+    names = [r[0] for r in rows]
+    assert names[:2] == ["linear: posterior", "linear: leave-one-record-out (2 folds)"]
+    assert "diagnosis" in names and "final: posterior" in names
+    # every part of a run's wall time is accounted for, none negative
+    assert all(r[1] is not None and r[1] >= 0 for r in rows), rows
+    assert rows[0][2] > 0 and rows[0][3] > 0  # evaluations and ESS per second
+
+
+def test_identify_table_errors_are_listed_together(tmp_path):
+    from bayesmodal import ConfigError
+    from bayesmodal.config import parse_config
+
+    raw = {"data": {"files": ["x.csv"]},
+           "identify": {"enabled": True, "null": 5, "split": "sometimes", "steps": 100,
+                        "burn": 100, "candidates": ["friction"]}}
+    with pytest.raises(ConfigError) as e:
+        parse_config(raw, check_files=False)
+    text = str(e.value)
+    for key in ("identify.null", "identify.split", "identify.burn", "identify.candidates"):
+        assert f"[{key}]" in text, text
+    # without the table, or with enabled = false, a configuration is the plain run
+    raw["identify"]["enabled"] = False
+    assert parse_config(raw, check_files=False).identify is None

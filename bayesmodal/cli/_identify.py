@@ -33,17 +33,21 @@ def register(sub) -> None:
                    help="workflow folder (default runs/<config name>_identify)")
     p.add_argument("--force", action="store_true",
                    help="start every stage over (deletes the folder's runs)")
-    p.add_argument("--null", type=int, default=19, metavar="N",
-                   help="null data sets of the diagnosis' calibration (default %(default)s)")
-    p.add_argument("--max-effects", type=int, default=4, metavar="N",
-                   help="most effects the diagnosis puts in the model (default %(default)s)")
+    p.add_argument("--null", type=int, default=None, metavar="N",
+                   help="null data sets of the diagnosis' calibration (default: [identify] "
+                   "null of CONFIG, else 19)")
+    p.add_argument("--max-effects", type=int, default=None, metavar="N",
+                   help="most effects the diagnosis puts in the model (default: [identify] "
+                   "max_effects of CONFIG, else 4)")
     p.add_argument("--no-split", action="store_true",
                    help="do not cut the record that moves the driven cart furthest at its "
                    "rests for the diagnosis")
     p.add_argument("--steps", type=int, default=None, metavar="N",
-                   help="steps per walker of the found model's posterior (default 12000)")
+                   help="steps per walker of the found model's posterior (default: "
+                   "[identify] steps of CONFIG, else 12000)")
     p.add_argument("--walkers", type=int, default=None, metavar="N",
-                   help="walkers of the found model's posterior (default 56)")
+                   help="walkers of the found model's posterior (default: [identify] "
+                   "walkers of CONFIG, else 56)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
 
@@ -66,28 +70,38 @@ def _config(args):
 
 
 def run(args) -> int:
-    from ..runs.identify import DiagnosisSpec, FinalSpec, IdentifySpec, identify
+    from ..runs.identify import identify, spec_from_config
 
     cfg = _config(args)
-    final = FinalSpec()
-    if args.steps is not None or args.walkers is not None:
-        steps = args.steps or final.steps
-        final = replace(final, steps=steps, walkers=args.walkers or final.walkers,
-                        burn=min(final.burn, steps // 2),
-                        thin=max(1, final.thin * steps // final.steps),
-                        prune=None if final.prune is None else min(final.prune, steps // 4))
-    spec = IdentifySpec(cfg, DiagnosisSpec(n_null=args.null, max_effects=args.max_effects,
-                                           split="none" if args.no_split else "auto"),
-                        final)
+    spec = spec_from_config(cfg)  # the config's [identify] table, else the defaults
+    diag, final = spec.diagnosis, spec.final
+    if args.null is not None:
+        diag = replace(diag, n_null=args.null)
+    if args.max_effects is not None:
+        diag = replace(diag, max_effects=args.max_effects)
+    if args.no_split:
+        diag = replace(diag, split="none")
+    if args.steps is not None:
+        burn = min(final.burn, args.steps // 2)
+        final = replace(final, steps=args.steps, burn=burn,
+                        prune=None if final.prune is None else min(final.prune, burn // 2))
+    if args.walkers is not None:
+        final = replace(final, walkers=args.walkers)
+    spec = replace(spec, diagnosis=diag, final=final)
     out = Path(args.out) if args.out else Path("runs") / f"{cfg.name}_identify"
     res = identify(spec, out, force=args.force, progress=not args.quiet)
     if not args.quiet:
-        from ..runs.identify_summary import story
-
-        verdict, lines = story(res.summary)
-        print(verdict)
-        for line in lines:
-            print(f"  - {line}")
-        print(f"report: {(res.out_dir / 'report.html').resolve().as_uri()}")
-        sys.stdout.flush()
+        print_story(res)
     return 0
+
+
+def print_story(res) -> None:
+    """The report's first screen in text: the verdict, what the records say, the link."""
+    from ..runs.identify_summary import story
+
+    verdict, lines = story(res.summary)
+    print(verdict)
+    for line in lines:
+        print(f"  - {line}")
+    print(f"report: {(res.out_dir / 'report.html').resolve().as_uri()}")
+    sys.stdout.flush()

@@ -37,6 +37,18 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _identify(cfg, args) -> int:
+    from ..runs import default_out_dir
+    from ..runs.identify import identify, spec_from_config
+    from ._identify import print_story
+
+    out = args.out or default_out_dir(cfg, args.out_root)
+    res = identify(spec_from_config(cfg), out, force=args.force, progress=not args.quiet)
+    if not args.quiet:
+        print_story(res)
+    return 0
+
+
 def run(args) -> int:
     from ..config import load_config
     from ..inference.threads import resolve_threads
@@ -47,6 +59,8 @@ def run(args) -> int:
         cfg = load_config(args.config)
         if args.threads is not None:
             cfg = replace(cfg, threads=resolve_threads(args.threads))
+        if cfg.identify is not None:  # [identify] enabled: the whole workflow
+            return _identify(cfg, args)
         prep = prepare_run(cfg)
     except ConfigError as exc:
         raise ConfigError(one_line(exc)) from exc

@@ -17,6 +17,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from .._errors import ConfigError
+from .._progress import progress_bar
+from ..config import load_config
+from .folder import atomic_write_json
+from .identify import identify, spec_from_config
+from .runner import default_out_dir, execute_run, one_line, prepare_run
 
 __all__ = ["BatchItem", "BatchResult", "run_one", "run_batch"]
 
@@ -101,7 +106,6 @@ class BatchResult:
 
 
 def _failed(config: str, name: str, out_dir, exc: BaseException, t0: float) -> BatchItem:
-    from .runner import one_line
 
     msg = one_line(exc)
     return BatchItem(config=config, name=name, out_dir=None if out_dir is None else str(out_dir),
@@ -119,13 +123,21 @@ def run_one(config: str, out_dir: str, resume: bool = False, force: bool = False
     -------
     BatchItem
     """
-    from ..config import load_config
-    from .runner import execute_run, prepare_run
 
     t0 = time.perf_counter()
     name = Path(config).stem
     try:
-        prep = prepare_run(load_config(config))
+        cfg = load_config(config)
+        if cfg.identify is not None:  # the whole workflow: its final model's modes
+            out = identify(spec_from_config(cfg), out_dir, force=force)
+            fin = out.summary["final"]
+            return BatchItem(config=config, name=name, out_dir=str(out.out_dir),
+                             state="finished", action="identify",
+                             wall_time_s=time.perf_counter() - t0,
+                             converged=bool(fin["converged"]),
+                             omega_rad_s=list(fin["modal"]["omega_rad_s"]["median"]),
+                             zeta=list(fin["modal"]["zeta"]["median"]))
+        prep = prepare_run(cfg)
         res = execute_run(prep, out_dir, resume=resume, force=force, progress=False)
     except Exception as exc:  # noqa: BLE001 - a batch reports every failure and goes on
         return _failed(config, name, out_dir, exc, t0)
@@ -139,8 +151,6 @@ def run_one(config: str, out_dir: str, resume: bool = False, force: bool = False
 
 def _plan(configs, out_root: Path) -> tuple[list, dict]:
     """(tasks, early failures): parse every configuration, assign distinct folders."""
-    from ..config import load_config
-    from .runner import default_out_dir
 
     tasks, early, seen = [], {}, {}
     for i, c in enumerate(configs):
@@ -163,7 +173,6 @@ def _plan(configs, out_root: Path) -> tuple[list, dict]:
 
 
 def _progress(total: int, enabled: bool):
-    from .._progress import progress_bar
 
     return progress_bar(total, desc="runs", unit="run", enabled=enabled)
 
@@ -200,7 +209,6 @@ def run_batch(configs, *, out_root: str | os.PathLike = "runs", workers: int | N
     >>> # res = run_batch(["runs/impulses_free.toml", "runs/steps.toml"], workers=2)
     >>> # print(res.table())
     """
-    from .folder import atomic_write_json
 
     t0 = time.perf_counter()
     configs = [str(c) for c in configs]

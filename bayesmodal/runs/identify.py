@@ -36,7 +36,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from .._json import to_jsonable
-from ..config import RunConfig
+from ..config import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, RunConfig
 from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS, get_extension
@@ -46,7 +46,8 @@ from .identify_summary import summarize, write_identify_report
 from .runner import execute_run, prepare_run
 
 __all__ = ["DiagnosisSpec", "FinalSpec", "IdentifySpec", "IdentifyOutcome", "identify",
-           "final_config", "warm_start", "diagnosis_records", "sampled_effects"]
+           "final_config", "warm_start", "diagnosis_records", "sampled_effects",
+           "spec_from_config"]
 
 #: Stages in order, as named in progress lines and ``identify.json``.
 STAGES = ("linear", "diagnosis", "final", "summary")
@@ -109,7 +110,7 @@ class FinalSpec:
     walkers: int = 56
     steps: int = 12000
     burn: int = 1000
-    thin: int = 616
+    thin: int | None = None  # None: about 1000 retained draws over all walkers
     prune: int | None = 500
     moves: str = "de:0.8,de-jump:0.2"
     init: str = "laplace"
@@ -122,6 +123,16 @@ class FinalSpec:
         if not 0 <= self.burn < self.steps:
             raise ConfigError(f"final burn must be in [0, steps), got burn {self.burn}, "
                               f"steps {self.steps}")
+        if self.prune is not None and not 0 < self.prune < self.burn:
+            raise ConfigError(f"final prune must be in (0, burn) = (0, {self.burn}), got "
+                              f"{self.prune}; prune stranded walkers within the burn-in")
+
+    @property
+    def retained_thin(self) -> int:
+        """``thin``, or the thinning that keeps about 1000 draws over all walkers."""
+        if self.thin is not None:
+            return int(self.thin)
+        return max(1, self.walkers * (self.steps - self.burn) // 1000)
 
 
 @dataclass(frozen=True)
@@ -287,12 +298,34 @@ def final_config(spec: IdentifySpec, effects: tuple[str, ...]) -> RunConfig:
     base = spec.linear
     return replace(
         base, name=f"{base.name}_final", extensions=tuple(effects), walkers=f.walkers,
-        steps=f.steps, burn=f.burn, thin=f.thin, prune=f.prune, moves=f.moves, init=f.init,
+        steps=f.steps, burn=f.burn, thin=f.retained_thin, prune=f.prune, moves=f.moves, init=f.init,
         threads=resolve_threads(f.threads), restart=None,
         per_record=dict(base.per_record if f.per_record is None else f.per_record),
         crossval=base.crossval if f.crossval is None else f.crossval,
         crossval_steps=base.crossval_steps if f.crossval_steps is None else f.crossval_steps,
         out_dir="")
+
+
+def spec_from_config(config: RunConfig) -> IdentifySpec:
+    """The workflow a run configuration asks for in its ``[identify]`` table.
+
+    Parameters
+    ----------
+    config : RunConfig
+        With ``identify`` set (``[identify] enabled = true``); the linear run is the
+        configuration without that table.
+
+    Returns
+    -------
+    IdentifySpec
+    """
+    opts = dict(config.identify or {})
+    if "burn" in opts and "prune" not in opts:  # stranded walkers pruned within the burn-in
+        opts["prune"] = min(FinalSpec.prune, opts["burn"] // 2) or None
+    diag = DiagnosisSpec(**{IDENTIFY_DIAGNOSIS_KEYS[k]: v for k, v in opts.items()
+                            if k in IDENTIFY_DIAGNOSIS_KEYS})
+    final = FinalSpec(**{k: v for k, v in opts.items() if k in IDENTIFY_FINAL_KEYS})
+    return IdentifySpec(replace(config, identify=None), diag, final)
 
 
 def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> dict:
@@ -348,6 +381,8 @@ def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
     folder = RunFolder(out_dir)
     folder.path.mkdir(parents=True, exist_ok=True)
     stage_s: dict[str, float] = {}
+    if spec.linear.identify is not None:
+        spec = replace(spec, linear=replace(spec.linear, identify=None))
     prep = prepare_run(spec.linear)
 
     _say(progress, f"1/4 linear model posterior -> {folder.path / 'linear'}")
