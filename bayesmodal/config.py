@@ -97,6 +97,8 @@ problem in a file is collected and reported at once, each naming the file and th
     thin = 616                  # its thinning
     prune = 500                 # step at which its stranded walkers are pruned (< burn)
     crossval_steps = 3000       # steps per fold of its leave-one-record-out check
+    population = false          # true: every mass per record, drawn from a population
+                                # (intervals for the next experiment)
 
     [evidence]                  # optional nested-sampling evidence (dynesty), slow
     enabled = false             # compute the Bayesian evidence of the model
@@ -168,7 +170,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "identify": {"enabled": bool, "null": int, "max_effects": int, "split": str,
                  "weights": str, "seed": int, "candidates": list, "starts": int,
                  "global_search": bool, "walkers": int, "steps": int, "burn": int,
-                 "thin": int, "prune": int, "crossval_steps": int},
+                 "thin": int, "prune": int, "crossval_steps": int, "population": bool},
 }
 
 #: ``[identify]`` keys of the diagnosis stage (``runs.identify.DiagnosisSpec`` fields).
@@ -176,7 +178,8 @@ IDENTIFY_DIAGNOSIS_KEYS = {"null": "n_null", "max_effects": "max_effects", "spli
                            "weights": "weights", "seed": "seed", "candidates": "candidates",
                            "starts": "n_starts", "global_search": "global_search"}
 #: ``[identify]`` keys of the found model's sampler (``runs.identify.FinalSpec`` fields).
-IDENTIFY_FINAL_KEYS = ("walkers", "steps", "burn", "thin", "prune", "crossval_steps")
+IDENTIFY_FINAL_KEYS = ("walkers", "steps", "burn", "thin", "prune", "crossval_steps",
+                       "population")
 
 
 @dataclass(frozen=True)

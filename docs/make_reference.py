@@ -391,7 +391,8 @@ def _identify_default(key: str) -> str:
 
     words = {"enabled": "false", "candidates": "the default candidates and the driven "
              "cart's end stop", "thin": "about 1000 retained draws",
-             "crossval_steps": "[crossval] steps", "prune": "min(500, burn / 2)"}
+             "crossval_steps": "[crossval] steps", "prune": "min(500, burn / 2)",
+             "population": "false"}
     if key in words:
         return words[key]
     if key in IDENTIFY_DIAGNOSIS_KEYS:

@@ -9,6 +9,7 @@ the pulses and steps of ``hidden_effects.rig_input`` scaled and sign-flipped per
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,7 @@ def write_records(folder: Path, layout: str, seed: int, *, n_records: int = 2,
     Returns
     -------
     paths : list of Path
+        The records; ``folder/truth.json`` lists each record's springs (N/m).
     theta_lin : ndarray
         The linear parameters (model order) of the rig, before per-record changes.
     """
@@ -56,7 +58,7 @@ def write_records(folder: Path, layout: str, seed: int, *, n_records: int = 2,
     w = np.zeros(2 * n)
     for cart, (fc, fs) in (friction or {}).items():
         w[cart - 1], w[n + cart - 1] = fc, fs
-    paths = []
+    paths, truth = [], []
     for r in range(n_records):
         u = SCALES[r % len(SCALES)] * rig_input(n_samples)
         v = input_chain_ref(u, v_offset=v_offset, v_dead=v_dead)
@@ -73,4 +75,6 @@ def write_records(folder: Path, layout: str, seed: int, *, n_records: int = 2,
         head = "t,v," + ",".join(f"x{j + 1}" for j in range(y.shape[1]))
         np.savetxt(p, np.column_stack([t, u, y]), delimiter=",", header=head, comments="")
         paths.append(p)
+        truth.append({"record": p.stem, "springs_n_m": [k for _, _, k in ref_r.springs]})
+    (Path(folder) / "truth.json").write_text(json.dumps(truth))
     return paths, theta

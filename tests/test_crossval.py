@@ -269,3 +269,39 @@ def test_compare_counts_left_out_records_with_calibrated_bands():
         del r["record_pit_90"]
     assert _crossval_of(s)["calibrated"] is None
     assert "calibrated" not in _cv_cell(_crossval_of(s))
+
+
+def test_a_new_records_modes_are_drawn_from_the_mass_population():
+    # with a population layer on m1 the interval for the next record holds the spread of
+    # the records' masses; without it (tau = 0) it is the centre's
+    from test_inference_records import MODEL, THETA
+
+    from bayesmodal.inference.crossval import _estimates
+    from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
+
+    lik = RecordsLikelihood(MODEL, _records(n=300), "ar1",
+                            layout=RecordLayout({"m1": "hierarchical"}))
+    names = lik.names
+    rng = np.random.default_rng(3)
+    s = 4000
+    base = dict(zip(MODEL.names, THETA, strict=True))
+    draws = np.empty((s, len(names)))
+    for j, nm in enumerate(names):
+        key = nm.split("[")[0].removeprefix("mu_")
+        draws[:, j] = base.get(key, 0.5 if nm.startswith("phi") else 1e-5)
+    sd_mu = 1e-4  # relative sd of the population centre over the draws
+    draws[:, names.index("mu_m1")] *= 1 + sd_mu * rng.standard_normal(s)
+    j_tau = names.index("tau_m1")
+    widths = {}
+    for tau in (0.0, 0.05):
+        draws[:, j_tau] = tau
+        for new in (False, True):
+            est = _estimates(lik, draws, new_record=new, rng=np.random.default_rng(0))
+            om = est["omega_rad_s"]
+            widths[tau, new] = np.array(om["hi"]) - np.array(om["lo"])
+    assert np.allclose(widths[0.0, True], widths[0.0, False])
+    # a log sd tau of m1 widens every mode's interval by about sqrt(tau^2 + sd_mu^2) /
+    # sd_mu (the mode's sensitivity to m1 cancels): 500 here; half of it allows for the
+    # quantiles' Monte Carlo error and the curvature of omega(m1)
+    assert np.min(widths[0.05, True] / widths[0.05, False]) > 0.5 * 0.05 / sd_mu
+    assert np.allclose(widths[0.05, False], widths[0.0, False])

@@ -247,15 +247,16 @@ def _interval(x: np.ndarray) -> dict:
 
 
 def _estimates(lik, draws: np.ndarray, *, new_record: bool, rng) -> dict:
-    """Posterior g_v (at the population centre, or drawn for a new record), omega and
-    zeta: medians and 90 % intervals."""
+    """Posterior g_v, omega and zeta (at the population centre, or drawn for a new
+    record): medians and 90 % intervals."""
     from .predictive import new_record_parameters
     from .propagate import propagate_modes
 
-    centre = lik.split(draws)[0]
-    g = (new_record_parameters(lik, draws, rng)[0] if new_record else centre)[:, 0]
-    ms = propagate_modes(lik.model, centre[:, : lik.model.n_params], methods=("eig",))
-    return {"g_v": _interval(g), "omega_rad_s": _interval(ms.omega_rad_s),
+    # a new record's parameters: every hierarchical one drawn from its population, so
+    # that with per-record masses or dampers the interval is the next experiment's
+    mech = new_record_parameters(lik, draws, rng)[0] if new_record else lik.split(draws)[0]
+    ms = propagate_modes(lik.model, mech[:, : lik.model.n_params], methods=("eig",))
+    return {"g_v": _interval(mech[:, 0]), "omega_rad_s": _interval(ms.omega_rad_s),
             "zeta": _interval(ms.zeta)}
 
 

@@ -40,6 +40,7 @@ from ..config import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, RunConfig
 from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS, get_extension
+from ..model.system import LinearModel, param_kinds
 from ..segments import split_at_rest, split_records
 from .folder import RunFolder, atomic_write_json, now_iso
 from .identify_summary import summarize, write_identify_report
@@ -104,7 +105,12 @@ class FinalSpec:
     The defaults are those that converge on the measured ECP records
     (``runs/records_friction.toml``): walkers started at the posterior mode, a
     mode-jumping move, stranded walkers pruned after ``prune`` steps.  ``per_record``
-    None keeps the linear configuration's; ``crossval`` None too.
+    None keeps the linear configuration's; ``crossval`` None too.  ``population`` adds a
+    population layer on the physical parameters: every mass of the linear core per
+    record, drawn from a log-normal population sampled with them (``[records]
+    per_record`` "hierarchical"; with the springs known, a spring that changes between
+    experiments moves the frequencies as a mass does), so that the modal intervals for a
+    new record hold the spread between experiments.
     """
 
     walkers: int = 56
@@ -118,6 +124,7 @@ class FinalSpec:
     per_record: dict | None = None
     crossval: bool | None = None
     crossval_steps: int | None = None
+    population: bool = False
 
     def __post_init__(self) -> None:
         if not 0 <= self.burn < self.steps:
@@ -209,11 +216,7 @@ def diagnosis_records(experiments, rig, spec: DiagnosisSpec):
     k = int(np.argmax(peaks))
     if sum(p == peaks[k] for p in peaks) > 1:
         return exps, train, []
-    try:
-        parts = split_at_rest(exps[k])
-    except ConfigError:
-        return exps, train, []
-    if len(parts) < 2:
+    if len(split_at_rest(exps[k])) < 2:
         return exps, train, []
     cut, train = split_records(exps, [k], train)
     return cut, train, [exps[k].name]
@@ -296,11 +299,17 @@ def final_config(spec: IdentifySpec, effects: tuple[str, ...]) -> RunConfig:
     """
     f = spec.final
     base = spec.linear
+    per_record = dict(base.per_record if f.per_record is None else f.per_record)
+    if f.population:  # every mass of the linear core per record
+        core = LinearModel(base.make_rig(), "free")
+        for name, kind in zip(core.names, param_kinds(core), strict=True):
+            if kind == "mass" and name not in per_record:
+                per_record[name] = "hierarchical"
     return replace(
         base, name=f"{base.name}_final", extensions=tuple(effects), walkers=f.walkers,
         steps=f.steps, burn=f.burn, thin=f.retained_thin, prune=f.prune, moves=f.moves, init=f.init,
         threads=resolve_threads(f.threads), restart=None,
-        per_record=dict(base.per_record if f.per_record is None else f.per_record),
+        per_record=per_record,
         crossval=base.crossval if f.crossval is None else f.crossval,
         crossval_steps=base.crossval_steps if f.crossval_steps is None else f.crossval_steps,
         out_dir="")
