@@ -140,6 +140,23 @@ def test_clean_rig_keeps_the_linear_model(tmp_path):
     assert not (tmp_path / "out" / "final").exists()
     assert s["final"] == s["linear"]
     assert "the linear model is the final one" in (tmp_path / "out" / "report.html").read_text()
+    # other diagnosis options: the diagnosis runs again, the linear run is reused and the
+    # old diagnosis is kept beside the new one
+    from dataclasses import replace
+
+    spec = _spec(paths, tmp_path)[0]
+    again = identify(replace(spec, diagnosis=replace(spec.diagnosis, max_effects=1)),
+                     tmp_path / "out")
+    assert again.stage_s["linear"] == 0.0
+    kept = sorted(p.name for p in (tmp_path / "out").glob("diagnosis.*.json"))
+    assert len(kept) == 1 and kept[0] == f"diagnosis.{spec.diagnosis_key()[:8]}.json"
+    # a run folder of another configuration is set aside, not overwritten
+    (tmp_path / "out" / "final").mkdir()
+    (tmp_path / "out" / "final" / "status.json").write_text('{"config_hash": "abcdef1234"}')
+    identify(replace(spec, diagnosis=replace(spec.diagnosis, max_effects=1)),
+             tmp_path / "out")
+    assert not (tmp_path / "out" / "final").exists()
+    assert (tmp_path / "out" / "final.abcdef12" / "status.json").is_file()
 
 
 def test_diagnosis_cuts_the_record_that_moves_furthest(tmp_path):

@@ -183,6 +183,29 @@ class IdentifyOutcome:
     stage_s: dict
 
 
+def _set_aside(path: Path, tag: str, progress: bool) -> None:
+    """Keep a stage's output made with other inputs under ``<name>.<tag>`` (never lost),
+    so that the stage runs again."""
+    target = path.with_name(f"{path.stem}.{tag}{path.suffix}")
+    k = 1
+    while target.exists():
+        k += 1
+        target = path.with_name(f"{path.stem}.{tag}-{k}{path.suffix}")
+    path.rename(target)
+    _say(progress, f"{path.name} was made with other inputs: kept as {target.name}")
+
+
+def _stale_run(path: Path, config: RunConfig | None, progress: bool) -> None:
+    """Set ``path`` aside when it holds a run of another configuration than ``config``
+    (any run when ``config`` is None: the stage is not run this time)."""
+    status = path / "status.json"
+    if not status.is_file():
+        return
+    old = json.loads(status.read_text(encoding="utf-8")).get("config_hash", "")
+    if config is None or old != config.hash():
+        _set_aside(path, (old or "old")[:8], progress)
+
+
 def _say(progress: bool, text: str) -> None:
     if progress:
         print(f"identify: {text}", file=sys.stderr, flush=True)
@@ -345,6 +368,7 @@ def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> di
         old = json.loads(path.read_text(encoding="utf-8"))
         if old.get("key") == key:
             return old
+        _set_aside(path, str(old.get("key", "old"))[:8], progress)
     rig = prep.model.rig
     d = spec.diagnosis
     exps, train, cut = diagnosis_records(prep.experiments, rig, d)
@@ -373,7 +397,9 @@ def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
         The workflow's folder (created): ``linear/``, ``diagnosis.json``, ``final/``,
         ``identify.json``, ``report.html``.
     force : bool
-        Start every stage over (the folder's runs are deleted).
+        Start every stage over (the folder's runs are deleted).  Without it, a stage whose
+        inputs changed (another configuration, other diagnosis options, another model
+        found) runs again and its old output is kept beside it as ``<name>.<hash>``.
     progress : bool
         One line per stage on stderr, and the stages' own progress.
 
@@ -395,6 +421,8 @@ def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
     prep = prepare_run(spec.linear)
 
     _say(progress, f"1/4 linear model posterior -> {folder.path / 'linear'}")
+    if not force:
+        _stale_run(folder.path / "linear", spec.linear, progress)
     t0 = time.perf_counter()
     linear = execute_run(prep, folder.path / "linear", resume=not force, force=force,
                          progress=progress)
@@ -414,12 +442,15 @@ def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
         _say(progress, f"3/4 the found model's posterior ({'+'.join(effects)}) -> "
              f"{folder.path / 'final'}")
         start = warm_start(prep.model.rig, effects, diag["diagnosis"])
+        if not force:
+            _stale_run(folder.path / "final", cfg, progress)
         t0 = time.perf_counter()
         final = execute_run(prepare_run(cfg), folder.path / "final", resume=not force,
                             force=force, progress=progress, start=start)
         stage_s["final"] = time.perf_counter() - t0 if final.action != "none" else 0.0
     else:
         _say(progress, "3/4 no effect found: the linear model is the final model")
+        _stale_run(folder.path / "final", None, progress)
         stage_s["final"] = 0.0
 
     _say(progress, "4/4 summary and report")
