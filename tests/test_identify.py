@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _chromium import HEIGHT, WIDTH, first_screen, page_check
 from identify_records import write_records
 from scipy.stats import norm
 
@@ -22,8 +23,6 @@ from bayesmodal.model.rigs import load_rig
 from bayesmodal.model.system import Rig
 from bayesmodal.runs.identify import (
     DiagnosisSpec,
-    FinalSpec,
-    IdentifySpec,
     diagnosis_records,
     final_config,
     identify,
@@ -305,65 +304,10 @@ window.addEventListener('load', function () {
 
 
 def test_first_screen_renders_in_headless_chromium(offset_run, tmp_path):
-    import html
-    import re
-    import shutil
-
-    import matplotlib.image
-
-    browser = next((shutil.which(b) for b in ("chromium", "chromium-browser",
-                                               "google-chrome") if shutil.which(b)), None)
-    if browser is None:
-        pytest.skip("chromium not installed (apt-get install chromium; .ci/run does)")
     _, res, _, _ = offset_run
-    page = tmp_path / "check.html"
-    page.write_text((res.out_dir / "report.html").read_text().replace("</body>",
-                                                                       IDENTIFY_CHECK_JS))
-    flags = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-             f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
-             "--window-size=1280,900"]
-    dom = subprocess.run([*flags, "--dump-dom", page.as_uri()], capture_output=True,
-                         text=True, timeout=180)
-    m = re.search(r'<pre id="bm-check">(.*?)</pre>', dom.stdout, re.S)
-    assert m, f"no check output from chromium: {dom.stderr[-2000:]}"
-    box = json.loads(html.unescape(m.group(1)))
+    report = res.out_dir / "report.html"
+    box = page_check(report, IDENTIFY_CHECK_JS, tmp_path)
     # the verdict, the story and the modal table of both models on the first screen
-    assert 0 < box["verdict_bottom"] < box["story_bottom"] < box["modal_bottom"] <= 900, box
-    assert box["width"] <= 1280, box
-    shot = tmp_path / "first_screen.png"
-    subprocess.run([*flags, f"--screenshot={shot}", (res.out_dir / "report.html").as_uri()],
-                   capture_output=True, timeout=180)
-    img = matplotlib.image.imread(shot)
-    assert img.shape[:2] == (900, 1280)
-    gray = img[..., :3].mean(axis=2)
-    assert 0.005 < np.mean(gray < 0.5) < 0.5  # text, not a blank page
-    assert np.mean(np.ptp(img[..., :3], axis=2) > 0.03) > 0.01  # the tinted verdict box
-
-
-@pytest.mark.slow
-def test_population_layer_gives_the_next_records_frequency(tmp_path):
-    # four records of one cart whose spring differs by 1.5 % (sd) between experiments:
-    # the interval for a left-out record holds its true frequency when the mass has a
-    # population layer, and misses it (a negative control) when it is shared by all
-    # records
-    from bayesmodal.inference.crossval import CrossvalSpec, crossval
-    from bayesmodal.inference.records import RecordLayout
-
-    paths, theta = write_records(tmp_path, "one_cart", 7, n_records=4, n_samples=1600,
-                                 stiffness_sd=0.015)
-    truth = json.loads((tmp_path / "truth.json").read_text())
-    from bayesmodal.data import load_experiment
-
-    exps = [load_experiment(p) for p in paths]
-    omega = [np.sqrt(t["springs_n_m"][0] / theta[1]) for t in truth]
-    inside = {}
-    for label, per in (("shared", {"g_v": "hierarchical"}),
-                       ("population", {"g_v": "hierarchical", "m1": "hierarchical"})):
-        spec = CrossvalSpec(layout=RecordLayout(per), n_walkers=24, n_steps=3000,
-                            rig=load_rig("ecp210-1cart"), seed=1, n_predictive=200)
-        res = crossval(exps, spec, joint=False, workers=1)
-        inside[label] = [f.estimates["omega_rad_s"]["lo"][0] <= w
-                         <= f.estimates["omega_rad_s"]["hi"][0]
-                         for f, w in zip(res.folds, omega, strict=True)]
-    assert sum(inside["population"]) >= 3, inside
-    assert sum(inside["shared"]) <= 1, inside
+    assert 0 < box["verdict_bottom"] < box["story_bottom"] < box["modal_bottom"] <= HEIGHT
+    assert box["width"] <= WIDTH, box
+    first_screen(report, tmp_path)  # a page with text and a tinted verdict box
