@@ -311,3 +311,17 @@ def test_first_screen_renders_in_headless_chromium(offset_run, tmp_path):
     assert 0 < box["verdict_bottom"] < box["story_bottom"] < box["modal_bottom"] <= HEIGHT
     assert box["width"] <= WIDTH, box
     first_screen(report, tmp_path)  # a page with text and a tinted verdict box
+
+
+def test_an_accelerometer_rig_is_refused_before_any_run(tmp_path):
+    # the diagnosis simulates position sensors only: one line naming the fix, and no
+    # posterior sampled first (the folder stays empty)
+    data = Path(__file__).resolve().parents[1] / "data"
+    p = subprocess.run([sys.executable, "-m", "bayesmodal", "identify",
+                        str(data / "accel_hammer.csv"), str(data / "accel_sweep.csv"),
+                        "--rig", str(data / "accel_rig.toml"), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert p.returncode != 0
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "identify (its diagnosis)" in lines[0], p.stderr
+    assert not (tmp_path / "o" / "linear").exists()

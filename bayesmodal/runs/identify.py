@@ -37,7 +37,7 @@ import numpy as np
 from .._errors import ConfigError
 from .._json import to_jsonable
 from ..config import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, RunConfig
-from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
+from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose, require_diagnosable
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS, get_extension
 from ..model.system import LinearModel, param_kinds
@@ -419,6 +419,8 @@ def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
     if spec.linear.identify is not None:
         spec = replace(spec, linear=replace(spec.linear, identify=None))
     prep = prepare_run(spec.linear)
+    # before the first posterior: the diagnosis must be able to work on this rig
+    require_diagnosable(prep.model.rig, "identify (its diagnosis)")
 
     _say(progress, f"1/4 linear model posterior -> {folder.path / 'linear'}")
     if not force:

@@ -16,7 +16,7 @@ from .null import (
     infer_quantum,
     quantise,
 )
-from .workflow import DEFAULT_CANDIDATES, diagnose
+from .workflow import DEFAULT_CANDIDATES, diagnose, require_diagnosable
 
 __all__ = [
     "CAUSES",
@@ -31,6 +31,7 @@ __all__ = [
     "TestOutcome",
     "calibrate_null",
     "diagnose",
+    "require_diagnosable",
     "fit_noise",
     "forward_select",
     "loro_gain",

@@ -58,7 +58,7 @@ from .null import (
 from .scoring import ar1_pointwise, criterion_for, held_out_significant, laplace_sd
 from .starts import best_starts
 
-__all__ = ["diagnose", "DEFAULT_CANDIDATES"]
+__all__ = ["diagnose", "require_diagnosable", "DEFAULT_CANDIDATES"]
 
 #: Candidate causes, in the catalogue's order (``Extension.default_candidate``).
 DEFAULT_CANDIDATES = default_candidates()
@@ -171,6 +171,22 @@ def _fit_percent(exps, sims) -> list[list[float]]:
     return [fit_percent(e.y_m, y).tolist() for e, y in zip(exps, sims, strict=True)]
 
 
+def require_diagnosable(rig: Rig, what: str = "diagnose") -> None:
+    """Raise ModelError (one line with the fix) unless ``diagnose`` can work on ``rig``.
+
+    Parameters
+    ----------
+    rig : Rig
+    what : str
+        Who asks, for the message.
+    """
+    rig.require_positions(what)  # the effects simulate positions only
+    if LinearModel(rig, "free").output_index is not None:
+        # the diagnostics read output j as the position of cart j
+        raise ModelError(f"{what} needs a sensor on every moving cart, in cart order; "
+                         "list the rig's [[sensors]] that way")
+
+
 def diagnose(
     experiments: Experiment | Sequence[Experiment],
     *,
@@ -279,11 +295,7 @@ def diagnose(
     if not exps:
         raise DataError("no experiments given")
     rig = Rig() if rig is None else rig
-    rig.require_positions("diagnose")  # its effects simulate positions only
-    if LinearModel(rig, "free").output_index is not None:
-        # the diagnostics read output j as the position of cart j
-        raise ModelError("diagnose needs a sensor on every moving cart, in cart order; "
-                         "list the rig's [[sensors]] that way")
+    require_diagnosable(rig)
     for e in exps:
         if not isinstance(e, Experiment):
             raise DataError(f"expected Experiment objects, got {type(e).__name__}")
