@@ -106,7 +106,6 @@ class BatchResult:
 
 
 def _failed(config: str, name: str, out_dir, exc: BaseException, t0: float) -> BatchItem:
-
     msg = one_line(exc)
     return BatchItem(config=config, name=name, out_dir=None if out_dir is None else str(out_dir),
                      state="failed", error=f"{type(exc).__name__}: {msg}",
@@ -173,7 +172,6 @@ def _plan(configs, out_root: Path) -> tuple[list, dict]:
 
 
 def _progress(total: int, enabled: bool):
-
     return progress_bar(total, desc="runs", unit="run", enabled=enabled)
 
 

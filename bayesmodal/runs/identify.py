@@ -113,7 +113,7 @@ class FinalSpec:
     new record hold the spread between experiments.
     """
 
-    walkers: int = 56
+    walkers: int = 56  # raised to twice the sampled parameters where needed
     steps: int = 12000
     burn: int = 1000
     thin: int | None = None  # None: about 1000 retained draws over all walkers
@@ -305,7 +305,8 @@ def warm_start(rig, effects: tuple[str, ...], diagnosis: dict) -> np.ndarray:
     return ext.check(rig, theta)
 
 
-def final_config(spec: IdentifySpec, effects: tuple[str, ...]) -> RunConfig:
+def final_config(spec: IdentifySpec, effects: tuple[str, ...],
+                 walkers: int | None = None) -> RunConfig:
     """The run configuration of the found model: the linear one with ``effects`` and the
     final sampler (``spec.final``).
 
@@ -314,13 +315,16 @@ def final_config(spec: IdentifySpec, effects: tuple[str, ...]) -> RunConfig:
     spec : IdentifySpec
     effects : tuple of str
         The sampled effects (``sampled_effects``).
+    walkers : int, optional
+        The ensemble size (default ``spec.final.walkers``; :func:`identify` raises it to
+        twice the number of sampled parameters where needed).
 
     Returns
     -------
     RunConfig
         Named ``<linear name>_final``.
     """
-    f = spec.final
+    f = spec.final if walkers is None else replace(spec.final, walkers=int(walkers))
     base = spec.linear
     per_record = dict(base.per_record if f.per_record is None else f.per_record)
     if f.population:  # every mass of the linear core per record
@@ -358,6 +362,17 @@ def spec_from_config(config: RunConfig) -> IdentifySpec:
                             if k in IDENTIFY_DIAGNOSIS_KEYS})
     final = FinalSpec(**{k: v for k, v in opts.items() if k in IDENTIFY_FINAL_KEYS})
     return IdentifySpec(replace(config, identify=None), diag, final)
+
+
+def _final_prepared(spec: IdentifySpec, effects: tuple[str, ...]):
+    """The final run's configuration, checked against its data, with at least
+    ``spec.final.walkers`` walkers and twice its parameters (emcee's least): with a
+    population layer and several records the parameters outgrow a fixed ensemble."""
+    counted = prepare_run(final_config(spec, effects, walkers=2 * 10**6))  # to count
+    need = 2 * counted.priors.n_params
+    walkers = max(spec.final.walkers, need + need % 2)
+    cfg = final_config(spec, effects, walkers=walkers)
+    return cfg, replace(counted, config=cfg)
 
 
 def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> dict:
@@ -440,14 +455,14 @@ def identify(spec: IdentifySpec, out_dir: str | Path, *, force: bool = False,
     effects = sampled_effects(diag["diagnosis"]["effects"])
     final = None
     if effects:
-        cfg = final_config(spec, effects)
+        cfg, prep_final = _final_prepared(spec, effects)
         _say(progress, f"3/4 the found model's posterior ({'+'.join(effects)}) -> "
              f"{folder.path / 'final'}")
         start = warm_start(prep.model.rig, effects, diag["diagnosis"])
         if not force:
             _stale_run(folder.path / "final", cfg, progress)
         t0 = time.perf_counter()
-        final = execute_run(prepare_run(cfg), folder.path / "final", resume=not force,
+        final = execute_run(prep_final, folder.path / "final", resume=not force,
                             force=force, progress=progress, start=start)
         stage_s["final"] = time.perf_counter() - t0 if final.action != "none" else 0.0
     else:

@@ -111,7 +111,6 @@ def _prior(ov):
 
 
 def _check_window_rest(e: Experiment) -> None:
-
     why = motion_at_start(e.y_m, e.v_volt, e.dt)
     if why:
         raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s with "
@@ -120,7 +119,6 @@ def _check_window_rest(e: Experiment) -> None:
 
 
 def _check_offset(e: Experiment) -> None:
-
     why = offset_at_rest(e.y_m, e.v_volt)
     if why:
         raise DataError(f"{e.source or e.name}: before the first input the carts rest with "
@@ -184,7 +182,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         # several effects make one combined model, named "a+b" (extensions.Combined)
         extension = "+".join(cfg.extensions)
         try:
-
             get_extension(extension)
         except ValueError as exc:
             raise ConfigError(f"{src}: [model.extensions] {exc}") from exc
@@ -196,7 +193,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     spec = parse_noise(cfg.noise)
     noise = spec.name
     if spec.kind == "ar:auto":
-
         if extension is not None:
             raise ConfigError(f"{src}: [likelihood.noise] 'ar:auto' is built for the linear "
                               "model; give the orders, e.g. 'ar4'")
@@ -205,7 +201,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         base = default_priors(model, noise=noise, n_outputs=model.n_carts,
                               extension=extension)
     else:
-
         try:
             base = record_priors(RecordsLikelihood(model, exps, noise, extension, layout))
         except ValueError as exc:
@@ -318,7 +313,6 @@ class _Stages:
     disabled)."""
 
     def __init__(self, names, enabled: bool, title: str) -> None:
-
         self.bar = progress_bar(len(names), desc=title, unit="stage", enabled=enabled)
 
     @contextlib.contextmanager
