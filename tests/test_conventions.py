@@ -142,7 +142,7 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "inference.summary.parameter_intervals": ('idata', 'prob'),
     "inference.summary.posterior_modes": ('idata', 'methods'),
     "inference.summary.summary_dict": ('idata', 'prob', 'modal'),
-    "inference.summary.write_run": ('idata', 'out_dir', 'prob', 'plots'),
+    "runs.outputs.write_run": ('idata', 'out_dir', 'prob', 'plots'),
     "inference.threads.resolve_threads": ('threads',),
     "runs.batch.run_one": ('config', 'out_dir', 'resume', 'force'),
     "runs.checkpoint.checkpoint_iteration": ('path', 'name'),

@@ -80,14 +80,14 @@ def _posterior(exps):
 
 def _report_figures(exps, tmp_path, monkeypatch) -> dict:
     """Every figure of a run's report, by file name, drawn by the code the run uses."""
-    import bayesmodal.runs.folder as folder
-    from bayesmodal.inference.summary import write_modal_plot, write_run
+    import bayesmodal.runs.outputs as outputs
     from bayesmodal.runs.crosscheck import residual_check
+    from bayesmodal.runs.outputs import write_modal_plot, write_run
     from bayesmodal.runs.plots import plot_residual_acf, plot_residuals
     from bayesmodal.runs.report import REPORT_IMAGES
 
     figs = {}
-    monkeypatch.setattr(folder, "atomic_savefig",
+    monkeypatch.setattr(outputs, "atomic_savefig",
                         lambda fig, path, **kw: figs.__setitem__(path.name, fig))
     run, idata = _posterior(exps)
     summary = write_run(idata, tmp_path, prob=0.9)

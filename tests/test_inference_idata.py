@@ -20,7 +20,6 @@ from bayesmodal.inference import (
     simulate_noise,
     summary_dict,
     to_inference_data,
-    write_run,
 )
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
@@ -153,6 +152,8 @@ def test_plots_return_labelled_axes(idata):
 
 def test_write_run_writes_every_file(idata, tmp_path):
     import matplotlib.pyplot as plt
+
+    from bayesmodal.runs import write_run
 
     s = write_run(idata, tmp_path / "run")
     files = {p.name for p in (tmp_path / "run").iterdir()}

@@ -46,7 +46,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..inference import choose_model, load_idata
-    from ..inference.summary import _write_json
+    from ..runs.folder import atomic_write_json
 
     out = Path(args.out)
     if args.data and any(Path(d).is_dir() for d in args.data):
@@ -78,7 +78,7 @@ def run(args) -> int:
                           nlive=args.nlive, dlogz=args.dlogz, rng=args.seed)
     result = {"model_choice": choice.as_dict()}
     out.mkdir(parents=True, exist_ok=True)
-    _write_json(result, out / "model_choice.json")
+    atomic_write_json(out / "model_choice.json", result)
     tmp = out / "model_choice.md.tmp"
     tmp.write_text(choice.to_markdown() + "\n\n" + choice.verdict + "\n")
     tmp.replace(out / "model_choice.md")

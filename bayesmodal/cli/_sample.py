@@ -79,8 +79,9 @@ def add_sampler_args(p) -> None:
 
 def sample_to_dir(exps, args, damping: str, out: Path):
     """Sample one model into ``out``; return (summary, idata) (shared with ``compare``)."""
-    from ..inference import sample_posterior, to_inference_data, write_run
+    from ..inference import sample_posterior, to_inference_data
     from ..model.system import LinearModel
+    from ..runs.outputs import write_run
 
     model = LinearModel(load_rig(args), damping)
     for e in exps:  # checked before the output folder is made

@@ -5,10 +5,10 @@ Layers: :mod:`.priors` and :mod:`.likelihood` are NumPy only; :mod:`.sampling` a
 
 Typical use::
 
-    from bayesmodal.inference import sample_posterior, to_inference_data, write_run
+    from bayesmodal.inference import sample_posterior, summary_dict, to_inference_data
     run = sample_posterior(experiment, LinearModel(Rig(), "free"), noise="ar1", rng=1)
     idata = to_inference_data(run, rng=1)
-    summary = write_run(idata, "runs/free")      # posterior.nc, summary.json, plots
+    summary = summary_dict(idata)   # bayesmodal.runs.write_run writes a run folder
 """
 
 from .compare import (
@@ -68,7 +68,6 @@ from .summary import (
     parameter_intervals,
     posterior_modes,
     summary_dict,
-    write_run,
 )
 from .threads import ThreadedLogPosterior, resolve_threads
 
@@ -134,5 +133,4 @@ __all__ = [
     "to_inference_data",
     "with_pointwise_loglik",
     "white_terms",
-    "write_run",
 ]

@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._json import to_jsonable
 from .._versions import dependency_versions
 from .idata import model_from_idata, posterior_matrix
 from .propagate import Interval, ModalSamples, credible_interval, modal_intervals, propagate_modes
@@ -23,7 +22,8 @@ __all__ = [
     "lsq_vs_posterior",
     "comparison_markdown",
     "summary_dict",
-    "write_run",
+    "lsq_theta",
+    "mechanical_names",
 ]
 
 
@@ -49,14 +49,32 @@ def posterior_modes(idata, *, methods=("eig", "iteration", "rayleigh")) -> Modal
     return propagate_modes(model, draws, reference=ref, methods=methods)
 
 
-def _mech_names(idata, model) -> list[str]:
-    """Model parameter names of a run (linear, then a model extension's, if any)."""
+def mechanical_names(idata, model) -> list[str]:
+    """Model parameter names of a run (linear, then a model extension's, if any).
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A run (``to_inference_data``).
+    model : LinearModel
+        Its linear model (``model_from_idata``).
+
+    Returns
+    -------
+    list of str
+    """
     text = idata.posterior.attrs.get("mechanical_names")
     return list(model.names) if text is None else json.loads(text)
 
 
 def lsq_theta(idata) -> np.ndarray | None:
-    """Least-squares estimate stored with the run, shape (n_params,), or None."""
+    """Least-squares estimate stored with the run, shape (n_params,), or None.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A run (``to_inference_data``).
+    """
     text = idata.posterior.attrs.get("lsq_theta_json")
     return None if text is None else np.asarray(json.loads(text), dtype=float)
 
@@ -128,7 +146,7 @@ def lsq_vs_posterior(idata, *, prob: float = 0.9, modal: ModalSamples | None = N
     model = model_from_idata(idata)
     params = parameter_intervals(idata, prob)
     rows = []
-    for nm, val in zip(_mech_names(idata, model), theta, strict=True):
+    for nm, val in zip(mechanical_names(idata, model), theta, strict=True):
         iv = params[nm]
         rows.append(ComparisonRow(nm, _unit(nm), float(val), float(iv.median), float(iv.lo),
                                   float(iv.hi), bool(iv.contains(val))))
@@ -231,107 +249,3 @@ def summary_dict(idata, *, prob: float = 0.9, modal: ModalSamples | None = None)
     if "mac_reference" in mi:
         out["mac_lsq"] = _triple(mi["mac_reference"])
     return out
-
-
-def _write_json(obj, path) -> None:
-    import os
-    from pathlib import Path
-
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(to_jsonable(obj), indent=2) + "\n")
-    os.replace(tmp, path)
-
-
-def write_run(idata, out_dir, *, prob: float = 0.9, plots: bool = True) -> dict:
-    """Write a run folder: ``posterior.nc``, ``summary.json``, ``lsq_vs_posterior.md`` and
-    the plots (``trace.png``, ``corner.png``, ``predictive.png``, ``bode.png``,
-    ``modal_intervals.png``).  Files are written atomically.
-
-    Returns
-    -------
-    dict
-        The summary (as in ``summary.json``).
-    """
-    from pathlib import Path
-
-    from .idata import save_idata
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    save_idata(idata, out / "posterior.nc")
-    modal = posterior_modes(idata)
-    summary = summary_dict(idata, prob=prob, modal=modal)
-    _write_json(summary, out / "summary.json")
-    rows = lsq_vs_posterior(idata, prob=prob, modal=modal)
-    if rows:
-        tmp = out / "lsq_vs_posterior.md.tmp"
-        tmp.write_text(comparison_markdown(rows) + "\n")
-        tmp.replace(out / "lsq_vs_posterior.md")
-    if plots:
-        _write_plots(idata, modal, out, prob)
-    return summary
-
-
-#: Resolution of the run plots (dots per inch).
-PLOT_DPI = 160
-#: Resolution of the trace plot: one row per parameter (21 rows, 34 inches, for the main
-#: job), thin lines that need no more.
-TRACE_DPI = 90
-
-
-def _save(fig, path, dpi: float = PLOT_DPI) -> None:
-    # the run folder's atomic, palette-PNG writer (imported here: runs builds on inference)
-    from ..runs.folder import atomic_savefig
-
-    atomic_savefig(fig, path, dpi=dpi)
-
-
-def _write_plots(idata, modal, out, prob) -> None:
-    from ..plots.posterior import (
-        plot_bode_bands,
-        plot_corner,
-        plot_modal_intervals,
-        plot_predictive,
-        plot_trace,
-    )
-
-    model = model_from_idata(idata)
-    theta = lsq_theta(idata)
-    ref = None if theta is None else propagate_modes(model, theta[None], methods=("eig",))
-    refd = None if theta is None else dict(zip(_mech_names(idata, model), theta.tolist(),
-                                               strict=True))
-    _save(plot_trace(idata).flat[0].figure, out / "trace.png", dpi=TRACE_DPI)
-    _save(plot_corner(idata, reference=refd).flat[0].figure, out / "corner.png")
-    if "posterior_predictive" in idata.groups():
-        _save(plot_predictive(idata, prob=prob)[0].figure, out / "predictive.png")
-    _save(plot_bode_bands(idata, prob=prob)[0].figure, out / "bode.png")
-    _save(plot_modal_intervals(modal, reference=ref, prob=prob).flat[0].figure,
-          out / "modal_intervals.png")
-
-
-def write_modal_plot(idata, out_dir, *, prob: float = 0.9, lsce=None,
-                     modal: ModalSamples | None = None) -> None:
-    """(Re)write ``modal_intervals.png`` of a run folder, with LSCE estimates when given.
-
-    Parameters
-    ----------
-    idata : InferenceData
-    out_dir : path
-    prob : float
-    lsce : sequence of (str, ndarray, ndarray), optional
-        Per record: name, matched natural frequencies (rad/s) and damping ratios of the
-        model-free LSCE estimate (see ``plot_modal_intervals``).
-    modal : ModalSamples, optional
-        Posterior modal samples (computed if omitted).
-    """
-    from pathlib import Path
-
-    from ..plots.posterior import plot_modal_intervals
-
-    model = model_from_idata(idata)
-    theta = lsq_theta(idata)
-    ref = None if theta is None else propagate_modes(model, theta[None], methods=("eig",))
-    modal = posterior_modes(idata) if modal is None else modal
-    _save(plot_modal_intervals(modal, reference=ref, lsce=lsce, prob=prob).flat[0].figure,
-          Path(out_dir) / "modal_intervals.png")

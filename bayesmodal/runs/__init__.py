@@ -24,6 +24,8 @@ from .checkpoint import (
 )
 from .compare import RunComparison, RunRow, compare_runs, write_comparison
 from .folder import RunExistsError, RunFolder, RunLockedError
+from .identify import IdentifySpec, identify
+from .outputs import write_modal_plot, write_run
 from .report import render_report, write_report
 from .rerun import RerunResult, recorded_config, rerun_run
 from .runner import (
@@ -68,4 +70,8 @@ __all__ = [
     "run_verdict",
     "RunVerdict",
     "write_report",
+    "write_run",
+    "write_modal_plot",
+    "identify",
+    "IdentifySpec",
 ]

@@ -4,7 +4,7 @@
 and matching the rig, priors, ensemble size, moves) and raises a ``ConfigError`` naming
 the configuration key; :func:`execute_run` then samples with an atomic checkpoint
 (:class:`~.checkpoint.AtomicCheckpoint`), writes the InferenceData, summary and plots
-(``bayesmodal.inference.write_run``), the cross-checks, provenance and ``report.html``.
+(``bayesmodal.runs.outputs.write_run``), the cross-checks, provenance and ``report.html``.
 
 A folder holding a finished run is not overwritten unless ``force``; an interrupted or
 failed run continues from its checkpoint with ``resume`` (same configuration hash only),
@@ -39,6 +39,7 @@ from ..model.effects import get_extension
 from ..model.system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
+from .outputs import write_modal_plot, write_run
 
 __all__ = ["PreparedRun", "RunOutcome", "prepare_run", "execute_run", "run_config",
            "default_out_dir", "parse_moves", "one_line", "LOGGER_NAME"]
@@ -385,7 +386,6 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         out["lsce"].append(d)
     if cfg.plots:
         if lsce:  # the modal-interval plot of write_run, now with the LSCE values
-            from ..inference.summary import write_modal_plot
 
             write_modal_plot(idata, folder.path, lsce=[
                 (c.experiment, *c.matched(omega_med)) for c in lsce if not c.error])
@@ -592,7 +592,7 @@ def _config_text(cfg: RunConfig) -> str:
 def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
               t_start: float, started: str, caught: list, start=None) -> dict:
     from .. import __version__
-    from ..inference import sample_posterior, to_inference_data, write_run
+    from ..inference import sample_posterior, to_inference_data
     from .provenance import data_digests, dependency_versions
     from .report import write_report
 
