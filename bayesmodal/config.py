@@ -120,33 +120,17 @@ from pathlib import Path, PurePosixPath
 
 from ._errors import ConfigError
 from .data import ECP_M_PER_COUNT, in_data_root
-from .model.effects import EXTENSIONS
+from .inference.moves import MOVE_REVISIONS, move_spec
+from .inference.moves import MOVES as _MOVE_CLASSES
+from .inference.record_scale import NOISE_SCALES
+from .model.effects import EXTENSION_REVISIONS, EXTENSIONS, extension_revisions
 from .model.system import DAMPING_MODELS, ECP210_SPRINGS_N_M
 
-__all__ = ["RunConfig", "load_config", "parse_config", "MOVES"]
+__all__ = ["RunConfig", "load_config", "parse_config", "MOVES", "NOISE_SCALES",
+           "EXTENSION_REVISIONS", "MOVE_REVISIONS", "extension_revisions", "move_spec"]
 
 #: Move names of ``[sampler] moves`` (``bayesmodal.inference.moves.MOVES``).
-MOVES = ("stretch", "de", "de-snooker", "de-jump", "walk", "kde")
-#: Moves whose implementation changed the result: a configuration naming one hashes with
-#: its revision, so a run sampled before the change does not resume (the snooker move is
-#: emcee's with the fix of its pull request #531 since 24 Nov 2026; the released one
-#: made the posteriors about 18 % too narrow, docs/uncertainty.md).
-MOVE_REVISIONS = {"de-snooker": "emcee-pr531"}
-#: Model extensions whose numerics changed the result, hashed the same way
-#: (``Extension.revision``: LuGre friction steps with 4 sub-steps per sample, not 8).
-EXTENSION_REVISIONS = {n: e.revision for n, e in EXTENSIONS.items() if e.revision}
-
-
-def extension_revisions(names) -> dict:
-    """The :data:`EXTENSION_REVISIONS` of the effects named in ``names`` (a sequence of
-    effect names, or one name with ``+`` between effects); empty when none changed."""
-    parts = names.split("+") if isinstance(names, str) else list(names)
-    return {e: r for e, r in EXTENSION_REVISIONS.items() if e in parts}
-
-#: ``[records] noise_scale`` values (``bayesmodal.inference.record_scale``): one level in
-#: metres, the level times each record's relative response size, or that size to a
-#: sampled power.
-NOISE_SCALES = ("none", "response", "power")
+MOVES = tuple(_MOVE_CLASSES)
 
 _SCHEMA: dict[str, dict[str, type | tuple]] = {
     "data": {"files": list, "m_per_count": (int, float), "heldout": list, "columns": dict,
@@ -330,31 +314,6 @@ class RunConfig:
         if ext_revised:
             d["extension_revisions"] = ext_revised
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
-
-
-def move_spec(text: str) -> tuple[list[tuple[str, float]], list[str]]:
-    """The ``name[:weight]`` items of a ``[sampler] moves`` string and its problems.
-
-    Returns
-    -------
-    items : list of (str, float)
-        Move names from :data:`MOVES` with their weights (1 when not given).
-    problems : list of str
-        One line per unknown name or non-positive weight (empty when the string is good).
-    """
-    items, problems = [], []
-    for part in text.split(","):
-        name, _, w = part.strip().partition(":")
-        if name not in MOVES:
-            problems.append(f"unknown move {name!r}; expected {MOVES}")
-        try:
-            weight = float(w) if w else 1.0
-        except ValueError:
-            weight = float("nan")
-        if not weight > 0:
-            problems.append(f"weight of {name!r} must be a positive number")
-        items.append((name, weight))
-    return items, problems
 
 
 def _type_name(t) -> str:

@@ -188,6 +188,8 @@ def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatc
     assert config.extension_revisions(get_extension("lugre_friction+input_offset").name) == {
         "lugre_friction": "n_sub=4"}
     assert config.extension_revisions(get_extension("coulomb_friction").name) == {}
-    monkeypatch.setattr(config, "EXTENSION_REVISIONS", {})
+    import bayesmodal.model.effects as effects  # the registry owns the revisions
+
+    monkeypatch.setattr(effects, "EXTENSION_REVISIONS", {})
     assert lugre.hash() != now[0]
     assert coulomb.hash() == now[1]

@@ -30,10 +30,6 @@ MAX_DEFERRED_OWN_IMPORTS = 200
 # Strongly connected components of the graph with deferred imports, i.e. the modules that
 # import one another through some chain.  With module-level imports alone there are none.
 KNOWN_CYCLES = (
-    ("bayesmodal.config", "bayesmodal.inference.crossval", "bayesmodal.inference.idata",
-     "bayesmodal.inference.moves", "bayesmodal.inference.predictive",
-     "bayesmodal.inference.record_scale", "bayesmodal.inference.records",
-     "bayesmodal.inference.sampling"),
     ("bayesmodal._channels", "bayesmodal._tdms", "bayesmodal._uff"),
     ("bayesmodal.inference.likelihood", "bayesmodal.inference.priors"),
 )

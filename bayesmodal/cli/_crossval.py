@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..config import NOISE_SCALES
+from ..inference.record_scale import NOISE_SCALES
 from ..model.system import Rig
 from ._common import (
     add_data_args,

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._format import param_unit, sig
-from ..config import NOISE_SCALES
+from ..inference.record_scale import NOISE_SCALES
 from ._common import (
     add_data_args,
     add_initial_state_argument,

@@ -36,10 +36,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError, DataError
-from ..config import NOISE_SCALES
 from ..data import Experiment
 
 __all__ = ["NOISE_SCALES", "POWER_NAME", "RecordScales", "record_scales"]
+
+#: ``[records] noise_scale`` values: one level in metres, the level times each record's
+#: relative response size, or that size to a sampled power.
+NOISE_SCALES = ("none", "response", "power")
 
 #: Name, prior bounds and start of the sampled exponent of ``noise_scale = "power"``.
 POWER_NAME = "scale_power"

@@ -35,10 +35,10 @@ import numpy as np
 
 from .._errors import ConfigError
 from .._progress import progress_bar
-from ..config import extension_revisions
 from ..data import Experiment
 from ..fit.linear import LSQResult, fit_lsq
 from ..identified import require_identified
+from ..model.effects import extension_revisions
 from ..model.system import LinearModel
 from .likelihood import Likelihood, as_experiments
 from .mode import posterior_mode

@@ -62,6 +62,8 @@ from .saturation import InputSaturation
 from .sensor_gain import SensorGain
 
 __all__ = [
+    "EXTENSION_REVISIONS",
+    "extension_revisions",
     "EXTENSIONS",
     "AmplitudeGain",
     "EffectLocation",
@@ -133,6 +135,29 @@ def default_candidates() -> tuple[str, ...]:
     """The effects ``diagnose`` tries by default (``Extension.default_candidate``), in
     registry order."""
     return tuple(n for n, e in EXTENSIONS.items() if e.default_candidate)
+
+
+#: Effects whose numerics changed the result: a run naming one hashes with its revision,
+#: so a run sampled before the change does not resume (``Extension.revision``: LuGre
+#: friction steps with 4 sub-steps per sample, not 8).
+EXTENSION_REVISIONS = {n: e.revision for n, e in EXTENSIONS.items() if e.revision}
+
+
+def extension_revisions(names) -> dict:
+    """The :data:`EXTENSION_REVISIONS` of the effects named in ``names``.
+
+    Parameters
+    ----------
+    names : str or sequence of str
+        Effect names, or one name with ``+`` between effects.
+
+    Returns
+    -------
+    dict
+        ``{name: revision}``; empty when none changed.
+    """
+    parts = names.split("+") if isinstance(names, str) else list(names)
+    return {e: r for e, r in EXTENSION_REVISIONS.items() if e in parts}
 
 
 def get_extension(name) -> Extension:

@@ -128,7 +128,7 @@ class Extension(ABC):
     #: In the catalogue ``diagnose`` tries by default (``DEFAULT_CANDIDATES``).
     default_candidate: bool = True
     #: A change of the simulator that changes its numbers: part of a run's hash
-    #: (``config.EXTENSION_REVISIONS``); empty for the first version.
+    #: (``model.effects.EXTENSION_REVISIONS``); empty for the first version.
     revision: str = ""
     #: Residual signatures that point to the effect: tags of the checks of
     #: ``bayesmodal.discrepancy.checks`` (``"stick"``, ``"decay"``, ``"bias"``, ...,
