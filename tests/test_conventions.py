@@ -125,7 +125,6 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "inference.idata.posterior_matrix": ('idata', 'names'),
     "inference.idata.priors_from_idata": ('idata',),
     "inference.idata.save_idata": ('idata', 'path'),
-    "inference.likelihood.resolve_extension": ('extension', 'model'),
     "inference.mode.z_bounds": ('priors',),
     "inference.noise.arp.pacf_to_ar": ('kappa',),
     "inference.noise.base.check_residual": ('r', 'n_outputs'),

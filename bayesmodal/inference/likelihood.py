@@ -47,6 +47,7 @@ import numpy as np
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
 from ..model._resid_kernels import ar1_sums
+from ..model.effects import resolve_extension
 from ..model.simulate import LinearSimulator, simulate_linear
 from ..model.system import LinearModel
 from .noise_spec import NOISE_MODELS
@@ -60,7 +61,6 @@ __all__ = [
     "simulate_noise",
     "residual_loglik",
     "loglik_from_sums",
-    "resolve_extension",
 ]
 
 
@@ -533,37 +533,6 @@ def noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
     phi = np.clip(phi, -0.9999, 0.9999)
     sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
     return np.r_[sigma, phi]
-
-
-def resolve_extension(extension, model: LinearModel):
-    """The ``Extension`` instance for a name, an instance or None, checked against a model.
-
-    Raises
-    ------
-    ModelError
-        For an unknown name, an object that is not an ``Extension``, a model whose
-        damping is not free (every extension is built on ``LinearModel(rig, "free")``), or
-        an effect the rig cannot carry (``Extension.unsupported``: e.g. backlash on a rig
-        whose motor drives two carts).
-    """
-    if extension is None:
-        return None
-    from ..model.effects import Extension, get_extension
-
-    ext = (get_extension(extension) if isinstance(extension, (str, list, tuple))
-           else extension)
-    if not isinstance(ext, Extension):
-        raise ModelError(
-            "extension must be a name in bayesmodal.model.effects.EXTENSIONS or an "
-            f"Extension, got {type(extension).__name__}")
-    if model.damping != "free":
-        raise ModelError(
-            f"the {ext.name} extension is built on the free-damping model; got "
-            f"{model.damping!r} damping (use LinearModel(rig, 'free'))")
-    why = ext.unsupported(model.rig)
-    if why:
-        raise ModelError(why)
-    return ext
 
 
 def as_experiments(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:

@@ -75,6 +75,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import ConfigError
+from ..model.effects import resolve_extension
 from ..model.system import param_kinds
 from .noise_spec import NOISE_MODELS, parse_noise
 
@@ -484,7 +485,6 @@ def default_priors(
         # initial positions within 10 cm, velocities within 2 m/s of rest
         add(nm, Uniform(-0.1, 0.1) if nm.startswith("x") else Uniform(-2.0, 2.0), "identity")
     if extension is not None:
-        from .likelihood import resolve_extension
 
         ext = resolve_extension(extension, model)
         for spec in ext.specs(model.rig):

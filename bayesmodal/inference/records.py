@@ -47,6 +47,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 from ..model._resid_kernels import ar1_sums, ar1_sums_affine
+from ..model.effects import resolve_extension
 from ..model.simulate import simulate_linear
 from ..model.system import LinearModel
 from .likelihood import (
@@ -161,7 +162,6 @@ def choose_noise(experiments, model, start, *, extension=None, max_p: int = AUTO
         if extension is None:
             yh = simulate_linear(model, theta, e.v_volt, e.dt)
         else:
-            from .likelihood import resolve_extension
 
             yh = resolve_extension(extension, model).simulate(model.rig, theta[None],
                                                               e.v_volt, e.dt)[0]

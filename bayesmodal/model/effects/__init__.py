@@ -45,6 +45,7 @@ Examples
 
 from __future__ import annotations
 
+from ..._errors import ModelError
 from ._base import EffectLocation, Extension, ParamSpec
 from .amplitude_gain import AmplitudeGain
 from .backlash import Backlash
@@ -62,6 +63,7 @@ from .saturation import InputSaturation
 from .sensor_gain import SensorGain
 
 __all__ = [
+    "resolve_extension",
     "EXTENSION_REVISIONS",
     "extension_revisions",
     "EXTENSIONS",
@@ -158,6 +160,46 @@ def extension_revisions(names) -> dict:
     """
     parts = names.split("+") if isinstance(names, str) else list(names)
     return {e: r for e, r in EXTENSION_REVISIONS.items() if e in parts}
+
+
+def resolve_extension(extension, model) -> Extension | None:
+    """The ``Extension`` instance for a name, an instance or None, checked against a model.
+
+    Parameters
+    ----------
+    extension : str, sequence of str, Extension or None
+        A registry name (or several, combined), an instance, or None (the linear model).
+    model : LinearModel
+        The model it extends.
+
+    Returns
+    -------
+    Extension or None
+
+    Raises
+    ------
+    ModelError
+        For an unknown name, an object that is not an ``Extension``, a model whose
+        damping is not free (every extension is built on ``LinearModel(rig, "free")``), or
+        an effect the rig cannot carry (``Extension.unsupported``: e.g. backlash on a rig
+        whose motor drives two carts).
+    """
+    if extension is None:
+        return None
+    ext = (get_extension(extension) if isinstance(extension, (str, list, tuple))
+           else extension)
+    if not isinstance(ext, Extension):
+        raise ModelError(
+            "extension must be a name in bayesmodal.model.effects.EXTENSIONS or an "
+            f"Extension, got {type(extension).__name__}")
+    if model.damping != "free":
+        raise ModelError(
+            f"the {ext.name} extension is built on the free-damping model; got "
+            f"{model.damping!r} damping (use LinearModel(rig, 'free'))")
+    why = ext.unsupported(model.rig)
+    if why:
+        raise ModelError(why)
+    return ext
 
 
 def get_extension(name) -> Extension:
