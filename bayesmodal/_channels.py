@@ -219,29 +219,3 @@ def channel_roles(path: Path, channels: list[Channel], *, columns: dict | None,
 
 #: Instrument formats (file suffixes) read as named channels.
 FORMATS = ("uff", "unv", "tdms")
-
-
-def read_roles(path: Path, kind: str, opts):
-    """Roles in SI units of a UFF/UNV or TDMS file, and the options left to apply.
-
-    Parameters
-    ----------
-    path : Path
-    kind : {"uff", "unv", "tdms"}
-    opts : ReadOptions
-
-    Returns
-    -------
-    roles : dict
-        ``t`` (s), ``v`` (V before ``input_scale``), ``x1..xn`` (m).
-    opts : ReadOptions
-        ``opts`` with the output and time scales already applied (``m_per_count`` None,
-        ``time_scale`` 1), for ``bayesmodal.data``'s assembly of the record.
-    """
-    from dataclasses import replace
-
-    from . import _tdms, _uff
-
-    reader = _tdms if kind == "tdms" else _uff
-    roles = reader.read_roles(path, opts.column_map, opts.m_per_count, opts.time_scale)
-    return roles, replace(opts, m_per_count=None, time_scale=1.0)

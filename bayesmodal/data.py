@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _channels, _ecp_export, _readers, _window
+from . import _ecp_export, _instruments, _readers, _window
 from ._errors import DataError
 from .model.system import ECP_M_PER_COUNT
 from .reading import ReadOptions, choose_time_base, drive_sign
@@ -484,7 +484,7 @@ def _vector(path: Path, role: str, a) -> np.ndarray:
     return np.asarray(a, dtype=float).ravel()
 
 
-_FORMATS = ("mat", "txt", "csv", *_channels.FORMATS)
+_FORMATS = ("mat", "txt", "csv", *_instruments.FORMATS)
 
 #: Largest plausible motor command, V (the ECP amplifier takes +-10 V).
 _MAX_PLAUSIBLE_V = 30.0
@@ -603,7 +603,7 @@ def load_experiment(
         header rows) or ``.csv`` (header row).  Without a column map: ECP ``.mat``/``.txt``
         with ``t, x1..xn, v`` in encoder counts, CSV with header ``t,v,x1..xn`` in SI units.
         ``.uff``/``.unv`` (dataset 58 time records, ``pyuff``) and ``.tdms`` (``npTDMS``):
-        named channels with units (``bayesmodal._channels``).
+        named channels with units (``bayesmodal._instruments``).
     fmt : {"mat", "txt", "csv", "uff", "unv", "tdms"}, optional
         Format; by default taken from the file extension.
     m_per_count : float, optional
@@ -665,8 +665,8 @@ def load_experiment(
         roles = _mat_roles(path, opts)
     elif kind == "txt":
         roles = _txt_roles(path, opts)
-    elif kind in _channels.FORMATS:  # instrument files: named channels with units
-        roles, opts = _channels.read_roles(path, kind, opts)
+    elif kind in _instruments.FORMATS:  # instrument files: named channels with units
+        roles, opts = _instruments.read_roles(path, kind, opts)
     else:
         roles = _csv_roles(path, opts)
     exp = _assemble(path, roles, opts, kind, path.stem)
