@@ -35,8 +35,8 @@ _LAZY = {
     "sample_posterior": "bayesmodal.inference.sampling",
     "crossval": "bayesmodal.inference.crossval",
     "diagnose": "bayesmodal.discrepancy.diagnosis.workflow",
-    "RunConfig": "bayesmodal.config",
-    "load_config": "bayesmodal.config",
+    "RunConfig": "bayesmodal.runs.config",
+    "load_config": "bayesmodal.runs.config",
 }
 
 __all__ = [

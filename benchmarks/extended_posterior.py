@@ -63,9 +63,9 @@ def _load() -> str:
 
 def _one(job: dict) -> dict:
     """One ensemble: its post-burn-in chain in sampling coordinates and its costs."""
-    from bayesmodal.config import load_config
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.threads import resolve_threads
+    from bayesmodal.runs.config import load_config
     from bayesmodal.runs.runner import prepare_run
 
     cfg = load_config(job["config"])

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesmodal.config import load_config
+from bayesmodal.runs.config import load_config
 from bayesmodal.runs.identify import IdentifySpec, identify
 
 

@@ -33,10 +33,10 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from identify_records import write_records  # noqa: E402
 
-from bayesmodal.config import load_config  # noqa: E402
 from bayesmodal.inference.propagate import propagate_modes  # noqa: E402
 from bayesmodal.model.rigs import load_rig  # noqa: E402
 from bayesmodal.model.system import LinearModel  # noqa: E402
+from bayesmodal.runs.config import load_config  # noqa: E402
 from bayesmodal.runs.identify import identify, spec_from_config  # noqa: E402
 
 HIDDEN = {"coulomb_friction", "drive_deadband", "input_offset"}

@@ -33,9 +33,9 @@ DEFAULT = ("runs/records_free.toml", "runs/records_friction.toml")
 
 def _log_post(config: str):
     """The configuration's log posterior (as its run builds it) and a half-ensemble."""
-    from bayesmodal.config import load_config
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.sampling import LogPosterior
+    from bayesmodal.runs.config import load_config
     from bayesmodal.runs.runner import prepare_run
 
     cfg = load_config(config)

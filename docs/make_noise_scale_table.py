@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 from _measured import run_studies  # docs/_measured.py (run as docs/<script>.py)
 
-from bayesmodal.config import load_config
 from bayesmodal.inference.records import RecordLayout
+from bayesmodal.runs.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The final model of docs/discrepancy.md, nothing per record.

@@ -12,8 +12,8 @@ from the code:
   ``bayesmodal.inference.records.resolve_noise`` and checked against the run
   configuration's validation;
 - ``cli.md``: the argparse parsers of ``bayesmodal.cli.build_parser``;
-- ``config.md``: the run configuration's key table (``bayesmodal.config._SCHEMA``), the
-  defaults of ``RunConfig`` and the annotated example of ``bayesmodal.config``.
+- ``config.md``: the run configuration's key table (``bayesmodal.runs.config._SCHEMA``), the
+  defaults of ``RunConfig`` and the annotated example of ``bayesmodal.runs.config``.
 
 ``tests/test_reference_docs.py`` regenerates every page in memory and compares it with
 the committed file.
@@ -136,7 +136,7 @@ N_OUTPUTS = 3
 
 def _check_spelling(text: str) -> None:
     """Raise unless a run configuration accepts ``[likelihood] noise = text``."""
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     parse_config({"data": {"files": ["record.csv"]}, "likelihood": {"noise": text}},
                  check_files=False)
@@ -296,8 +296,8 @@ CONFIG_DERIVED = {"name": "the configuration file's stem",
 
 def _example_notes() -> dict[tuple[str, str], tuple[str, str]]:
     """``(section, key) -> (example value, comment)`` from the annotated example in
-    ``bayesmodal.config``'s docstring (comment lines below a key continue its comment)."""
-    import bayesmodal.config as config
+    ``bayesmodal.runs.config``'s docstring (comment lines below a key continue its comment)."""
+    import bayesmodal.runs.config as config
 
     notes: dict = {}
     section, last = None, None
@@ -323,19 +323,19 @@ def _example_notes() -> dict[tuple[str, str], tuple[str, str]]:
 
 
 def config_page() -> str:
-    from bayesmodal.config import _SCHEMA, RunConfig
+    from bayesmodal.runs.config import _SCHEMA, RunConfig
 
     fields = {f.name: f for f in dataclasses.fields(RunConfig)}
     notes = _example_notes()
     for section, key in notes:
         if section not in _SCHEMA or (section != "priors" and key not in _SCHEMA[section]):
-            raise KeyError(f"bayesmodal.config's example names [{section}] {key}, which "
+            raise KeyError(f"bayesmodal.runs.config's example names [{section}] {key}, which "
                            "the key table (_SCHEMA) does not accept")
     used = set(CONFIG_DERIVED)
     out = [HEADER, "# Run configuration\n\n",
            "Every section and key of a run configuration (the TOML file of "
            "`bayesmodal run` and `bayesmodal batch`), from the key table of "
-           "`bayesmodal.config` and the defaults of `RunConfig`.  An unknown section or "
+           "`bayesmodal.runs.config` and the defaults of `RunConfig`.  An unknown section or "
            "key, or a value of another type, is an error naming the file and the key.  "
            "Data paths are looked up relative to the configuration file, then in "
            "`$BAYESMODAL_DATA`, then in `../shared/data` beside the repository.  Example "
@@ -386,7 +386,7 @@ def config_page() -> str:
 
 def _identify_default(key: str) -> str:
     """The default of an ``[identify]`` key: the value its spec field takes."""
-    from bayesmodal.config import IDENTIFY_DIAGNOSIS_KEYS
+    from bayesmodal.runs.config import IDENTIFY_DIAGNOSIS_KEYS
     from bayesmodal.runs.identify import DiagnosisSpec, FinalSpec
 
     words = {"enabled": "false", "candidates": "the default candidates and the driven "

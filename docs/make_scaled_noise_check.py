@@ -33,10 +33,10 @@ import numpy as np
 from _measured import RECORDS, measured_records  # docs/_measured.py
 from _stamp import stamp  # docs/_stamp.py
 
-from bayesmodal.config import load_config
 from bayesmodal.data import Experiment
 from bayesmodal.inference.crossval import crossval
 from bayesmodal.inference.records import parse_layout
+from bayesmodal.runs.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 

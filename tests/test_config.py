@@ -5,7 +5,7 @@ import textwrap
 import pytest
 
 from bayesmodal import ConfigError
-from bayesmodal.config import load_config, parse_config
+from bayesmodal.runs.config import load_config, parse_config
 
 GOOD = """
 [data]
@@ -160,7 +160,7 @@ def test_snooker_runs_hash_apart_from_the_released_move(cfg_dir, monkeypatch):
     """A configuration naming the snooker move hashes with the corrected move's revision,
     so a run sampled with emcee 3.1.6's contracting move (same TOML) does not resume; a
     configuration without it keeps its hash."""
-    import bayesmodal.config as config
+    import bayesmodal.runs.config as config
 
     snooker = parse_config(_toml(GOOD), base=cfg_dir)
     assert "de-snooker" in snooker.moves
@@ -176,7 +176,7 @@ def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatc
     """A configuration with LuGre friction hashes with the kernel's revision (4 sub-steps
     since 25 Nov 2026), in the run configuration and in the sampler's own hash, so a run
     sampled with 8 sub-steps does not resume into the new target; others keep theirs."""
-    import bayesmodal.config as config
+    import bayesmodal.runs.config as config
     from bayesmodal.model.effects import get_extension
 
     def cfg(exts):

@@ -15,8 +15,8 @@ import pytest
 from test_data_layouts import MAP, V_PER_UNIT, logger_mat
 
 from bayesmodal._errors import ConfigError
-from bayesmodal.config import load_config, parse_config
 from bayesmodal.model.rigs import load_rig, rig_to_toml
+from bayesmodal.runs.config import load_config, parse_config
 
 CONFIG = """\
 [data]

@@ -70,7 +70,6 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "_errors.one_line": ('exc',),
     "_versions.dependency_versions": ('names',),
     "bench.time_per_call": ('fn', 'min_time_s', 'repeat', 'clock'),
-    "config.load_config": ('path', 'check_files'),
     "data.file_sha256": ('path',),
     "data.find_data": ('name',),
     "data.in_data_root": ('name', 'root'),

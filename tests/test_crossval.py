@@ -188,7 +188,7 @@ def test_crossval_spec_rejects_bad_sampler_settings(kw, message):
 
 
 def test_config_hands_its_moves_and_pruning_to_crossval(tmp_path):
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     (tmp_path / "a.csv").write_text("t,v,x1,x2,x3\n")
     cfg = parse_config(_toml('[data]\nfiles=["a.csv", "a.csv"]\n[sampler]\nsteps=400\n'

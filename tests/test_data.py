@@ -164,8 +164,8 @@ def data_tree(tmp_path):
 
 @pytest.mark.parametrize("env", ["data", "data/ecp210-3dof"])
 def test_data_root_may_be_the_parent_or_the_data_set_folder(data_tree, monkeypatch, env):
-    from bayesmodal.config import parse_config
     from bayesmodal.data import find_data
+    from bayesmodal.runs.config import parse_config
 
     monkeypatch.setenv("BAYESMODAL_DATA", str(data_tree / env))
     expected = data_tree / "data" / "ecp210-3dof" / "rec.csv"
@@ -180,8 +180,8 @@ def test_data_root_may_be_the_parent_or_the_data_set_folder(data_tree, monkeypat
 def test_data_root_elsewhere_finds_nothing(data_tree, monkeypatch):
     # negative control: a root that holds neither the data set nor its files
     from bayesmodal import ConfigError
-    from bayesmodal.config import parse_config
     from bayesmodal.data import find_data
+    from bayesmodal.runs.config import parse_config
 
     monkeypatch.setenv("BAYESMODAL_DATA", str(data_tree / "cfg"))
     assert find_data("ecp210-3dof/rec.csv") is None

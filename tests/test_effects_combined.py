@@ -212,8 +212,8 @@ def _config(tmp_path, extensions: str) -> str:
 
 
 def test_config_with_two_effects_builds_a_combined_likelihood(tmp_path):
-    from bayesmodal.config import load_config
     from bayesmodal.runs import prepare_run
+    from bayesmodal.runs.config import load_config
 
     prep = prepare_run(load_config(_config(tmp_path, '["coulomb_friction", "input_offset"]')))
     assert prep.extension == "coulomb_friction+input_offset"

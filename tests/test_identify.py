@@ -18,9 +18,9 @@ from _chromium import HEIGHT, WIDTH, first_screen, page_check
 from identify_records import write_records
 from scipy.stats import norm
 
-from bayesmodal.config import load_config
 from bayesmodal.model.rigs import load_rig
 from bayesmodal.model.system import Rig
+from bayesmodal.runs.config import load_config
 from bayesmodal.runs.identify import (
     DiagnosisSpec,
     diagnosis_records,
@@ -274,7 +274,7 @@ def test_stage_table_reads_every_stage_of_the_folder(offset_run):
 
 def test_identify_table_errors_are_listed_together(tmp_path):
     from bayesmodal import ConfigError
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     raw = {"data": {"files": ["x.csv"]},
            "identify": {"enabled": True, "null": 5, "split": "sometimes", "steps": 100,

@@ -113,7 +113,7 @@ def test_init_is_validated():
 
 
 def test_config_key():
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     def cfg_of(sampler):
         return parse_config({"data": {"files": ["a.mat"]}, "sampler": sampler},

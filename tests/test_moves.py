@@ -9,7 +9,6 @@ import emcee
 import numpy as np
 import pytest
 
-from bayesmodal import config
 from bayesmodal._errors import ConfigError
 from bayesmodal.inference.moves import (
     MOVES,
@@ -18,6 +17,7 @@ from bayesmodal.inference.moves import (
     default_moves,
     parse_moves,
 )
+from bayesmodal.runs import config
 
 NDIM, WALKERS, STEPS = 12, 40, 2500
 

@@ -116,7 +116,7 @@ def test_noise_names_follow_the_models():
 
 
 def test_run_configuration_uses_the_parser(tmp_path):
-    from bayesmodal.config import load_config
+    from bayesmodal.runs.config import load_config
 
     def cfg(noise):
         (tmp_path / "exp.csv").write_text("t,v,x1,x2,x3\n0,0,0,0,0\n", encoding="utf-8")

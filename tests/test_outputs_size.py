@@ -153,7 +153,7 @@ def test_checkpoint_size_follows_the_accepted_steps_and_resume_is_exact(n_steps,
 
 def test_outputs_pointwise_loglik_key():
     from bayesmodal._errors import ConfigError
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     base = {"data": {"files": ["a.csv"]}}
     on = parse_config(base, check_files=False)

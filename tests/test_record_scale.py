@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from bayesmodal._errors import ConfigError
-from bayesmodal.config import load_config
 from bayesmodal.data import Experiment
 from bayesmodal.inference.idata import likelihood_from_idata, to_inference_data
 from bayesmodal.inference.predictive import predict_new_record
@@ -14,6 +13,7 @@ from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
 from bayesmodal.inference.sampling import sample_posterior
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
+from bayesmodal.runs.config import load_config
 
 EPS = np.finfo(float).eps
 MODEL = LinearModel(Rig(), "free")

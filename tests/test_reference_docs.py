@@ -72,7 +72,7 @@ def test_every_command_and_option_is_listed():
 
 
 def test_every_configuration_key_is_listed():
-    from bayesmodal.config import _SCHEMA
+    from bayesmodal.runs.config import _SCHEMA
 
     page = ref.config_page()
     for section, keys in _SCHEMA.items():
@@ -93,8 +93,8 @@ def test_generator_follows_the_registries(monkeypatch):
     field, or a noise spelling the configuration rejects, stops the generator instead of
     writing a page that misses it."""
     from bayesmodal import ConfigError
-    from bayesmodal.config import _SCHEMA
     from bayesmodal.model.effects import EXTENSIONS
+    from bayesmodal.runs.config import _SCHEMA
 
     monkeypatch.setitem(EXTENSIONS, "extra_effect", EXTENSIONS["motor_lag"])
     assert "\n## extra_effect\n" in ref.effects_page()

@@ -12,12 +12,12 @@ import pytest
 
 from bayesmodal import ConfigError, DataError, __version__
 from bayesmodal.cli import main
-from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, file_sha256, save_csv
 from bayesmodal.inference import simulate_noise
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs import recorded_config, rerun_run
+from bayesmodal.runs.config import load_config
 from bayesmodal.runs.rerun import json_differences
 
 CONFIG = """\

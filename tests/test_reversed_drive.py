@@ -17,11 +17,11 @@ import pytest
 from conftest import run_cli as _cli
 
 from bayesmodal import ConfigError
-from bayesmodal.config import parse_config
 from bayesmodal.data import Experiment, load_experiment, save_csv
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.reading import ReadOptions, drive_sign, parse_scale
+from bayesmodal.runs.config import parse_config
 
 THETA = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.01, 0.01])
 DT = 0.005

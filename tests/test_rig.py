@@ -625,7 +625,7 @@ def test_cli_lsq_with_rig_file(tmp_path):
 
 
 def test_config_rig_table(tmp_path):
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     base = {"data": {"files": ["x.csv"]}}
     save_rig(load_rig("ecp210-1cart"), tmp_path / "one.toml")

@@ -94,7 +94,7 @@ def test_contradictory_declarations_give_one_line_errors(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 2 and "declares proportional damping" in err and "\n" not in err
     # and in a run configuration
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     base = {"data": {"files": ["x.csv"]}, "rig": _declared(True)}
     assert parse_config(base, check_files=False).damping == "proportional"
@@ -105,7 +105,7 @@ def test_contradictory_declarations_give_one_line_errors(tmp_path, capsys):
 
 
 def test_an_undeclared_rig_keeps_its_config_hash():
-    from bayesmodal.config import parse_config
+    from bayesmodal.runs.config import parse_config
 
     base = {"data": {"files": ["x.csv"]}}
     plain = parse_config({**base, "rig": rig_to_dict(TWO)}, check_files=False)

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, find_data, save_csv
 from bayesmodal.inference import default_priors, simulate_noise
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs import prepare_run, render_report, run_config
+from bayesmodal.runs.config import load_config
 
 RUNS = Path(__file__).resolve().parents[1] / "runs"
 SHIPPED = {

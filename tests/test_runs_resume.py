@@ -18,12 +18,12 @@ import h5py
 import numpy as np
 import pytest
 
-from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.inference import load_idata, simulate_noise
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs import RunLockedError, checkpoint_iteration, prepare_run, run_config
+from bayesmodal.runs.config import load_config
 from bayesmodal.runs.runner import execute_run
 
 STEPS = 3000

@@ -24,11 +24,11 @@ from _chromium import HEIGHT, first_screen, page_check
 
 from bayesmodal import __version__
 from bayesmodal.cli import main
-from bayesmodal.config import load_config
 from bayesmodal.data import Experiment, file_sha256, save_csv
 from bayesmodal.inference import load_idata, propagate_modes, save_idata, simulate_noise
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
+from bayesmodal.runs.config import load_config
 from bayesmodal.runs.verdict import run_verdict
 
 TRUTH = np.array([6.2, 1.57, 1.46, 1.14, 2.9, 1.8, 2.0, 0.0, 0.0])

@@ -14,11 +14,11 @@ import pytest
 
 from bayesmodal import ConfigError
 from bayesmodal.cli import main
-from bayesmodal.config import load_config, parse_config
 from bayesmodal.data import Experiment, save_csv
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 from bayesmodal.runs import default_out_dir, render_report
+from bayesmodal.runs.config import load_config, parse_config
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = sorted([*(REPO / "bayesmodal").rglob("*.py"), *(REPO / "scripts").rglob("*.py"),

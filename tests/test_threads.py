@@ -17,7 +17,6 @@ import pytest
 from hidden_effects import make
 
 from bayesmodal._errors import ConfigError
-from bayesmodal.config import parse_config
 from bayesmodal.inference import (
     Likelihood,
     ThreadedLogPosterior,
@@ -27,6 +26,7 @@ from bayesmodal.inference import (
 )
 from bayesmodal.inference.sampling import LogPosterior
 from bayesmodal.model.system import LinearModel, Rig
+from bayesmodal.runs.config import parse_config
 
 N_SAMPLES = 1500
 

@@ -119,7 +119,7 @@ def test_a_window_that_starts_at_rest_is_fitted_from_rest(tmp_path):
 
 
 def test_the_run_config_reads_the_window(tmp_path):
-    from bayesmodal.config import load_config
+    from bayesmodal.runs.config import load_config
 
     path, *_ = _record(tmp_path)
     cfg = tmp_path / "cfg.toml"

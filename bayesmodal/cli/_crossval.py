@@ -83,7 +83,7 @@ def spec_from_args(args):
     from ..inference.records import parse_layout
 
     if args.config:
-        from ..config import load_config
+        from ..runs.config import load_config
 
         cfg = load_config(args.config, check_files=False)
         if cfg.temperature == "loro":  # [likelihood] temperature = "loro": calibrate

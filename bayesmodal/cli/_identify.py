@@ -53,7 +53,7 @@ def register(sub) -> None:
 
 
 def _config(args):
-    from ..config import load_config, parse_config
+    from ..runs.config import load_config, parse_config
 
     first = Path(args.inputs[0])
     if first.suffix.lower() == ".toml":

@@ -50,9 +50,9 @@ def _identify(cfg, args) -> int:
 
 
 def run(args) -> int:
-    from ..config import load_config
     from ..inference.threads import resolve_threads
     from ..runs import default_out_dir, execute_run, prepare_run
+    from ..runs.config import load_config
     from ..runs.runner import one_line
 
     try:

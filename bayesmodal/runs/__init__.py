@@ -1,6 +1,6 @@
 """Posterior runs from configuration files: one folder per run, many runs in parallel.
 
-- :func:`run_config` -- check a TOML configuration (``bayesmodal.config``) against its data
+- :func:`run_config` -- check a TOML configuration (``bayesmodal.runs.config``) against its data
   and sample it into its own folder: emcee checkpoint (``chain.h5``, atomic, resumable to
   the identical chain), ``posterior.nc``, ``summary.json`` with provenance, plots,
   ``run.log``, ``status.json`` and a self-contained ``report.html``;

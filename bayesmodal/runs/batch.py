@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from .._progress import progress_bar
-from ..config import load_config
+from .config import load_config
 from .folder import atomic_write_json
 from .identify import identify, spec_from_config
 from .runner import default_out_dir, execute_run, one_line, prepare_run

@@ -36,12 +36,12 @@ import numpy as np
 
 from .._errors import ConfigError
 from .._json import to_jsonable
-from ..config import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, RunConfig
 from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose, require_diagnosable
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS, get_extension
 from ..model.system import LinearModel, param_kinds
 from ..segments import split_at_rest, split_records
+from .config import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, RunConfig
 from .folder import RunFolder, atomic_write_json, now_iso
 from .identify_summary import summarize, write_identify_report
 from .runner import execute_run, prepare_run

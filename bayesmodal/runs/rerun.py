@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._errors import ConfigError, DataError
-from ..config import PriorOverride, RunConfig
 from ..data import file_sha256
+from .config import PriorOverride, RunConfig
 from .provenance import dependency_versions
 
 __all__ = ["RerunResult", "rerun_run", "recorded_config", "json_differences"]

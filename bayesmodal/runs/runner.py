@@ -28,7 +28,6 @@ import numpy as np
 from .._errors import ConfigError, DataError, one_line
 from .._progress import progress_bar
 from .._window import motion_at_start, offset_at_rest
-from ..config import RunConfig, load_config
 from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
 from ..fit.linear import fit_lsq
 from ..inference.moves import parse_moves
@@ -38,6 +37,7 @@ from ..metrics import fit_percent
 from ..model.effects import get_extension
 from ..model.system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
+from .config import RunConfig, load_config
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 from .outputs import write_modal_plot, write_run
 

@@ -118,13 +118,19 @@ import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path, PurePosixPath
 
-from ._errors import ConfigError
-from .data import ECP_M_PER_COUNT, in_data_root
-from .inference.moves import MOVE_REVISIONS, move_spec
-from .inference.moves import MOVES as _MOVE_CLASSES
-from .inference.record_scale import NOISE_SCALES
-from .model.effects import EXTENSION_REVISIONS, EXTENSIONS, extension_revisions
-from .model.system import DAMPING_MODELS, ECP210_SPRINGS_N_M
+from .._errors import ConfigError, ModelError
+from ..data import ECP_M_PER_COUNT, in_data_root
+from ..inference.crossval import CrossvalSpec
+from ..inference.moves import MOVE_REVISIONS, move_spec
+from ..inference.moves import MOVES as _MOVE_CLASSES
+from ..inference.noise_spec import NOISE_MODELS, parse_noise
+from ..inference.record_scale import NOISE_SCALES
+from ..inference.records import RecordLayout
+from ..inference.threads import resolve_threads
+from ..model.effects import EXTENSION_REVISIONS, EXTENSIONS, extension_revisions
+from ..model.rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict
+from ..model.system import DAMPING_MODELS, ECP210_SPRINGS_N_M, LinearModel, Rig
+from ..reading import REST_OFFSETS, TIME_BASES, ReadOptions, parse_scale
 
 __all__ = ["RunConfig", "load_config", "parse_config", "MOVES", "NOISE_SCALES",
            "EXTENSION_REVISIONS", "MOVE_REVISIONS", "extension_revisions", "move_spec"]
@@ -241,7 +247,6 @@ class RunConfig:
     def read_options(self):
         """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
         given to the loader separately, for encoder files)."""
-        from .reading import ReadOptions  # noqa: PLC0415
 
         return ReadOptions(columns=self.columns, input_scale=self.input_scale,
                            time_scale=self.time_scale, time_base=self.time_base,
@@ -250,8 +255,6 @@ class RunConfig:
 
     def make_rig(self):
         """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
-        from .model.rigs import rig_from_dict  # noqa: PLC0415
-        from .model.system import Rig  # noqa: PLC0415
 
         if self.rig is None:
             return Rig(self.springs_n_m)
@@ -260,8 +263,6 @@ class RunConfig:
     @property
     def layout(self):
         """The per-record layout (``RecordLayout``), or None for shared parameters."""
-        from .inference.noise_spec import parse_noise
-        from .inference.records import RecordLayout
 
         if not self.per_record and not self.noise_per_record and self.noise_scale == "none":
             # AR(p) noise lives in the several-record likelihood: shared layout
@@ -271,8 +272,6 @@ class RunConfig:
 
     def crossval_spec(self):
         """The ``CrossvalSpec`` of this configuration (model, noise, layout, sampler)."""
-        from .inference.crossval import CrossvalSpec
-        from .inference.records import RecordLayout
 
         return CrossvalSpec(
             damping=self.damping, noise=self.noise,
@@ -423,8 +422,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
     cols = values.get(("data", "columns"))
     if cols is not None:
-        from .reading import ReadOptions  # noqa: PLC0415
-
         bad = [k for k, c in cols.items()
                if isinstance(c, bool) or not isinstance(c, (str, int))]
         if bad:
@@ -440,7 +437,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         val = values.get(("data", key))
         if val is None:
             continue
-        from .reading import parse_scale  # noqa: PLC0415
 
         try:
             # the input may be reversed (a negative input_scale); time runs forwards
@@ -450,8 +446,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
     time_base = values.get(("data", "time_base"))
     if time_base is not None:
-        from .reading import TIME_BASES  # noqa: PLC0415
-
         if time_base not in TIME_BASES:
             err("data.time_base",
                 f"must be one of {', '.join(TIME_BASES)}, got {time_base!r}")
@@ -460,8 +454,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
     rest_offset = values.get(("data", "rest_offset"))
     if rest_offset is not None:
-        from .reading import REST_OFFSETS  # noqa: PLC0415
-
         if rest_offset not in REST_OFFSETS:
             err("data.rest_offset", f"must be one of {', '.join(REST_OFFSETS)} (subtract "
                 "each output's rest level before the first input, or its final rest), got "
@@ -480,8 +472,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
     window = {k: values[("data", k)] for k in ("t_start", "t_end") if ("data", k) in values}
     if window:
-        from .reading import ReadOptions  # noqa: PLC0415
-
         try:
             ReadOptions(**window)
             kw.update(window)
@@ -516,8 +506,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     kw["damping"] = damping
     exts = values.get(("model", "extensions"), [])
     try:
-        from .model.effects import EXTENSIONS  # noqa: PLC0415 - optional catalogue
-
         known = tuple(EXTENSIONS)
     except ImportError:
         known = ()
@@ -565,7 +553,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
     _parse_identify(raw.get("identify"), err, kw)
 
     noise = values.get(("likelihood", "noise"), "ar1")
-    from .inference.noise_spec import NOISE_MODELS, parse_noise  # noqa: PLC0415
 
     try:
         parse_noise(noise)
@@ -606,8 +593,6 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
         kw["init"] = init
     threads = values.get(("sampler", "threads"))
     if threads is not None:
-        from .inference.threads import resolve_threads  # noqa: PLC0415
-
         try:
             kw["threads"] = resolve_threads(threads)
         except ConfigError as exc:
@@ -693,12 +678,8 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
 
 def _check_prior_names(priors, kw, err) -> None:
-    from .model.system import LinearModel, Rig  # noqa: PLC0415
-
     try:
         if kw.get("rig") is not None:
-            from .model.rigs import rig_from_dict  # noqa: PLC0415
-
             rig = rig_from_dict(kw["rig"])
         else:
             rig = Rig(kw.get("springs_n_m", ECP210_SPRINGS_N_M))
@@ -709,8 +690,6 @@ def _check_prior_names(priors, kw, err) -> None:
     allowed = set(model.names) | {f"sigma_{i + 1}" for i in range(n)} | {
         f"phi_{i + 1}" for i in range(n)}
     try:
-        from .model.effects import EXTENSIONS  # noqa: PLC0415
-
         for e in kw.get("extensions", ()):
             if e in EXTENSIONS:
                 allowed |= set(EXTENSIONS[e].names(model.rig))
@@ -742,6 +721,18 @@ def _noise_alias(name: str) -> str:
 
 def load_config(path: str | os.PathLike, *, check_files: bool = True) -> RunConfig:
     """Read and validate a TOML run configuration.
+
+    Parameters
+    ----------
+    path : str or path
+        The TOML file; data paths in it are relative to its folder.
+    check_files : bool
+        Check that every data file exists.
+
+    Returns
+    -------
+    RunConfig
+        Named after the file's stem.
 
     Raises
     ------
@@ -803,8 +794,6 @@ def _parse_rig(table, values, kw, base: Path, err) -> None:
         return
     if not (inline or "file" in table):
         return
-    from ._errors import ModelError  # noqa: PLC0415
-    from .model.rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict  # noqa: PLC0415
 
     try:
         if inline:
