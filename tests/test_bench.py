@@ -22,6 +22,7 @@ from bayesmodal.cli import main
 from bayesmodal.model.effects import EXTENSIONS
 
 
+@pytest.mark.slow  # the default suite reaches bench_extensions through the CLI test below
 def test_bench_extensions_reports_every_extension_against_the_same_run():
     out = bench_extensions(n_samples=300, batch=4, quick=True, rounds=2)
     assert set(out) == set(EXTENSIONS) | set(COMBINED)
