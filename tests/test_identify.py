@@ -325,3 +325,32 @@ def test_an_accelerometer_rig_is_refused_before_any_run(tmp_path):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "identify (its diagnosis)" in lines[0], p.stderr
     assert not (tmp_path / "o" / "linear").exists()
+
+
+def test_story_counts_the_left_out_records_inside_their_intervals():
+    from bayesmodal.runs.identify_summary import story
+
+    def rec(name, own_f, lo, hi, band):
+        row = {"record": name, "band": band}
+        for key in ("omega_rad_s", "zeta"):
+            row[key] = [{"own": own_f, "lo": lo, "median": (lo + hi) / 2, "hi": hi,
+                         "inside": lo <= own_f <= hi}]
+        return row
+
+    lin = {"omega_rad_s": {"median": [10.0], "lo": [9.9], "hi": [10.1]},
+           "zeta": {"median": [0.05], "lo": [0.04], "hi": [0.06]},
+           "diagnostics": {"converged": True, "max_rhat": 1.0, "min_ess": 1000}}
+    fin = {**lin, "zeta": {"median": [0.04], "lo": [0.035], "hi": [0.045]}}
+    diag = {"diagnosis": {"effects": ["coulomb_friction"], "causes": [
+        {"cause": "coulomb_friction", "location_label": "cart 1", "parameters": {"Fc1": 0.2},
+         "gain": {"held_out": {"delta_lpd": 50.0, "se": 5.0}}}], "gain": {}}}
+    s = summarize(lin, diag, fin, ("lugre_friction",))
+    s["final"]["heldout"] = [rec("a", 0.5, 0.4, 0.6, "ok"), rec("b", 0.7, 0.4, 0.6, "ok"),
+                             rec("c", 0.45, 0.4, 0.6, "narrow")]
+    verdict, lines = story(s)
+    assert verdict.startswith("Final model: ")
+    text = " ".join(lines)
+    assert "2 of 3 records have their own natural frequencies inside" in text
+    assert "2 of 3 predictive bands" in text
+    assert "coulomb friction at cart 1" in text and "LuGre" in text
+    assert "moves zeta1 by +25 %" in text
