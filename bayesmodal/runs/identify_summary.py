@@ -16,11 +16,13 @@ import numpy as np
 
 from .folder import atomic_write_text
 from .report import _CSS, _e, _interval, _num, _table
-from .verdict import record_status, run_verdict
+from .verdict import diagnostic_counts, record_status, run_verdict
 
 __all__ = ["summarize", "story", "render_identify_report", "write_identify_report"]
 
 _MODAL = ("omega_rad_s", "zeta", "mode_shapes")
+#: numbers and intervals on one line each
+_CSS_MORE = "td{white-space:nowrap} ul.story li{margin:.15em 0}"
 
 
 def _modal(summary: dict) -> dict:
@@ -32,7 +34,12 @@ def _run_part(summary: dict | None) -> dict | None:
         return None
     v = run_verdict(summary)
     d = summary.get("diagnostics", {})
+    n_fail, n_all, _ = diagnostic_counts(summary)
+    fits = [x for r in summary.get("crosscheck", {}).get("residuals", [])
+            for x in np.ravel(r.get("fit_percent", []))]
     return {"modal": _modal(summary), "verdict": v.sentence, "ok": v.ok,
+            "checks_failed": n_fail, "checks_run": n_all,
+            "fit_percent_range": [min(fits), max(fits)] if fits else None,
             "model_status": v.model.status, "model_text": v.model.text,
             "converged": bool(summary.get("convergence", {}).get("converged", False)),
             "max_rhat": d.get("max_rhat"), "min_ess": d.get("min_ess"),
@@ -187,7 +194,11 @@ def story(s: dict) -> tuple[str, list[str]]:
     causes = s["causes"]
     lines = []
     if lin["model_status"] == "bad":
-        lines.append(f"The linear model does not explain these records: {lin['model_text']}")
+        fit = lin.get("fit_percent_range")
+        lines.append(f"The linear model does not explain these records: {lin['checks_failed']} "
+                     f"of {lin['checks_run']} residual checks fail"
+                     + (f", fit {fit[0]:.0f}-{fit[1]:.0f} %" if fit else "")
+                     + " (its report lists them).")
     if causes:
         names = "; ".join(f"{c['cause'].replace('_', ' ')}" + (f" at {c['where']}"
                                                                  if c["where"] else "")
@@ -241,10 +252,9 @@ def _story(s: dict) -> str:
 def _modal_table(s: dict) -> str:
     lin, fin = s["linear"]["modal"], s["final"]["modal"]
     both = s["final"] is not s["linear"] and s["found"]
-    head = ["mode", "f_n (Hz), final model", "90 % interval", "zeta, final model",
-            "90 % interval"]
+    head = ["mode", "final f_n (Hz)", "90 % interval", "final zeta", "90 % interval"]
     if both:
-        head += ["f_n (Hz), linear", "zeta, linear", "zeta change if causes ignored"]
+        head += ["linear f_n (Hz)", "linear zeta", "zeta if causes ignored"]
     hz = 1.0 / (2.0 * math.pi)
     rows = []
     ign = {r["mode"]: r for r in s["ignoring_causes"]}
@@ -349,7 +359,8 @@ def render_identify_report(s: dict, *, name: str = "identify") -> str:
         f"<p class='muted'>stages this time: {_e(timing) or 'all reused'}</p>",
     ])
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
-            f"<title>bayesmodal identify {_e(name)}</title><style>{_CSS}</style></head>"
+            f"<title>bayesmodal identify {_e(name)}</title><style>{_CSS}{_CSS_MORE}</style>"
+            "</head>"
             f"<body>\n{body}\n</body></html>\n")
 
 

@@ -194,7 +194,20 @@ def _sampler(s: dict) -> Answer:
                   f"{problems or num}. Sample longer before using any number below.")
 
 
-def _diagnostic_counts(s: dict) -> tuple[int, int, list[str]]:
+def diagnostic_counts(s: dict) -> tuple[int, int, list[str]]:
+    """Residual checks of a run (``summary.json``): how many failed, how many ran, and the
+    failed ones' names.
+
+    Parameters
+    ----------
+    s : dict
+        ``summary.json``.
+
+    Returns
+    -------
+    n_fail, n_all : int
+    names : list of str
+    """
     n_fail = n_all = 0
     names: list[str] = []
     for r in s.get("crosscheck", {}).get("residuals", []):
@@ -220,7 +233,7 @@ def _crossval_records(s: dict) -> list[dict]:
 
 def _model(s: dict) -> Answer:
     q = "Does the model explain the data?"
-    n_fail, n_all, names = _diagnostic_counts(s)
+    n_fail, n_all, names = diagnostic_counts(s)
     res = s.get("crosscheck", {}).get("residuals", [])
     parts = []
     if res:
@@ -395,7 +408,7 @@ def run_verdict(summary: dict) -> RunVerdict:
     first = ("The sampler converged" if a.status == "ok"
              else "The sampler has NOT converged (sample longer)")
     if b.status == "bad":
-        n_fail, n_all, _ = _diagnostic_counts(summary)
+        n_fail, n_all, _ = diagnostic_counts(summary)
         second = (f"the model does not explain the data: {n_fail} of {n_all} residual "
                   "checks fail")
         joint = ", but " if a.status == "ok" else ", and "
