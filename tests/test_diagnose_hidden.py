@@ -48,7 +48,14 @@ def diagnosed():
     return get
 
 
-@pytest.mark.parametrize("effect", ("none",) + EFFECTS)
+#: Cases run in the slow suite only (each a minute or more, for the default suite's
+#: 15-minute budget; the default suite keeps the clean record, friction and the rest).
+SLOW_CASES = ("motor_lag", "backlash")
+
+
+@pytest.mark.parametrize("effect", [pytest.param(e, marks=pytest.mark.slow)
+                                    if e in SLOW_CASES else e
+                                    for e in ("none",) + EFFECTS])
 def test_names_the_hidden_cause_and_where(diagnosed, effect):
     h, d = diagnosed(effect)
     msg = (f"truth {h.effect} at {h.location} size {h.theta_extension}; got {d.cause} at "
