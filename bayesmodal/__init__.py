@@ -23,12 +23,11 @@ that ``import bayesmodal`` and the command line start quickly.
 from importlib import import_module
 
 from ._errors import ConfigError, DataError, IdentificationError, ModelError
+from ._version import __version__
 from .data import Experiment, load_experiment
 from .fit import fit_extension_lsq, fit_lsq
 from .model import EXTENSIONS, LinearModel, Rig, get_extension, load_rig
 from .model.simulate import discretize_zoh, simulate_linear
-
-__version__ = "0.1.0"
 
 #: Names loaded on first use: name -> module.
 _LAZY = {

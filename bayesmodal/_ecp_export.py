@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import DataError
+from .reading import _minimax_line
 
 #: A column name of the export: index, time, commanded and measured positions (velocities
 #: and accelerations when gathered), control effort.
@@ -180,7 +181,6 @@ def export_time(sample: np.ndarray, printed: np.ndarray, decimals: int) -> Expor
     -------
     ExportTime
     """
-    from .reading import _minimax_line
 
     q = 10.0 ** -decimals
     k = np.asarray(sample, float)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _release
 from ._errors import DataError
 
 #: Noise standard deviations within which a position counts as zero.
@@ -47,7 +48,6 @@ def select(where: str, t_s: np.ndarray, v_volt: np.ndarray, y_m: np.ndarray, opt
     t_s, v_volt, y_m : ndarray
         The kept samples, shapes (M,), (M,), (M, n_outputs).
     """
-    from . import _release
 
     part = cut(where, t_s, opts.t_start, opts.t_end)
     t, v, y = t_s[part], v_volt[part], y_m[part]

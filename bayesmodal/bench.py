@@ -37,8 +37,8 @@ from collections.abc import Callable
 import numpy as np
 import scipy.signal
 
-from .model.effects import EXTENSIONS
-from .model.simulate import LinearSimulator, simulate_linear
+from .model.effects import EXTENSIONS, get_extension
+from .model.simulate import LinearSimulator, simulate_linear, step_groups
 from .model.system import LinearModel, Rig
 
 __all__ = ["ACCELERATION_MAX_RATIO", "BEST_COMBINED", "BUSY_LOAD_PER_CORE", "COMBINED",
@@ -263,7 +263,6 @@ def bench_stamps(n_samples: int = 8000, batch: int = 64, *, rng=0, quick: bool =
         (per parameter set), ``ratio`` (stamps / uniform, median over rounds),
         ``ratio_per_round``, ``target`` (``STAMPS_MAX_RATIO``), ``meets_target``.
     """
-    from .model.simulate import step_groups
 
     model, theta, u = _bench_problem(n_samples, batch, rng)
     steps = logger_steps(n_samples, rng)
@@ -441,7 +440,6 @@ def bench_extensions(
         ``ratio_to_linear_rig_input``, ``ratio_per_round_rig_input``,
         ``meets_target_rig_input``.
     """
-    from .model.effects import EXTENSIONS, get_extension
 
     model, theta, u_random = _bench_problem(n_samples, batch, rng)
     rig = model.rig

@@ -31,6 +31,14 @@ import time
 import numpy as np
 
 from .bench import _TABLE3, reused_linear, rig_input, time_per_call
+from .data import Experiment
+from .inference.likelihood import Likelihood, simulate_noise
+from .inference.priors import default_priors
+from .inference.records import DEFAULT_LAYOUT, RecordsLikelihood, record_priors
+from .inference.records import records_start as start
+from .inference.sampling import LogPosterior
+from .model.simulate import simulate_linear
+from .model.system import LinearModel, Rig
 
 __all__ = ["SAMPLER_MIN_FRACTION", "bench_sampler"]
 
@@ -91,12 +99,6 @@ def bench_sampler(n_samples: int = 7400, n_walkers: int = 32, n_steps: int = 100
     """
     import emcee
 
-    from .data import Experiment
-    from .inference.likelihood import Likelihood, simulate_noise
-    from .inference.priors import default_priors
-    from .inference.sampling import LogPosterior
-    from .model.simulate import simulate_linear
-    from .model.system import LinearModel, Rig
 
     rng = np.random.default_rng(rng)
     model = LinearModel(Rig(), "free")
@@ -129,10 +131,6 @@ def _bench_records(model, u, y, dt, min_time, rounds, rng, n_records: int = 3) -
     """The emcee timing with the several-record default layout (see the module docstring)."""
     import emcee
 
-    from .data import Experiment
-    from .inference.records import DEFAULT_LAYOUT, RecordsLikelihood, record_priors
-    from .inference.records import records_start as start
-    from .inference.sampling import LogPosterior
 
     n = u.size
     exps = tuple(Experiment(np.arange(n) * dt, u, y * (1 + 0.03 * r), name=f"r{r}")

@@ -45,6 +45,9 @@ from .modal import (
 )
 from .model.simulate import simulate_linear
 from .model.system import LinearModel, Rig
+from .plots.fit import plot_lsq_fit
+from .plots.modal import plot_bode, plot_rayleigh_contour
+from .plots.static import plot_steady_state
 from .static import StaticResult, steady_state
 
 __all__ = [
@@ -524,9 +527,6 @@ def save_report_plots(report: ReportTables, out_dir: str | os.PathLike, *,
     """
     import matplotlib.pyplot as plt
 
-    from .plots.fit import plot_lsq_fit
-    from .plots.modal import plot_bode, plot_rayleigh_contour
-    from .plots.static import plot_steady_state
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

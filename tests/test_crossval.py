@@ -150,7 +150,7 @@ def test_crossval_end_to_end_writes_the_issue_fields(tmp_path):
 def test_fold_samples_with_the_configured_moves_and_pruning(monkeypatch):
     """The folds get the run's moves and burn-in step: the LuGre posterior needs the
     mode-jumping move and the pruning of stranded walkers (docs/discrepancy.md)."""
-    import bayesmodal.inference.sampling as sampling
+    import bayesmodal.inference.crossval as crossval_module
     from bayesmodal.inference.crossval import run_fold
     from bayesmodal.inference.moves import ModeJumpMove
 
@@ -163,7 +163,7 @@ def test_fold_samples_with_the_configured_moves_and_pruning(monkeypatch):
         seen.update(kw)
         raise Reached
 
-    monkeypatch.setattr(sampling, "sample_posterior", fake)
+    monkeypatch.setattr(crossval_module, "sample_posterior", fake)
     spec = CrossvalSpec(n_steps=100, moves="de:0.8,de-jump:0.2", prune=20, noise="white")
     with pytest.raises(Reached):
         run_fold(spec, _records(n=200), 0)
@@ -208,7 +208,7 @@ def _toml(text):
 @pytest.mark.parametrize("flags, joint", [([], True), (["--no-joint"], False)])
 def test_crossval_cli_runs_the_joint_posterior_unless_told_not_to(tmp_path, monkeypatch,
                                                                   flags, joint):
-    import bayesmodal.inference.crossval as cv
+    import bayesmodal.cli._crossval as cv
     from bayesmodal.cli import main
     from bayesmodal.data import save_csv
 

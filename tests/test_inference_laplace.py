@@ -251,7 +251,7 @@ def test_laplace_start_shrinks_a_too_wide_approximation(monkeypatch):
     from bayesmodal.inference import sampling
 
     d = 5
-    monkeypatch.setattr(lap, "laplace_approximation", lambda f, z: lap.Laplace(
+    monkeypatch.setattr(sampling, "laplace_approximation", lambda f, z: lap.Laplace(
         mean=np.zeros(d), cov=np.eye(d), hessian=-np.eye(d), log_density=0.0, clipped=0,
         n_evaluations=0))
     rng = np.random.default_rng(0)

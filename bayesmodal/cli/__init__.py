@@ -13,8 +13,8 @@ import sys
 import traceback
 import warnings
 
-from .. import __version__
 from .._errors import ConfigError, DataError, ModelError, one_line
+from .._version import __version__
 
 #: Sub-command modules, in help order.
 COMMANDS = ("report", "inspect", "lsq", "static", "modal", "bench", "sample", "compare", "ema",

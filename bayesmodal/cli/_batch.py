@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import sys
 
+from .._errors import ConfigError
+from ..runs import run_batch
+from ._common import print_json
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -35,9 +39,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .._errors import ConfigError
-    from ..runs import run_batch
-    from ._common import print_json
 
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers} (leave it out to use "

@@ -12,6 +12,7 @@ from ..bench import (
     headline,
     machine_load,
 )
+from ..bench_sampler import SAMPLER_MIN_FRACTION, bench_sampler
 from ._common import print_json
 
 
@@ -52,7 +53,6 @@ def run(args) -> int:
                                              names=names)
         out["headline"] = headline(out["extensions"])
     if not args.no_sampler:
-        from ..bench_sampler import bench_sampler
 
         out["sampler"] = bench_sampler(args.samples, quick=args.quick)
     if args.json:
@@ -100,7 +100,6 @@ def run(args) -> int:
                       f"{r['target']:g}x: {'met' if r['meets_target'] else 'NOT MET'}), "
                       f"{r['ratio_random_input']:.1f}x on the random input")
         if "sampler" in out:
-            from ..bench_sampler import SAMPLER_MIN_FRACTION
 
             r = out["sampler"]
             print(f"sampler throughput, N={r['n_samples']} samples, {r['n_walkers']} walkers "

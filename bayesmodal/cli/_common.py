@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._json import to_jsonable
+from .._window import motion_at_start, offset_at_rest
 from ..data import (
     ECP_M_PER_COUNT,
     Experiment,
@@ -15,6 +16,8 @@ from ..data import (
     load_experiment,
     options_for_rig,
 )
+from ..model.rigs import PRESETS
+from ..model.rigs import load_rig as _load
 from ..model.system import Rig
 from ..reading import REST_OFFSETS, TIME_BASES, ReadOptions, parse_columns, parse_scale
 
@@ -99,7 +102,6 @@ def load_data(paths, args) -> list[Experiment]:
 
 def add_rig_argument(p) -> None:
     """Add ``--rig FILE``: a TOML rig description or a preset name (docs/rigs.md)."""
-    from ..model.rigs import PRESETS
 
     p.add_argument("--rig", metavar="FILE", default=None,
                    help="rig description: a TOML file or a preset (" + ", ".join(PRESETS)
@@ -108,7 +110,6 @@ def add_rig_argument(p) -> None:
 
 def load_rig(args) -> Rig:
     """The rig of ``--rig`` (``Rig()`` when the option is absent or not given)."""
-    from ..model.rigs import load_rig as _load
 
     source = getattr(args, "rig", None)
     return Rig() if source is None else _load(source)
@@ -159,7 +160,6 @@ def load_args(args) -> list[Experiment]:
 
 def _check_rest(e: Experiment, opts: ReadOptions, can_estimate: bool) -> None:
     """Refuse a window that does not start at rest for a fit that assumes it does."""
-    from .._window import motion_at_start
 
     why = motion_at_start(e.y_m, e.v_volt, e.dt)
     if why:
@@ -171,7 +171,6 @@ def _check_rest(e: Experiment, opts: ReadOptions, can_estimate: bool) -> None:
 
 def _check_offset(e: Experiment) -> None:
     """Refuse a record whose outputs rest away from 0 before its input."""
-    from .._window import offset_at_rest
 
     why = offset_at_rest(e.y_m, e.v_volt)
     if why:

@@ -5,6 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from .._errors import ConfigError
+from ..inference import choose_model, load_idata
+from ..runs import compare_runs, write_comparison
+from ..runs.compare import check_distinct_runs
+from ..runs.folder import atomic_write_json
 from ._common import add_reader_arguments, load_data, print_json
 from ._sample import add_sampler_args, sample_to_dir
 
@@ -45,8 +49,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..inference import choose_model, load_idata
-    from ..runs.folder import atomic_write_json
 
     out = Path(args.out)
     if args.data and any(Path(d).is_dir() for d in args.data):
@@ -55,7 +57,6 @@ def run(args) -> int:
         if args.data:
             raise ConfigError("give either DATA or --runs DIR_A DIR_B, not both (drop the "
                               "data files to compare the two runs)")
-        from ..runs.compare import check_distinct_runs
 
         loaded = [load_idata(Path(d) / "posterior.nc") for d in args.runs]
         check_distinct_runs(args.runs, loaded)
@@ -93,7 +94,6 @@ def run(args) -> int:
 
 def _run_dirs(args, out: Path) -> int:
     """``compare RUN_DIR...``: model choice across finished run folders."""
-    from ..runs import compare_runs, write_comparison
 
     dirs = [Path(d) for d in args.data]
     files = [str(d) for d in dirs if not d.is_dir()]

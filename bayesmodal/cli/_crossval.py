@@ -5,8 +5,14 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .._errors import ConfigError
+from ..inference.crossval import CrossvalSpec, crossval
 from ..inference.record_scale import NOISE_SCALES
+from ..inference.records import parse_layout
+from ..inference.temperature import calibrate_loro
 from ..model.system import Rig
+from ..runs.config import load_config
+from ..runs.crossval import write_crossval
 from ._common import (
     add_data_args,
     add_rig_argument,
@@ -79,11 +85,8 @@ def register(sub) -> None:
 
 def spec_from_args(args):
     """The ``CrossvalSpec`` of the command line (or of ``--config``)."""
-    from ..inference.crossval import CrossvalSpec
-    from ..inference.records import parse_layout
 
     if args.config:
-        from ..runs.config import load_config
 
         cfg = load_config(args.config, check_files=False)
         if cfg.temperature == "loro":  # [likelihood] temperature = "loro": calibrate
@@ -103,7 +106,6 @@ def _calibrating(args) -> bool:
 
 
 def _number(text: str, flag: str) -> float:
-    from .._errors import ConfigError
 
     try:
         return float(text)
@@ -112,8 +114,6 @@ def _number(text: str, flag: str) -> float:
 
 
 def run(args) -> int:
-    from ..inference.crossval import crossval
-    from ..runs.crossval import write_crossval
 
     exps = load_args(args)
     spec = spec_from_args(args)
@@ -124,7 +124,6 @@ def run(args) -> int:
             f"{spec.n_walkers} walkers x {spec.n_steps} steps each")
     cal = None
     if _calibrating(args):
-        from ..inference.temperature import calibrate_loro
 
         grid = [_number(t, "--temperatures") for t in args.temperatures.split(",")]
         cal, res = calibrate_loro(exps, spec, temperatures=grid, criterion=args.criterion,

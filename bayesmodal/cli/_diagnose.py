@@ -7,6 +7,10 @@ import sys
 from pathlib import Path
 
 from .._format import sig
+from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
+from ..discrepancy.diagnosis.plots import write_plots
+from ..model.effects import EXTENSIONS
+from ..segments import split_records
 from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
@@ -22,8 +26,6 @@ def _indices(text: str) -> list[int]:
 
 def _candidates(text: str) -> list[str]:
     """``--candidates``: names, or ``+name,...`` to add to the default candidates."""
-    from ..discrepancy.diagnosis import DEFAULT_CANDIDATES
-    from ..model.effects import EXTENSIONS
 
     extra = text.startswith("+")
     names = [s.strip() for s in text.lstrip("+").split(",") if s.strip()]
@@ -160,11 +162,9 @@ def _report(d) -> str:
 
 
 def run(args) -> int:
-    from ..discrepancy.diagnosis import diagnose
 
     exps, train = load_args(args), args.train
     if args.split_at_rest:
-        from ..segments import split_records
 
         exps, train = split_records(exps, args.split_at_rest, train)
     d = diagnose(exps, rig=load_rig(args), train=train, n_null=args.null,
@@ -174,7 +174,6 @@ def run(args) -> int:
                  n_starts=args.starts, progress=not args.quiet, candidates=args.candidates,
                  weights=None if args.weights == "none" else args.weights)
     if args.plots:
-        from ..discrepancy.diagnosis.plots import write_plots
 
         write_plots(d, exps, Path(args.plots))
     if args.json:

@@ -9,6 +9,7 @@ import numpy as np
 from .._errors import DataError
 from ..ema import METHODS, identify
 from ..ema.frf import FRF_METHODS
+from ..plots.ema import save_ema_figures
 from ._common import add_data_args, add_rig_argument, load_args, print_json
 
 
@@ -71,7 +72,6 @@ def run(args) -> int:
                       f"(see the notes)", stacklevel=2)
     files = []
     if args.plots:
-        from ..plots.ema import save_ema_figures
 
         files = save_ema_figures(res, args.plots)
     summary = res.as_dict()

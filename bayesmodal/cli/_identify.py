@@ -8,6 +8,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from .._errors import ConfigError
+from ..runs.config import load_config, parse_config
+from ..runs.identify import identify, spec_from_config
+from ..runs.identify_summary import story
 
 
 def register(sub) -> None:
@@ -53,7 +56,6 @@ def register(sub) -> None:
 
 
 def _config(args):
-    from ..runs.config import load_config, parse_config
 
     first = Path(args.inputs[0])
     if first.suffix.lower() == ".toml":
@@ -70,7 +72,6 @@ def _config(args):
 
 
 def run(args) -> int:
-    from ..runs.identify import identify, spec_from_config
 
     cfg = _config(args)
     spec = spec_from_config(cfg)  # the config's [identify] table, else the defaults
@@ -97,7 +98,6 @@ def run(args) -> int:
 
 def print_story(res) -> None:
     """The report's first screen in text: the verdict, what the records say, the link."""
-    from ..runs.identify_summary import story
 
     verdict, lines = story(res.summary)
     print(verdict)

@@ -10,6 +10,7 @@ from .._errors import IdentificationError
 from .._format import estimate, param_unit, percent, values
 from ..fit.linear import fit_lsq
 from ..identified import identify
+from ..modal import modal_summary
 from ..model.system import LinearModel
 from ._common import (
     add_data_args,
@@ -58,10 +59,6 @@ def lsq_summary(res, names=None) -> dict:
         "success": res.success,
         **identify(res, names).as_dict(),
     }
-    try:
-        from ..modal import modal_summary
-    except ImportError:  # modal module not built yet
-        return out
     if out["identified"]:
         out.update(modal_summary(res.model, res.theta))
         return out

@@ -10,6 +10,7 @@ from .._errors import ConfigError
 from .._format import param_unit, sig
 from ..modal import ConvergenceError, modal_report, rayleigh_modes, transfer_function
 from ..model.system import LinearModel, Rig
+from ..plots.modal import plot_bode, plot_mode_shapes, plot_rayleigh_contour
 from ._common import add_rig_argument, damping_of, load_rig, print_json
 
 #: Report Table 3 (free damping) and Table 4 (proportional damping), the defaults.
@@ -120,7 +121,6 @@ def write_plots(model, theta, folder: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plots.modal import plot_bode, plot_mode_shapes, plot_rayleigh_contour
 
     folder.mkdir(parents=True, exist_ok=True)
     M, _, K, _ = model.matrices(theta)

@@ -6,6 +6,7 @@ import json
 import os
 from pathlib import Path
 
+from ..reproduce import format_tables, reproduce_report, save_report_plots
 from ._common import print_json, to_jsonable
 
 
@@ -33,7 +34,6 @@ def _write_text(path: Path, text: str) -> None:
 
 
 def run(args) -> int:
-    from ..reproduce import format_tables, reproduce_report, save_report_plots
 
     tables = reproduce_report(args.data_dir)
     text = format_tables(tables)

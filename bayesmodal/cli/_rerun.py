@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import sys
 
+from ..runs.rerun import rerun_run
+from ._common import print_json
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -25,8 +28,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..runs.rerun import rerun_run
-    from ._common import print_json
 
     res = rerun_run(args.run_dir, args.out, progress=not args.quiet)
     if args.json:

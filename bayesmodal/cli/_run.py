@@ -7,6 +7,12 @@ from dataclasses import replace
 
 from .._errors import ConfigError
 from .._format import sig
+from ..inference.threads import resolve_threads
+from ..runs import default_out_dir, execute_run, prepare_run
+from ..runs.config import load_config
+from ..runs.identify import identify, spec_from_config
+from ..runs.runner import one_line
+from ._identify import print_story
 
 
 def register(sub) -> None:
@@ -38,9 +44,6 @@ def register(sub) -> None:
 
 
 def _identify(cfg, args) -> int:
-    from ..runs import default_out_dir
-    from ..runs.identify import identify, spec_from_config
-    from ._identify import print_story
 
     out = args.out or default_out_dir(cfg, args.out_root)
     res = identify(spec_from_config(cfg), out, force=args.force, progress=not args.quiet)
@@ -50,10 +53,6 @@ def _identify(cfg, args) -> int:
 
 
 def run(args) -> int:
-    from ..inference.threads import resolve_threads
-    from ..runs import default_out_dir, execute_run, prepare_run
-    from ..runs.config import load_config
-    from ..runs.runner import one_line
 
     try:
         cfg = load_config(args.config)

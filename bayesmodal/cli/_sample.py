@@ -9,7 +9,12 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._format import param_unit, sig
+from ..inference import sample_posterior, to_inference_data
 from ..inference.record_scale import NOISE_SCALES
+from ..inference.records import parse_layout
+from ..model.system import LinearModel
+from ..runs import checkpoint_iteration
+from ..runs.outputs import write_run
 from ._common import (
     add_data_args,
     add_initial_state_argument,
@@ -79,9 +84,6 @@ def add_sampler_args(p) -> None:
 
 def sample_to_dir(exps, args, damping: str, out: Path):
     """Sample one model into ``out``; return (summary, idata) (shared with ``compare``)."""
-    from ..inference import sample_posterior, to_inference_data
-    from ..model.system import LinearModel
-    from ..runs.outputs import write_run
 
     model = LinearModel(load_rig(args), damping)
     for e in exps:  # checked before the output folder is made
@@ -96,8 +98,6 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     if getattr(args, "fresh", False) and ckpt.exists():
         ckpt.unlink()
     try:
-        from ..inference.records import parse_layout
-
         layout = parse_layout(getattr(args, "per_record", "none"),
                               noise_scale=getattr(args, "noise_scale", "none"))
         run = sample_posterior(
@@ -110,8 +110,6 @@ def sample_to_dir(exps, args, damping: str, out: Path):
         )
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)
-        from ..runs import checkpoint_iteration
-
         with contextlib.suppress(Exception):
             if created and checkpoint_iteration(ckpt) == 0:
                 shutil.rmtree(out)

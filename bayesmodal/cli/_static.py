@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..plots.static import plot_steady_state
 from ..static import steady_state
 from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
@@ -55,7 +56,6 @@ def run(args) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from ..plots.static import plot_steady_state
 
         out = Path(args.plots)
         out.mkdir(parents=True, exist_ok=True)

@@ -21,6 +21,7 @@ from scipy.optimize import least_squares
 
 from .._errors import DataError, ModelError
 from ..data import Experiment, check_identifiable
+from ..identified import identify
 from ..metrics import fit_percent
 from ..model.simulate import simulate_linear
 from ..model.system import LinearModel, default_start
@@ -96,7 +97,6 @@ class LSQResult:
             at 0, a standard error is not finite or above its estimate, the Jacobian is
             rank-deficient, or the fit is below 0 % on some record and cart.
         """
-        from ..identified import identify
 
         return identify(self)
 

@@ -31,8 +31,15 @@ from scipy.special import logsumexp
 
 from .._errors import ConfigError
 from ..metrics import fit_percent
-from .idata import arviz
-from .likelihood import Likelihood
+from .idata import (
+    arviz,
+    likelihood_from_idata,
+    posterior_matrix,
+    priors_from_idata,
+    to_inference_data,
+    with_pointwise_loglik,
+)
+from .likelihood import Likelihood, as_experiments
 from .priors import PriorSet
 
 __all__ = [
@@ -572,7 +579,6 @@ def choose_model(
     -------
     ModelChoice
     """
-    from .idata import likelihood_from_idata, posterior_matrix, priors_from_idata
 
     gen = np.random.default_rng(rng)
     evs = {}
@@ -583,7 +589,6 @@ def choose_model(
                                      rng=gen, maxcall=maxcall)
     pred = {}
     if test is not None:
-        from .likelihood import as_experiments
 
         tests = as_experiments(test)
         for m, idt in idatas.items():
@@ -651,7 +656,6 @@ class ElpdChange:
 
 
 def _as_idata(run_or_idata):
-    from .idata import to_inference_data, with_pointwise_loglik
 
     if hasattr(run_or_idata, "groups"):
         return with_pointwise_loglik(run_or_idata)

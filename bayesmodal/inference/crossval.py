@@ -28,11 +28,17 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 from ..fit.effects import fit_extension_lsq
+from ..fit.linear import fit_lsq
 from ..model.effects import get_extension
+from ..model.rigs import rig_to_dict
+from ..model.system import LinearModel, Rig
 from .coverage_reference import calibration_summary
+from .moves import parse_moves
 from .noise_spec import parse_noise
-from .predictive import PredictiveScores, predict_new_record, score_samples
-from .records import DEFAULT_LAYOUT, RecordLayout
+from .predictive import PredictiveScores, new_record_parameters, predict_new_record, score_samples
+from .propagate import propagate_modes
+from .records import DEFAULT_LAYOUT, RecordLayout, RecordsLikelihood, choose_noise, record_priors
+from .sampling import burn_in_steps, sample_posterior
 
 __all__ = ["CrossvalSpec", "FoldResult", "CrossvalResult", "crossval", "run_fold"]
 
@@ -90,8 +96,6 @@ class CrossvalSpec:
     restart: int | None = None
 
     def __post_init__(self) -> None:
-        from .moves import parse_moves
-        from .sampling import burn_in_steps
 
         # one-line errors here, not in each fold: the moves, and the burn-in step
         parse_moves(self.moves)
@@ -106,7 +110,6 @@ class CrossvalSpec:
         d = asdict(self)
         d["layout"] = self.layout.to_dict()
         if self.rig is not None:
-            from ..model.rigs import rig_to_dict
 
             d["rig"] = rig_to_dict(self.rig)
         return d
@@ -231,7 +234,6 @@ class CrossvalResult:
 
 
 def _model(spec: CrossvalSpec):
-    from ..model.system import LinearModel, Rig
 
     if spec.rig is not None:
         return LinearModel(spec.rig, spec.damping)
@@ -249,8 +251,6 @@ def _interval(x: np.ndarray) -> dict:
 def _estimates(lik, draws: np.ndarray, *, new_record: bool, rng) -> dict:
     """Posterior g_v, omega and zeta (at the population centre, or drawn for a new
     record): medians and 90 % intervals."""
-    from .predictive import new_record_parameters
-    from .propagate import propagate_modes
 
     # a new record's parameters: every hierarchical one drawn from its population, so
     # that with per-record masses or dampers the interval is the next experiment's
@@ -267,9 +267,6 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     With ``heldout=None`` the posterior is sampled on all records (the joint run); its
     ``estimates`` then hold each record's ``g_v`` under keys ``g_v[name]``.
     """
-    from .moves import parse_moves
-    from .records import RecordsLikelihood, record_priors
-    from .sampling import sample_posterior
 
     exps = list(experiments)
     train = [e for i, e in enumerate(exps) if i != heldout]
@@ -277,8 +274,6 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     seed = spec.seed + (0 if heldout is None else 1000 * (heldout + 1))
     noise = spec.noise
     if isinstance(noise, str) and parse_noise(noise).kind == "ar:auto":  # from training only
-        from ..fit.linear import fit_lsq
-        from .records import choose_noise
 
         noise = choose_noise(train, model, fit_lsq(train, model))
     lik = RecordsLikelihood(model, tuple(train), noise, spec.extension, spec.layout)
@@ -323,8 +318,6 @@ def _own_lsq(spec: CrossvalSpec, exps: Sequence[Experiment]) -> dict:
     """Each record's own least-squares estimates of g_v, omega and zeta, by the model the
     study samples (with its extension: a linear fit's damping ratios carry what the
     extension explains, e.g. dry friction read as viscous damping)."""
-    from ..fit.linear import fit_lsq
-    from .propagate import propagate_modes
 
     model = _model(spec)
     ext = None if spec.extension is None else get_extension(spec.extension)

@@ -43,7 +43,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .likelihood import simulate_noise
+from .._errors import DataError
+from .._version import __version__
+from ..data import Experiment
+from ..model.effects import get_extension
+from ..model.rigs import rig_from_toml, rig_to_toml
+from ..model.system import LinearModel, Rig
+from .likelihood import Likelihood, simulate_noise
+from .priors import PriorSet
+from .record_scale import RecordScales
+from .records import RecordLayout, RecordsLikelihood
 
 __all__ = [
     "arviz",
@@ -88,7 +97,6 @@ def _obs_coords(experiments) -> dict:
 def _attrs(run) -> dict:
     import emcee
 
-    from .. import __version__
 
     lik = run.likelihood
     attrs = {
@@ -337,7 +345,6 @@ def extension_from_idata(idata):
     name = idata.posterior.attrs.get("extension", "")
     if not name:
         return None
-    from ..model.effects import get_extension
 
     return get_extension(str(name))
 
@@ -348,32 +355,27 @@ def model_from_idata(idata):
     For a run with a model extension this is its linear (free-damping) part, whose
     parameters come first in the run's parameter vector.
     """
-    from ..model.system import LinearModel, Rig
 
     a = idata.posterior.attrs
     if "rig_toml" in a:  # a rig other than the chain
-        from ..model.rigs import rig_from_toml
 
         return LinearModel(rig_from_toml(a["rig_toml"], where="idata"), a["damping"])
     return LinearModel(Rig(tuple(json.loads(a["springs_n_m"]))), a["damping"])
 
 
 def _rig_toml(rig) -> str:
-    from ..model.rigs import rig_to_toml
 
     return rig_to_toml(rig)
 
 
 def priors_from_idata(idata):
     """The ``PriorSet`` of a run."""
-    from .priors import PriorSet
 
     return PriorSet.from_json(idata.posterior.attrs["priors_json"])
 
 
 def experiments_from_idata(idata) -> list:
     """The experiments a run was fitted to, rebuilt from observed and constant data."""
-    from ..data import Experiment
 
     obs = idata.observed_data
     y = obs["y"].values
@@ -393,14 +395,11 @@ def experiments_from_idata(idata) -> list:
 def likelihood_from_idata(idata, experiments=None):
     """A ``Likelihood`` with the run's model, extension and noise, on its own or other
     experiments."""
-    from .likelihood import Likelihood
 
     exps = experiments_from_idata(idata) if experiments is None else experiments
     a = idata.posterior.attrs
     layout = a.get("record_layout_json")
     if layout:
-        from .record_scale import RecordScales
-        from .records import RecordLayout, RecordsLikelihood
 
         at = a.get("record_scale_at_json")
         return RecordsLikelihood(model_from_idata(idata), tuple(exps), a["noise"],
@@ -498,7 +497,6 @@ def load_idata(path: str | os.PathLike):
     az = arviz()
     path = Path(path)
     if not path.is_file():
-        from .._errors import DataError
 
         raise DataError(f"{path}: no such InferenceData file")
     with az.rc_context({"data.load": "eager"}):

@@ -46,6 +46,7 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
+from ..fit.linear import check_records
 from ..model._resid_kernels import ar1_sums
 from ..model.effects import resolve_extension
 from ..model.simulate import LinearSimulator, simulate_linear
@@ -325,7 +326,6 @@ class Likelihood:
         if self.noise not in NOISE_MODELS:
             raise ConfigError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
         if self.initial_state != "rest":
-            from ..fit.linear import check_records
 
             check_records(self.model, exps, self.initial_state)
             if self.extension is not None:

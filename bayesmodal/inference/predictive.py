@@ -52,6 +52,7 @@ from .coverage_reference import (
     reference_fields,
 )
 from .likelihood import Likelihood, residual_loglik, simulate_noise
+from .noise import kalman_loglik, simulate_process_noise
 from .records import SIGNED
 
 __all__ = ["PredictiveScores", "band_factor", "new_record_parameters", "predict_new_record",
@@ -227,7 +228,6 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     y_hat = _predict_mech(lik, mech, v0, experiment)
     R = experiment.y_m[:, :, None] - np.moveaxis(y_hat, 0, -1)
     if getattr(lik, "noise", "") == "process":  # the random force goes through the dynamics
-        from .noise import kalman_loglik, simulate_process_noise
 
         n = lik.n_outputs
         q, sig = noise[:, :n], noise[:, n:]

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import modal as md
 from .._errors import ModelError
 from ..model.system import LinearModel
 
@@ -111,7 +112,6 @@ def propagate_modes(
     >>> ms.omega_rad_s.shape, ms.max_method_difference() < 1e-9
     ((4, 3), True)
     """
-    from .. import modal as md
 
     theta = np.asarray(theta, dtype=float)[..., : model.n_params]
     bad = ~model.valid(theta)

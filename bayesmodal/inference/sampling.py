@@ -36,15 +36,20 @@ import numpy as np
 from .._errors import ConfigError
 from .._progress import progress_bar
 from ..data import Experiment
+from ..fit.effects import ExtensionFit, fit_extension_lsq
 from ..fit.linear import LSQResult, fit_lsq
 from ..identified import require_identified
 from ..model.effects import extension_revisions
+from ..model.rigs import rig_to_dict
 from ..model.system import LinearModel
+from .idata import arviz
+from .laplace import laplace_approximation
 from .likelihood import Likelihood, as_experiments
 from .mode import posterior_mode
 from .moves import default_moves
 from .noise_spec import NoiseSpec, parse_noise
 from .priors import PriorSet, default_priors
+from .records import RecordLayout, RecordsLikelihood, choose_noise, record_priors, records_start
 from .stragglers import prune_stragglers
 from .threads import ThreadedLogPosterior, resolve_threads
 
@@ -167,7 +172,6 @@ def convergence_diagnostics(
     -------
     Diagnostics
     """
-    from .idata import arviz
 
     az = arviz()
     n_steps = chain.shape[0]
@@ -413,7 +417,6 @@ def _laplace_start(log_post: LogPosterior, mode: np.ndarray, n_walkers: int,
 
     Draws with zero posterior density (beyond a prior bound) are redrawn.
     """
-    from .laplace import laplace_approximation
 
     priors = log_post.priors
     la = laplace_approximation(lambda z: log_post(z)[:, 0], priors.to_sampling(mode))
@@ -644,7 +647,6 @@ def sample_posterior(
     if spec is None or not spec.one_record:
         # AR(p) and other noise models live in the several-record likelihood; one record
         # with every parameter shared is its simplest layout
-        from .records import RecordLayout, choose_noise
 
         if layout is None:
             layout = RecordLayout({})
@@ -658,7 +660,6 @@ def sample_posterior(
     if layout is None:
         lik = Likelihood(model, exps, noise, extension, initial_state)
     else:
-        from .records import RecordsLikelihood
 
         if initial_state != "rest":
             raise ConfigError("estimated initial states (free decays) are built for the "
@@ -671,7 +672,6 @@ def sample_posterior(
             priors = default_priors(model, noise=noise, extension=ext,
                                     initial_states=lik.initial_state_names)
         else:
-            from .records import record_priors
 
             priors = record_priors(lik)
     log_post = LogPosterior(lik, priors, float(temperature))
@@ -717,7 +717,6 @@ def sample_posterior(
         else:
             theta_mech = model.check(theta_mech)
     else:
-        from ..fit.effects import ExtensionFit, fit_extension_lsq
 
         if start is None or isinstance(start, LSQResult):
             start = fit_extension_lsq(list(exps), ext, model.rig, linear=start)
@@ -729,7 +728,6 @@ def sample_posterior(
     if layout is None:
         centre = np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
     else:
-        from .records import RecordsLikelihood, records_start
 
         if layout.noise_scale != "none":
             # each record's noise level sized by its response at the start, a constant
@@ -882,6 +880,5 @@ def _burn_in_step(name: str, step, burn: int) -> int | None:
 
 
 def _rig_dict(rig) -> dict:
-    from ..model.rigs import rig_to_dict
 
     return rig_to_dict(rig)

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._versions import dependency_versions
+from ..model.effects import EXTENSIONS
+from ..model.system import Rig
 from .idata import model_from_idata, posterior_matrix
 from .propagate import Interval, ModalSamples, credible_interval, modal_intervals, propagate_modes
 
@@ -107,8 +109,6 @@ _UNITS = {"g_v": "N/V", "ca": "1/s", "cb": "s"}
 
 
 def _extension_units() -> dict[str, str]:
-    from ..model.effects import EXTENSIONS
-    from ..model.system import Rig
 
     return {p.name: p.unit for ext in EXTENSIONS.values() for p in ext.specs(Rig())}
 

@@ -48,6 +48,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import ConfigError
+from .crossval import CrossvalSpec, _map, crossval
 
 __all__ = ["TemperatureCalibration", "DEFAULT_TEMPERATURES", "CRITERIA", "solve_temperature",
            "calibrate", "calibrate_loro"]
@@ -251,7 +252,6 @@ def calibrate_loro(experiments, spec=None, *, temperatures: Sequence[float] =
     >>> # cal, res = calibrate_loro([imp, steps, fast, slow], CrossvalSpec(n_steps=3000))
     >>> # print(cal.table()); print(res.table())
     """
-    from .crossval import CrossvalSpec, crossval
 
     spec = CrossvalSpec() if spec is None else spec
     exps = list(experiments)
@@ -277,7 +277,6 @@ def calibrate_loro(experiments, spec=None, *, temperatures: Sequence[float] =
 
 def _with_joint(res, exps, workers, scheduler, progress):
     """A study's result with the joint run on all records added."""
-    from .crossval import _map
 
     joint = _map([(res.spec, exps, None)], workers, scheduler, progress)[0]
     return replace(res, joint=joint)

@@ -5,6 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from .complex_modes import state_space_modes
+from .damping import modal_matrices, proportional_modal_damping
+from .iteration import matrix_iteration
+from .rayleigh import rayleigh_modes
 from .undamped import undamped_modes
 
 __all__ = ["modal_summary", "modal_report"]
@@ -74,9 +77,6 @@ def modal_report(model, theta) -> dict:
         ``damped_rad_s``, ``omega_rad_s``); ``proportional`` (``zeta``, ``damped_rad_s``
         from eq. 41, only for proportional damping); ``static_gain_m_per_v`` (K^-1 b).
     """
-    from .damping import modal_matrices, proportional_modal_damping
-    from .iteration import matrix_iteration
-    from .rayleigh import rayleigh_modes
 
     theta = model.check(theta)
     if theta.ndim != 1:

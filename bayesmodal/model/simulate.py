@@ -59,6 +59,7 @@ from ._kernels import (
     padded_width,
 )
 from ._qep import modal_form_mck
+from ._resid_kernels import ar1_sums_lanes
 
 __all__ = [
     "Discretized",
@@ -611,7 +612,6 @@ class LinearSimulator:
                 direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
                                                     Yc.reshape(-1))
                 if sums is not None:
-                    from ._resid_kernels import ar1_sums_lanes
 
                     extra = ()
                     if affine is not None:

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._errors import DataError
+from ..ema.peaks import mode_indicator
+
 __all__ = [
     "plot_frf",
     "plot_nyquist",
@@ -174,7 +177,6 @@ def plot_stabilization(diagram, *, ax=None, frf=None, band=None):
     ax.set_xlabel("natural frequency |lambda| (rad/s)")
     ax.set_ylabel("number of modes n")
     if frf is not None:
-        from ..ema.peaks import mode_indicator
 
         ax2 = ax.twinx()
         w = frf.omega_rad_s
@@ -225,7 +227,6 @@ def plot_coherence(frf, *, ax=None, band=None):
     -------
     matplotlib.axes.Axes
     """
-    from .._errors import DataError
 
     if frf.coherence is None:
         raise DataError("this FRF has no coherence (a single average)")

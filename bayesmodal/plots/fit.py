@@ -7,6 +7,7 @@ import numpy as np
 from .._errors import DataError
 from ..data import Experiment
 from ..metrics import fit_percent
+from ..model.simulate import simulate_linear
 
 __all__ = ["plot_fit", "plot_lsq_fit"]
 
@@ -92,7 +93,6 @@ def plot_lsq_fit(result, experiment: Experiment, *, axes=None, title: str | None
     -------
     ndarray of matplotlib.axes.Axes, shape (n_outputs,)
     """
-    from ..model.simulate import simulate_linear
 
     y_hat = simulate_linear(result.model, result.theta, experiment.v_volt, experiment.dt)
     if title is None:

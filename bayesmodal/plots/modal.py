@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import ModelError
+from ..modal import rayleigh_modes, rayleigh_quotient
 
 __all__ = ["plot_rayleigh_contour", "plot_bode", "plot_mode_shapes"]
 
@@ -47,7 +48,6 @@ def plot_rayleigh_contour(M, K, *, ax=None, modes=None, n_grid: int = 241,
     """
     import matplotlib.pyplot as plt
 
-    from ..modal import rayleigh_modes, rayleigh_quotient
 
     M = np.asarray(M, dtype=float)
     K = np.asarray(K, dtype=float)

@@ -11,6 +11,12 @@ import json
 
 import numpy as np
 
+from .._errors import DataError
+from ..ema import frf_from_experiment
+from ..inference.idata import experiments_from_idata, model_from_idata, posterior_matrix
+from ..inference.propagate import modal_intervals, propagate_modes
+from ..modal import transfer_function
+
 __all__ = [
     "plot_trace",
     "plot_corner",
@@ -328,9 +334,6 @@ def measured_frfs(idata, *, min_input_power: float = 1e-3):
     list of (str, FRF)
         Record name and its FRF, m/V; records the estimator cannot handle are left out.
     """
-    from .._errors import DataError
-    from ..ema import frf_from_experiment
-    from ..inference.idata import experiments_from_idata
 
     out = []
     for e in experiments_from_idata(idata):
@@ -384,9 +387,6 @@ def plot_bode_bands(idata, *, omega_rad_s=None, prob: float = 0.9, input: str = 
     """
     import matplotlib.pyplot as plt
 
-    from ..inference.idata import model_from_idata, posterior_matrix
-    from ..inference.propagate import propagate_modes
-    from ..modal import transfer_function
 
     model = model_from_idata(idata)
     draws = posterior_matrix(idata, list(model.names)).reshape(-1, model.n_params)
@@ -488,7 +488,6 @@ def plot_modal_intervals(modal, *, reference=None, lsce=None, prob: float = 0.9,
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
-    from ..inference.propagate import modal_intervals
 
     iv = modal_intervals(modal, prob)
     n = modal.n_modes

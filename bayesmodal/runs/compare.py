@@ -20,6 +20,19 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ConfigError
+from ..inference import (
+    information_criteria,
+    likelihood_from_idata,
+    load_idata,
+    posterior_matrix,
+    predictive_check,
+    with_pointwise_loglik,
+)
+from ..inference.idata import arviz
+from ..inference.likelihood import as_experiments
+from .folder import atomic_savefig, atomic_write_json, atomic_write_text
+from .plots import plot_run_intervals
+from .verdict import record_status
 
 __all__ = ["RunRow", "RunComparison", "check_distinct_runs", "compare_runs", "write_comparison"]
 
@@ -147,7 +160,6 @@ def _crossval_of(summary: dict) -> dict | None:
     """Summed leave-one-record-out lpd, per-record lpd, and (with coverage references)
     the number of left-out records whose band the report's verdict finds consistent with
     a calibrated band (``verdict.record_status``)."""
-    from .verdict import record_status
 
     cv = summary.get("crossval")
     if not cv or not cv.get("records"):
@@ -185,7 +197,6 @@ def _labels(paths: list[Path]) -> list[str]:
 
 
 def _load_run(path: Path):
-    from ..inference import load_idata, with_pointwise_loglik
 
     if not path.is_dir():
         raise ConfigError(f"{path}: not a run folder")
@@ -255,13 +266,6 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
         Fewer than two runs, an unfinished run, the same run twice, or runs fitted to
         different data.
     """
-    from ..inference import (
-        information_criteria,
-        likelihood_from_idata,
-        posterior_matrix,
-        predictive_check,
-    )
-    from ..inference.idata import arviz
 
     paths = [Path(p) for p in run_dirs]
     if len(paths) < 2:
@@ -283,7 +287,6 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
     notes = tuple(dict.fromkeys(str(w.message) for w in caught))
     tests = None
     if test is not None:
-        from ..inference.likelihood import as_experiments
 
         tests = as_experiments(test)
     rows = []
@@ -356,8 +359,6 @@ def _verdict(rows, pref: dict) -> str:
 def write_comparison(comparison: RunComparison, out_dir: str | os.PathLike, *,
                      plots: bool = True) -> Path:
     """Write ``comparison.json``, ``comparison.md`` and ``intervals.png`` atomically."""
-    from .folder import atomic_savefig, atomic_write_json, atomic_write_text
-    from .plots import plot_run_intervals
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

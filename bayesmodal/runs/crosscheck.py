@@ -16,6 +16,14 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
+from ..discrepancy.checks import RESIDUAL_DIAGNOSTICS, LinearResiduals, linear_residuals
+from ..discrepancy.checks.residuals import smooth_derivative
+from ..ema import identify
+from ..ema.result import match_modes
+from ..inference import simulate_noise
+from ..inference.coverage_reference import MIN_REFERENCE_DRAWS, coverage_reference
+from ..inference.predictive import band_factor
+from ..metrics import fit_percent
 from ..model.simulate import simulate_linear
 from ..model.system import LinearModel
 
@@ -52,7 +60,6 @@ class LSCECheck:
         om = np.full(ref.size, np.nan)
         ze = np.full(ref.size, np.nan)
         if self.omega_rad_s.size:
-            from ..ema.result import match_modes
 
             idx = match_modes(self.omega_rad_s, ref)
             used = set()
@@ -82,7 +89,6 @@ def lsce_check(experiment: Experiment, n_modes: int) -> LSCECheck:
     LSCECheck
         With ``error`` set (and empty arrays) when the record does not allow an estimate.
     """
-    from ..ema import identify
 
     try:
         full = identify(experiment, "lsce", n_modes=n_modes).estimate
@@ -173,8 +179,6 @@ def _extended_residuals(experiment: Experiment, model: LinearModel, theta: np.nd
     of the (noise-free) predicted positions.  ``theta`` keeps the linear part (the
     diagnostics that use ``M, C, K`` see the linear rig).
     """
-    from ..discrepancy.checks import LinearResiduals, linear_residuals
-    from ..discrepancy.checks.residuals import smooth_derivative
 
     lin = theta[: model.n_params]
     base = linear_residuals(experiment, model, lin)
@@ -187,10 +191,6 @@ def _extended_residuals(experiment: Experiment, model: LinearModel, theta: np.nd
 
 def _diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarray,
                  extension=None, y_hat=None) -> tuple:
-    try:
-        from ..discrepancy.checks import RESIDUAL_DIAGNOSTICS, linear_residuals
-    except ImportError:
-        return ()
     try:
         if extension is None:
             res = linear_residuals(experiment, model, theta)
@@ -238,7 +238,6 @@ def residual_check(experiment: Experiment, model: LinearModel, theta: np.ndarray
     -------
     ResidualCheck
     """
-    from ..metrics import fit_percent
 
     if extension is None:
         theta = model.check(np.asarray(theta, float))
@@ -299,10 +298,6 @@ def predictive_coverage(likelihood, draws: np.ndarray, *, prob: float = 0.9,
     --------
     >>> # predictive_coverage(likelihood_from_idata(idata, heldout), draws, rng=1)
     """
-    from ..inference import simulate_noise
-    from ..inference.coverage_reference import MIN_REFERENCE_DRAWS, coverage_reference
-    from ..inference.predictive import band_factor
-    from ..metrics import fit_percent
 
     if not 0.0 < prob < 1.0:
         raise ConfigError(f"prob must be in (0, 1), got {prob}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..plots.crossval import plot_forest, plot_heldout_band
 from .folder import atomic_savefig, atomic_write_json, atomic_write_text
 
 __all__ = ["write_crossval"]
@@ -38,7 +39,6 @@ def write_crossval(result, out_dir: str | os.PathLike, *, plots: bool = True,
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from ..plots.crossval import plot_forest, plot_heldout_band
 
         for f in result.folds:
             fig = plot_heldout_band(f)

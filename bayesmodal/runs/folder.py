@@ -25,6 +25,7 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from .._json import to_jsonable
+from ..plots._png import save_png
 
 __all__ = [
     "RunFolder",
@@ -169,7 +170,6 @@ def atomic_savefig(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
     """
     import matplotlib.pyplot as plt
 
-    from ..plots._png import save_png
 
     path = Path(path)
     tmp = path.with_name(path.stem + ".tmp" + path.suffix)

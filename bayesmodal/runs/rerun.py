@@ -18,9 +18,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._errors import ConfigError, DataError
+from .._version import __version__
 from ..data import file_sha256
 from .config import PriorOverride, RunConfig
 from .provenance import dependency_versions
+from .runner import execute_run, prepare_run
 
 __all__ = ["RerunResult", "rerun_run", "recorded_config", "json_differences"]
 
@@ -148,7 +150,6 @@ def _check_data(summary: dict, folder: Path) -> None:
 
 
 def _version_changes(summary: dict) -> dict:
-    from .. import __version__
 
     run = summary.get("run", {})
     now = {"bayesmodal": __version__, **dependency_versions()}
@@ -187,7 +188,6 @@ def rerun_run(run_dir: str | os.PathLike, out_dir: str | os.PathLike | None = No
     --------
     >>> # res = rerun_run("runs/impulses_free"); res.identical, res.differences
     """
-    from .runner import execute_run, prepare_run
 
     folder = Path(run_dir)
     summary = _read_json(folder / "summary.json")

@@ -27,19 +27,40 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, one_line
 from .._progress import progress_bar
+from .._version import __version__
 from .._window import motion_at_start, offset_at_rest
 from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
 from ..fit.linear import fit_lsq
+from ..inference import (
+    LogUniform,
+    Uniform,
+    default_priors,
+    likelihood_from_idata,
+    nested_evidence,
+    posterior_matrix,
+    predictive_check,
+    sample_posterior,
+    to_inference_data,
+)
+from ..inference.coverage_reference import reference_fields
+from ..inference.crossval import crossval
 from ..inference.moves import parse_moves
 from ..inference.noise_spec import parse_noise
+from ..inference.predictive import predict_new_record, score_samples
 from ..inference.records import RecordsLikelihood, choose_noise, record_priors
+from ..inference.temperature import calibrate_loro
 from ..metrics import fit_percent
 from ..model.effects import get_extension
 from ..model.system import LinearModel
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .config import RunConfig, load_config
+from .crosscheck import lsce_check, predictive_coverage, residual_check
+from .crossval import write_crossval
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 from .outputs import write_modal_plot, write_run
+from .plots import plot_residual_acf, plot_residuals
+from .provenance import data_digests, dependency_versions
+from .report import write_report
 
 __all__ = ["PreparedRun", "RunOutcome", "prepare_run", "execute_run", "run_config",
            "default_out_dir", "parse_moves", "one_line", "LOGGER_NAME"]
@@ -106,7 +127,6 @@ class RunOutcome:
 
 
 def _prior(ov):
-    from ..inference import LogUniform, Uniform
 
     return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
 
@@ -158,7 +178,6 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         model extensions that cannot be combined (``[model.extensions]``) or an extension
         without free damping (``[model.damping]``).
     """
-    from ..inference import default_priors
 
     cfg = config
     src = cfg.source
@@ -346,8 +365,6 @@ def _verdict_detail(diag: dict) -> str:
 
 def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolder,
                   progress: bool) -> dict:
-    from .crosscheck import lsce_check, residual_check
-    from .plots import plot_residual_acf, plot_residuals
 
     cfg = prep.config
     model = prep.model
@@ -403,7 +420,6 @@ def _record_medians(run, idata) -> dict:
     lik = run.likelihood
     if not hasattr(lik, "record_theta"):
         return {}
-    from ..inference import posterior_matrix
 
     draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
     n_mech = len(lik.mech_names)
@@ -414,7 +430,6 @@ def _record_medians(run, idata) -> dict:
 def _heldout(prep: PreparedRun, idata) -> dict | None:
     if not prep.heldout:
         return None
-    from ..inference import likelihood_from_idata, posterior_matrix, predictive_check
 
     if idata.posterior.attrs.get("record_layout_json"):
         return _heldout_new_records(prep, idata)
@@ -436,8 +451,6 @@ def _heldout(prep: PreparedRun, idata) -> dict | None:
 
 def _coverage_records(lik, draws, seed) -> list[dict]:
     """Coverage of the 90 % posterior-predictive band per record (``summary.json`` form)."""
-    from ..inference.coverage_reference import reference_fields
-    from .crosscheck import predictive_coverage
 
     return [{"name": c["name"], "coverage_90": c["coverage"].tolist(),
              "width_90": c["width_m"].tolist(), "fit_percent": c["fit_percent"].tolist(),
@@ -450,8 +463,6 @@ def _coverage_records(lik, draws, seed) -> list[dict]:
 def _heldout_new_records(prep: PreparedRun, idata) -> dict:
     """Held-out records of a several-record run, each predicted as a new record (gain and
     offset drawn from their populations): fit percents, band coverage and lpd."""
-    from ..inference import likelihood_from_idata, posterior_matrix
-    from ..inference.predictive import predict_new_record, score_samples
 
     lik = likelihood_from_idata(idata)
     draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
@@ -483,7 +494,6 @@ def _evidence(prep: PreparedRun, run) -> dict | None:
     cfg = prep.config
     if not cfg.evidence:
         return None
-    from ..inference import nested_evidence
 
     ev = nested_evidence(run.likelihood, prep.priors, nlive=cfg.evidence_nlive,
                          dlogz=cfg.evidence_dlogz, rng=cfg.seed)
@@ -543,7 +553,6 @@ def _temperature(prep: PreparedRun, folder: RunFolder):
     cfg = prep.config
     if cfg.temperature != "loro":
         return float(cfg.temperature), None, None
-    from ..inference.temperature import calibrate_loro
 
     path = folder.path / TEMPERATURE_FILE
     chash = cfg.hash()
@@ -567,8 +576,6 @@ def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
     ``study`` is that check already computed at ``temperature`` (by the calibration)."""
     from dataclasses import replace
 
-    from ..inference.crossval import crossval
-    from .crossval import write_crossval
 
     def say(line: str) -> None:
         log.info("crossval: %s", line)
@@ -591,10 +598,6 @@ def _config_text(cfg: RunConfig) -> str:
 
 def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
               t_start: float, started: str, caught: list, start=None) -> dict:
-    from .. import __version__
-    from ..inference import sample_posterior, to_inference_data
-    from .provenance import data_digests, dependency_versions
-    from .report import write_report
 
     cfg = prep.config
     stages = _Stages(tuple(st for st in _STAGES if cfg.crossval or st != "crossval"),

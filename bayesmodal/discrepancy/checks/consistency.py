@@ -18,8 +18,10 @@ import numpy as np
 
 from ..._errors import DataError
 from ...data import Experiment
+from ...fit.linear import fit_lsq
 from ...metrics import fit_percent
 from ...model.effects import suggested_by
+from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
 from ._result import Diagnostic
 
@@ -68,12 +70,10 @@ def cross_experiment_consistency(
     if model is None:
         model = LinearModel(Rig(), "free")
     if fit is None:
-        from ...fit.linear import fit_lsq
 
         def fit(es):
             return fit_lsq(es, model).theta
     if simulate is None:
-        from ...model.simulate import simulate_linear
 
         def simulate(theta, e):
             return simulate_linear(model, theta, e.v_volt, e.dt)

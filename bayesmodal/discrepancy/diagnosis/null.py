@@ -38,11 +38,12 @@ import numpy as np
 from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import progress_bar
 from ...data import ECP_M_PER_COUNT, Experiment
+from ...fit.effects import fit_extension_lsq
 from ...fit.linear import fit_lsq
 from ...inference.likelihood import simulate_noise
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel
-from ..checks import RESIDUAL_DIAGNOSTICS, Diagnostic, linear_residuals
+from ..checks import RESIDUAL_DIAGNOSTICS, Diagnostic, linear_residuals, smooth_derivative
 
 __all__ = [
     "NoiseModel",
@@ -174,7 +175,6 @@ def run_diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarra
     if y_pred is not None:
         from dataclasses import replace
 
-        from ..checks import smooth_derivative
         res = replace(res, y_pred=np.ascontiguousarray(y_pred),
                       v_pred=smooth_derivative(y_pred, experiment.dt, res.smooth_window),
                       residual=experiment.y_m - y_pred)
@@ -338,8 +338,6 @@ def calibrate_null(
                 if ef is None:
                     fit = fit_lsq(null_exps, model, theta0=theta, max_nfev=refit_nfev)
                 else:
-                    from ...fit.effects import fit_extension_lsq
-
                     fit = fit_extension_lsq(null_exps, ef.extension, ef.rig, theta0=theta,
                                             linear=ef.linear, max_nfev=refit_nfev,
                                             weights=weights)

@@ -6,6 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ...model.simulate import simulate_linear
+from ...plots.diagnostics import plot_diagnostic, plot_residuals
+from ..checks import linear_residuals
+from .null import run_diagnostics
+
 __all__ = ["plot_before_after", "write_plots"]
 
 
@@ -13,7 +18,6 @@ def plot_before_after(diagnosis, experiment, *, ax=None):
     """Measured positions, the linear prediction and the extended model's, per cart."""
     import matplotlib.pyplot as plt
 
-    from ...model.simulate import simulate_linear
 
     lin = diagnosis.detail["linear"]
     n = experiment.n_outputs
@@ -62,9 +66,6 @@ def _write_plots(diagnosis, experiments, folder: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ...plots.diagnostics import plot_diagnostic, plot_residuals
-    from ..checks import linear_residuals
-    from .null import run_diagnostics
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

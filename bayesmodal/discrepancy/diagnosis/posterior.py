@@ -20,6 +20,8 @@ import inspect
 import numpy as np
 
 from ..._progress import announce
+from ...inference import Likelihood, elpd_change, predictive_check, sample_posterior
+from ...inference.priors import noise_names
 from ._result import Interval
 
 __all__ = ["posterior_summary", "sampler_supports_extensions"]
@@ -39,7 +41,6 @@ def _fits(runs: dict, name: str, model, exps, heldout, noise) -> dict:
     short chains put walkers in modes whose held-out predictions differ by tens of
     points (docs/diagnose.md).
     """
-    from ...inference import Likelihood, predictive_check
 
     out: dict = {}
     for prefix, data in (("", exps), ("heldout_", heldout)):
@@ -63,7 +64,6 @@ def _fits(runs: dict, name: str, model, exps, heldout, noise) -> dict:
 
 def sampler_supports_extensions() -> bool:
     """True when ``sample_posterior`` accepts an ``extension`` argument."""
-    from ...inference import sample_posterior
 
     return "extension" in inspect.signature(sample_posterior).parameters
 
@@ -101,8 +101,6 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=(),
     """
     if not sampler_supports_extensions():
         return None
-    from ...inference import elpd_change, sample_posterior
-    from ...inference.priors import noise_names
 
     opts = {**DEFAULTS, **options}
     model = linear.model

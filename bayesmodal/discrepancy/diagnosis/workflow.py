@@ -55,6 +55,7 @@ from .null import (
     infer_quantum,
     run_diagnostics,
 )
+from .posterior import posterior_summary
 from .scoring import ar1_pointwise, criterion_for, held_out_significant, laplace_sd
 from .starts import best_starts
 
@@ -554,7 +555,6 @@ def diagnose(
         for i, n in enumerate(lin_names)}
     parameters, method = None, "laplace"
     if posterior:
-        from .posterior import posterior_summary
 
         post = posterior_summary(exps=train_exps, ext=ext, rig=rig, fit=ef,
                                  linear=linear, rng=rng, options=posterior_options or {},

@@ -30,7 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._errors import DataError
-from ..likelihood import ar1_terms, simulate_noise, white_terms
+from ..likelihood import (
+    ar1_terms,
+    residual_loglik,  # the sufficient-statistics form
+    simulate_noise,
+    white_terms,
+)
 from ..priors import LogUniform, PriorSet, Uniform
 
 __all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "HALF_LOG_2PI", "SIGMA_PRIOR",
@@ -190,7 +195,6 @@ class AR1Noise(NoiseModel):
         return _sigma_ok(params[:, :n]) & np.all(np.isfinite(phi) & (np.abs(phi) < 1), axis=-1)
 
     def loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
-        from ..likelihood import residual_loglik  # the sufficient-statistics form
 
         R = np.asarray(R, dtype=float)
         n_out = R.shape[1]

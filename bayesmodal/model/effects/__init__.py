@@ -222,7 +222,6 @@ def get_extension(name) -> Extension:
     >>> get_extension(["coulomb_friction", "input_offset"]).name
     'coulomb_friction+input_offset'
     """
-    from ..._errors import ModelError
 
     names = name.split("+") if isinstance(name, str) else list(name)
     effects = []
