@@ -121,3 +121,11 @@ def test_bad_inputs_raise_one_line_errors():
     with pytest.raises(DataError, match="non-finite"):
         WhiteNoise().start(np.array([[0.0], [np.nan]]))
     assert isinstance(ARpNoise((1,)), NoiseModel)
+
+
+@pytest.mark.parametrize("model", [WhiteNoise(), AR1Noise(), ARpNoise((2,))])
+def test_a_model_without_a_covariate_is_the_same_for_every_record(model):
+    """``NoiseModel.for_record`` returns the model itself unless it reads its record."""
+    t = np.arange(50) * 0.01
+    e = Experiment(t, np.zeros_like(t), np.zeros((50, 1)), name="r")
+    assert model.for_record(e) is model

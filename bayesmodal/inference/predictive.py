@@ -244,9 +244,9 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
         # (with noise_scale "response": the level sized by the record's simulated response)
         s = lik.scale_of(experiment, theta)
-        e = lik.noise_simulate(noise, experiment.n_samples, rng, s, start)
+        e = lik.noise_simulate(noise, experiment.n_samples, rng, s, start, record=experiment)
         with np.errstate(all="ignore"):
-            ll = lik.noise_loglik(R, noise, s)
+            ll = lik.noise_loglik(R, noise, s, record=experiment)
     else:
         n = lik.n_outputs
         sigma = noise[:, :n]

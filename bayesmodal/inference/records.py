@@ -338,6 +338,9 @@ class RecordsLikelihood:
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "extension", ext)
         object.__setattr__(self, "noise_model", noise_model)
+        # each record's noise model (a model may read a covariate from its record)
+        object.__setattr__(self, "record_noise", tuple(noise_model.for_record(e)
+                                                       for e in exps))
         object.__setattr__(self, "noise", self.noise if isinstance(self.noise, str) and
                            self.noise in NOISE_MODELS else noise_model.name)
         object.__setattr__(self, "record_keys", keys)
@@ -610,29 +613,38 @@ class RecordsLikelihood:
         """``(sigma, phi)`` of white or AR(1) noise from single-record rows."""
         return self._sigma_phi(full[:, len(self.mech_names):])
 
-    def noise_loglik(self, R: np.ndarray, params: np.ndarray, scale: float = 1.0
-                     ) -> np.ndarray:
-        """Log density, shape (nb,), of residuals ``R`` (N, n_out, nb) under the noise model
-        with parameter rows ``params`` (nb, n_noise), its level times ``scale``."""
+    def noise_of(self, record) -> NoiseModel:
+        """The noise model of a record: ``record`` is the index of one of the likelihood's
+        records or another ``Experiment`` (a held-out one)."""
+        if isinstance(record, Experiment):
+            return self.noise_model.for_record(record)
+        return self.record_noise[record]
+
+    def noise_loglik(self, R: np.ndarray, params: np.ndarray, scale: float = 1.0, *,
+                     record=0) -> np.ndarray:
+        """Log density, shape (nb,), of residuals ``R`` (N, n_out, nb) of ``record`` (see
+        :meth:`noise_of`) under the noise model with parameter rows ``params``
+        (nb, n_noise), its level times ``scale``."""
         if self.noise in NOISE_MODELS:  # the sufficient-statistics path
             sigma, phi = self._sigma_phi(params)
             return residual_loglik(R, sigma * _col(scale), phi)
+        noise = self.noise_of(record)
         if np.all(np.asarray(scale) == 1.0):
-            return self.noise_model.loglik(R, params)
-        return self.noise_model.loglik(R / scale, params) - R.shape[0] * R.shape[1] * np.log(
-            scale)
+            return noise.loglik(R, params)
+        return noise.loglik(R / scale, params) - R.shape[0] * R.shape[1] * np.log(scale)
 
     def noise_simulate(self, params: np.ndarray, n_samples: int, rng, scale: float = 1.0,
-                       start=None) -> np.ndarray:
-        """Residual draws, shape (nb, n_samples, n_out), from noise parameter rows, times
-        ``scale`` (not for process noise, whose draws go through the dynamics: see
+                       start=None, *, record=0) -> np.ndarray:
+        """Residual draws, shape (nb, n_samples, n_out), of ``record`` (see
+        :meth:`noise_of`) from noise parameter rows, times ``scale`` (not for process
+        noise, whose draws go through the dynamics: see
         ``predictive.predict_new_record``).  ``start`` (AR(1) only): the known residual
         at sample 0, shape (nb, n_out), m (``likelihood.simulate_noise``)."""
         if self.noise in NOISE_MODELS:
             sigma, phi = self._sigma_phi(params)
             return simulate_noise(sigma * _col(scale), phi, n_samples, rng, start)
-        return np.reshape(scale, (-1, 1, 1)) * self.noise_model.simulate(params, n_samples,
-                                                                          rng)
+        return np.reshape(scale, (-1, 1, 1)) * self.noise_of(record).simulate(
+            params, n_samples, rng)
 
     def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
         """Pointwise log-likelihood terms per record, each shape (nb, N_r, n_out)."""
@@ -657,8 +669,8 @@ class RecordsLikelihood:
                     t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt,
                                          v0=v0)
                 else:
-                    t = self.noise_model.pointwise(r_ / s, full[:, len(self.mech_names):]
-                                                   ) - np.log(s)
+                    t = self.record_noise[r].pointwise(r_ / s, full[:, len(self.mech_names):]
+                                                       ) - np.log(s)
             out[r][ok] = np.where(np.isfinite(t), t, -np.inf)
         return out
 
@@ -687,7 +699,7 @@ class RecordsLikelihood:
                 else:
                     yh = self.predict_record(th, r)
                     ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params,
-                                           self._scale_rows(th, r))
+                                           self._scale_rows(th, r), record=r)
                 out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
         return out
 
@@ -791,7 +803,7 @@ class RecordsLikelihood:
                 out.append(y - self.predict_mech(mech, v0, e))
                 continue
             out.append(self.noise_simulate(full[:, len(self.mech_names):], e.n_samples, rng,
-                                           self._scale_rows(theta, r)))
+                                           self._scale_rows(theta, r), record=r))
         return out
 
     def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
@@ -812,7 +824,7 @@ class RecordsLikelihood:
                 starts.append(np.r_[np.full(self.n_outputs, 1e-6),
                                     np.sqrt(np.mean(res**2, axis=0))])
             else:
-                starts.append(self.noise_model.start(res))
+                starts.append(self.record_noise[r].start(res))
         if self.layout.noise_per_record:
             return np.concatenate(starts)
         # shared: pool the per-record moments (RMS of sigma, mean of the coefficients)

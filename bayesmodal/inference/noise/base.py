@@ -78,6 +78,15 @@ class NoiseModel(ABC):
     def names(self, n_outputs: int) -> tuple[str, ...]:
         """Parameter names in vector order, ``sigma_1..n`` first."""
 
+    def for_record(self, experiment) -> NoiseModel:
+        """The model for one record (an ``Experiment``): itself unless the model reads a
+        covariate from the record (a level that follows the record's motion, say).
+
+        The likelihoods call it once per record and evaluate, draw and start that
+        record's noise with the model it returns; a held-out record gets its own.
+        """
+        return self
+
     def n_params(self, n_outputs: int) -> int:
         """Number of noise parameters for ``n_outputs`` outputs."""
         return len(self.names(n_outputs))

@@ -112,6 +112,10 @@ class ProcessNoise:
 
     name: str = "process"
 
+    def for_record(self, experiment) -> ProcessNoise:
+        """The model for one record: the same for every record (see ``NoiseModel``)."""
+        return self
+
     def names(self, n_carts: int) -> tuple[str, ...]:
         return (tuple(f"q_{i + 1}" for i in range(n_carts))
                 + tuple(f"sigma_{j + 1}" for j in range(n_carts)))
