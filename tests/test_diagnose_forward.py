@@ -195,7 +195,7 @@ def test_every_candidate_is_fitted_so_a_tied_start_cannot_hide_the_dead_band():
     # name with the first step's parameters, which fails once that cause is refined)
     import matplotlib
     matplotlib.use("Agg")
-    from bayesmodal.discrepancy.diagnosis.plots import plot_before_after
+    from bayesmodal.plots.diagnosis import plot_before_after
     ax = plot_before_after(d, h.experiment)
     final = d.detail["forward"].fit.extension
     assert set(final.name.split("+")) == set(d.effects)

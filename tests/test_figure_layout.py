@@ -83,7 +83,7 @@ def _report_figures(exps, tmp_path, monkeypatch) -> dict:
     import bayesmodal.runs.outputs as outputs
     from bayesmodal.runs.crosscheck import residual_check
     from bayesmodal.runs.outputs import write_modal_plot, write_run
-    from bayesmodal.runs.plots import plot_residual_acf, plot_residuals
+    from bayesmodal.plots.runs import plot_residual_acf, plot_residuals
     from bayesmodal.runs.report import REPORT_IMAGES
 
     figs = {}

@@ -80,6 +80,70 @@ def test_deferred_own_imports_do_not_grow():
         "import at module level, or move the code so the import points down the layers")
 
 
+#: The layers, lowest first (docs/architecture.md): a module imports only its own layer and
+#: the ones before it.  ``base`` holds what every layer may use (errors, formatting).
+LAYERS = ("base", "model", "data", "fit", "inference", "diagnosis", "plots", "runs", "cli")
+#: The layer of each sub-package, and of each module at the package's root.
+PACKAGE_LAYER = {"model": "model", "fit": "fit", "modal": "fit", "ema": "fit",
+                 "inference": "inference", "discrepancy": "diagnosis", "plots": "plots",
+                 "runs": "runs", "cli": "cli"}
+ROOT_LAYER = {
+    "_errors": "base", "_format": "base", "_progress": "base", "_version": "base",
+    "_versions": "base", "_json": "base",
+    "_channels": "data", "_ecp_export": "data", "_instruments": "data", "_readers": "data",
+    "_release": "data", "_tdms": "data", "_uff": "data", "_window": "data", "data": "data",
+    "reading": "data", "segments": "data", "inspection": "data", "structure": "data",
+    "identified": "fit", "metrics": "fit", "static": "fit",
+    "reproduce": "runs", "bench": "runs", "bench_sampler": "runs", "__main__": "cli"}
+
+
+def layer_of(module: str) -> str | None:
+    """The layer of a package module; None for the package's ``__init__`` (the public API,
+    which may name anything) and for a module missing from the tables."""
+    parts = module.split(".")
+    if len(parts) == 1:
+        return None
+    return PACKAGE_LAYER.get(parts[1]) or ROOT_LAYER.get(parts[1])
+
+
+def upward_imports(edges) -> list[str]:
+    """``"a -> b"`` for each import of a module of a later layer."""
+    out = []
+    for s, t in sorted({(e.source, e.target) for e in edges}):
+        a, b = layer_of(s), layer_of(t)
+        if a is not None and b is not None and LAYERS.index(b) > LAYERS.index(a):
+            out.append(f"{s} ({a}) -> {t} ({b})")
+    return out
+
+
+def test_every_module_has_a_layer():
+    missing = [m for m in ig.module_files() if m != "bayesmodal" and layer_of(m) is None]
+    assert not missing, f"add these modules to ROOT_LAYER or PACKAGE_LAYER: {missing}"
+
+
+def test_layers_point_one_way():
+    """model -> data -> fit -> inference -> diagnosis -> plots -> runs -> cli, counting
+    imports inside functions."""
+    assert upward_imports(ig.package_edges()) == []
+
+
+def test_upward_import_check_catches_one():
+    """Negative control: an import of the run layer from the inference layer is found."""
+    edge = ig.Edge("bayesmodal.inference.sampling", "bayesmodal.runs.folder", 1, True)
+    assert upward_imports([edge]) == [
+        "bayesmodal.inference.sampling (inference) -> bayesmodal.runs.folder (runs)"]
+
+
+def test_matplotlib_is_drawn_with_in_plots_only():
+    """Inference, diagnosis and the layers below neither draw nor load matplotlib."""
+    below = [m for m in ig.module_files() if layer_of(m) in
+             ("model", "data", "fit", "inference", "diagnosis")]
+    files = ig.module_files()
+    found = [m for m in below if re.search(r"^\s*(import|from) matplotlib",
+                                           files[m].read_text(encoding="utf-8"), re.M)]
+    assert found == []
+
+
 def test_model_layer_loads_nothing_above_it():
     assert layer_violations(ig.graph(ig.package_edges()), MODEL_LAYER, ABOVE_MODEL) == []
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from .._format import sig
 from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
-from ..discrepancy.diagnosis.plots import write_plots
 from ..model.effects import EXTENSIONS
+from ..plots.diagnosis import write_plots
 from ..segments import split_records
 from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 

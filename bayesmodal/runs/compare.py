@@ -30,8 +30,8 @@ from ..inference import (
 )
 from ..inference.idata import arviz
 from ..inference.likelihood import as_experiments
+from ..plots.runs import plot_run_intervals
 from .folder import atomic_savefig, atomic_write_json, atomic_write_text
-from .plots import plot_run_intervals
 from .verdict import record_status
 
 __all__ = ["RunRow", "RunComparison", "check_distinct_runs", "compare_runs", "write_comparison"]

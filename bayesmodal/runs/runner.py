@@ -52,13 +52,13 @@ from ..inference.temperature import calibrate_loro
 from ..metrics import fit_percent
 from ..model.effects import get_extension
 from ..model.system import LinearModel
+from ..plots.runs import plot_residual_acf, plot_residuals
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .config import RunConfig, load_config
 from .crosscheck import lsce_check, predictive_coverage, residual_check
 from .crossval import write_crossval
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
 from .outputs import write_modal_plot, write_run
-from .plots import plot_residual_acf, plot_residuals
 from .provenance import data_digests, dependency_versions
 from .report import write_report
 

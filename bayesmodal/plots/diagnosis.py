@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ...model.simulate import simulate_linear
-from ...plots.diagnostics import plot_diagnostic, plot_residuals
-from ..checks import linear_residuals
-from .null import run_diagnostics
+from ..discrepancy.checks import linear_residuals
+from ..discrepancy.diagnosis.null import run_diagnostics
+from ..model.simulate import simulate_linear
+from .diagnostics import plot_diagnostic, plot_residuals
 
 __all__ = ["plot_before_after", "write_plots"]
 
