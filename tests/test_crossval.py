@@ -159,8 +159,8 @@ def test_fold_samples_with_the_configured_moves_and_pruning(monkeypatch):
     class Reached(Exception):
         pass
 
-    def fake(*args, **kw):
-        seen.update(kw)
+    def fake(exps, model, likelihood, sampler, **kw):
+        seen.update(vars(sampler), **kw)
         raise Reached
 
     monkeypatch.setattr(crossval_module, "sample_posterior", fake)

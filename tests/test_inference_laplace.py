@@ -248,25 +248,25 @@ def test_laplace_start_shrinks_a_too_wide_approximation(monkeypatch):
     the factor) instead of failing after the burn-in; a box too small even for the
     smallest factor still fails with the one-line fix."""
     from bayesmodal.inference import laplace as lap
-    from bayesmodal.inference import sampling
+    from bayesmodal.inference import ensemble
 
     d = 5
-    monkeypatch.setattr(sampling, "laplace_approximation", lambda f, z: lap.Laplace(
+    monkeypatch.setattr(ensemble, "laplace_approximation", lambda f, z: lap.Laplace(
         mean=np.zeros(d), cov=np.eye(d), hessian=-np.eye(d), log_density=0.0, clipped=0,
         n_evaluations=0))
     rng = np.random.default_rng(0)
     # half-width 0.05 sd: P(inside) per draw 0.04^5 at full width, 0.38^5 = 0.008 at 0.1
     # (160 draws give 1.3 walkers of the 8), 0.905^5 = 0.61 at 0.03
-    with pytest.warns(sampling.ConvergenceWarning, match=r"at 0\.03 times"):
-        z = sampling._laplace_start(_Box(0.05, d), np.zeros(d), 8, rng)
+    with pytest.warns(ensemble.ConvergenceWarning, match=r"at 0\.03 times"):
+        z = ensemble._laplace_start(_Box(0.05, d), np.zeros(d), 8, rng)
     assert z.shape == (8, d) and np.all(np.abs(z) < 0.05)
     # negative control: a box of 1e-4 sd is beyond the smallest factor's reach
     with pytest.raises(ConfigError, match="even at 0.01 times its width; use init='ball'"):
-        sampling._laplace_start(_Box(1e-4, d), np.zeros(d), 8, rng)
+        ensemble._laplace_start(_Box(1e-4, d), np.zeros(d), 8, rng)
     # a box the full width fits: no warning, no shrinking
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        z = sampling._laplace_start(_Box(50.0, d), np.zeros(d), 8, rng)
+        z = ensemble._laplace_start(_Box(50.0, d), np.zeros(d), 8, rng)
     assert np.std(z) > 0.5  # the full unit width, not a shrunk one

@@ -60,7 +60,7 @@ def test_sampler_progress_is_plain_in_a_log_and_changes_no_draw(capsys):
 @pytest.mark.parametrize("restart", [None, 4])
 def test_draws_equal_emcee_run_mcmc(restart, monkeypatch):
     """The progress loop iterates exactly what ``EnsembleSampler.run_mcmc`` would."""
-    from bayesmodal.inference import sampling
+    from bayesmodal.inference import ensemble
 
     model, exp = _synthetic(n=300, seed=2)
     kw = dict(noise="ar1", n_walkers=24, n_steps=16, burn=8, rng=5, warn=False,
@@ -70,6 +70,6 @@ def test_draws_equal_emcee_run_mcmc(restart, monkeypatch):
     def run_mcmc(sampler, state, n, progress):
         sampler.run_mcmc(state if state is not None else sampler.get_last_sample(), n)
 
-    monkeypatch.setattr(sampling, "_advance", run_mcmc)
+    monkeypatch.setattr(ensemble, "_advance", run_mcmc)
     ref = sample_posterior(exp, model, **kw)
     assert np.array_equal(ours.chain, ref.chain)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._format import param_unit, sig
-from ..inference import sample_posterior, to_inference_data
+from ..inference import LikelihoodSpec, SamplerSpec, sample_posterior, to_inference_data
 from ..inference.record_scale import NOISE_SCALES
 from ..inference.records import parse_layout
 from ..model.system import LinearModel
@@ -101,13 +101,14 @@ def sample_to_dir(exps, args, damping: str, out: Path):
         layout = parse_layout(getattr(args, "per_record", "none"),
                               noise_scale=getattr(args, "noise_scale", "none"))
         run = sample_posterior(
-            exps, model, noise=args.noise, n_walkers=args.walkers,
-            layout=layout if layout.per_record or layout.noise_scale != "none" else None,
-            n_steps=args.steps, burn=args.burn, thin=args.thin, rng=args.seed, backend=ckpt,
-            progress=not args.quiet, initial_state=getattr(args, "initial_state", "rest"),
-            init=getattr(args, "init", "ball"),
-            threads=getattr(args, "threads", "1"),
-        )
+            exps, model,
+            LikelihoodSpec(
+                noise=args.noise, initial_state=getattr(args, "initial_state", "rest"),
+                layout=layout if layout.per_record or layout.noise_scale != "none" else None),
+            SamplerSpec(n_walkers=args.walkers, n_steps=args.steps, burn=args.burn,
+                        thin=args.thin, init=getattr(args, "init", "ball"),
+                        threads=getattr(args, "threads", "1"), progress=not args.quiet),
+            rng=args.seed, backend=ckpt)
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)
         with contextlib.suppress(Exception):

@@ -61,6 +61,7 @@ from .sampling import (
     posterior_mode,
     sample_posterior,
 )
+from .spec import LikelihoodSpec, SamplerSpec
 from .summary import (
     ComparisonRow,
     comparison_markdown,
@@ -72,6 +73,8 @@ from .summary import (
 from .threads import ThreadedLogPosterior, resolve_threads
 
 __all__ = [
+    "LikelihoodSpec",
+    "SamplerSpec",
     "BayesFactor",
     "ComparisonRow",
     "ConvergenceWarning",

@@ -39,6 +39,7 @@ from .predictive import PredictiveScores, new_record_parameters, predict_new_rec
 from .propagate import propagate_modes
 from .records import DEFAULT_LAYOUT, RecordLayout, RecordsLikelihood, choose_noise, record_priors
 from .sampling import burn_in_steps, sample_posterior
+from .spec import LikelihoodSpec, SamplerSpec
 
 __all__ = ["CrossvalSpec", "FoldResult", "CrossvalResult", "crossval", "run_fold"]
 
@@ -283,12 +284,14 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     walkers = max(spec.n_walkers, 2 * len(lik.names))
     # the noise as given (a name, or the AR orders chosen above): ProcessNoise is not a
     # NoiseModel instance that sample_posterior could take back
-    run = sample_posterior(train, model, noise=noise, extension=spec.extension,
-                           layout=spec.layout, priors=priors, n_walkers=walkers,
-                           n_steps=spec.n_steps, burn=burn, rng=seed, warn=False,
-                           progress=progress, temperature=spec.temperature, init=spec.init,
-                           moves=parse_moves(spec.moves), prune=spec.prune,
-                           restart=spec.restart)
+    run = sample_posterior(
+        train, model,
+        LikelihoodSpec(noise=noise, extension=spec.extension, layout=spec.layout,
+                       temperature=spec.temperature),
+        SamplerSpec(n_walkers=walkers, n_steps=spec.n_steps, burn=burn,
+                    moves=parse_moves(spec.moves), init=spec.init, prune=spec.prune,
+                    restart=spec.restart, progress=progress, warn=False),
+        priors=priors, rng=seed)
     rng = np.random.default_rng(seed + 7)
     flat = run.flat_draws
     take = rng.choice(flat.shape[0], size=min(spec.n_predictive, flat.shape[0]),

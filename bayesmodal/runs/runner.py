@@ -48,6 +48,7 @@ from ..inference.moves import parse_moves
 from ..inference.noise_spec import parse_noise
 from ..inference.predictive import predict_new_record, score_samples
 from ..inference.records import RecordsLikelihood, choose_noise, record_priors
+from ..inference.spec import LikelihoodSpec, SamplerSpec
 from ..inference.temperature import calibrate_loro
 from ..metrics import fit_percent
 from ..model.effects import get_extension
@@ -610,13 +611,14 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                      cfg.walkers, cfg.steps, steps_before, cfg.seed)
             temperature, calibration, study = _temperature(prep, folder)
             run = sample_posterior(
-                list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
-                priors=prep.priors,
-                n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn, thin=cfg.thin,
-                moves=prep.moves, rng=cfg.seed, backend=backend, progress=progress,
-                warn=False, extension=prep.extension, restart=cfg.restart, prune=cfg.prune,
-                layout=cfg.layout, temperature=temperature, init=cfg.init,
-                threads=cfg.threads, start=start)
+                list(prep.experiments), prep.model,
+                LikelihoodSpec(noise=prep.noise or cfg.noise, extension=prep.extension,
+                               layout=cfg.layout, temperature=temperature),
+                SamplerSpec(n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn,
+                            thin=cfg.thin, moves=prep.moves, init=cfg.init,
+                            restart=cfg.restart, prune=cfg.prune, threads=cfg.threads,
+                            progress=progress, warn=False),
+                priors=prep.priors, start=start, rng=cfg.seed, backend=backend)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):

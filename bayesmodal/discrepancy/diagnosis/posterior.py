@@ -15,8 +15,6 @@ None of this feeds back into the decision.
 
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
 from ..._progress import announce
@@ -24,7 +22,7 @@ from ...inference import Likelihood, elpd_change, predictive_check, sample_poste
 from ...inference.priors import noise_names
 from ._result import Interval
 
-__all__ = ["posterior_summary", "sampler_supports_extensions"]
+__all__ = ["posterior_summary"]
 
 #: Default sampler settings of the workflow (overridable by ``posterior_options``).
 DEFAULTS = {"n_steps": 1500, "noise": "ar1"}
@@ -62,15 +60,9 @@ def _fits(runs: dict, name: str, model, exps, heldout, noise) -> dict:
     return out
 
 
-def sampler_supports_extensions() -> bool:
-    """True when ``sample_posterior`` accepts an ``extension`` argument."""
-
-    return "extension" in inspect.signature(sample_posterior).parameters
-
-
 def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=(),
                       progress=False):
-    """Credible intervals (90 %) and ELPD change, or None without sampler support.
+    """Credible intervals (90 %) and ELPD change of the extended against the linear model.
 
     Parameters
     ----------
@@ -93,15 +85,12 @@ def posterior_summary(*, exps, ext, rig, fit, linear, rng, options, heldout=(),
 
     Returns
     -------
-    dict or None
+    dict
         ``parameters`` {name: Interval}, ``delta_elpd``, ``delta_elpd_se``,
         ``criterion``, ``elpd`` (the ``ElpdChange`` as a dict), ``fits`` (see
         ``_fits``), ``notes``, ``converged`` (both chains passed the convergence
         checks of ``sample_posterior``).
     """
-    if not sampler_supports_extensions():
-        return None
-
     opts = {**DEFAULTS, **options}
     model = linear.model
     n_out = rig.n_carts
