@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from .._format import sig
-from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
+from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, DiagnoseSpec, diagnose
 from ..model.effects import EXTENSIONS
 from ..plots.diagnosis import write_plots
 from ..segments import split_records
@@ -167,12 +167,13 @@ def run(args) -> int:
     if args.split_at_rest:
 
         exps, train = split_records(exps, args.split_at_rest, train)
-    d = diagnose(exps, rig=load_rig(args), train=train, n_null=args.null,
-                 max_effects=args.max_effects, global_search=not args.local_search,
-                 posterior=not args.no_posterior,
-                 rng=args.seed, posterior_options={"n_steps": args.steps},
-                 n_starts=args.starts, progress=not args.quiet, candidates=args.candidates,
-                 weights=None if args.weights == "none" else args.weights)
+    spec = DiagnoseSpec(
+        candidates=args.candidates, n_null=args.null, posterior=not args.no_posterior,
+        posterior_options={"n_steps": args.steps}, n_starts=args.starts,
+        max_effects=args.max_effects, global_search=not args.local_search,
+        weights=None if args.weights == "none" else args.weights)
+    d = diagnose(exps, spec, rig=load_rig(args), train=train, rng=args.seed,
+                 progress=not args.quiet)
     if args.plots:
 
         write_plots(d, exps, Path(args.plots))

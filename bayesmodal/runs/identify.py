@@ -36,7 +36,12 @@ import numpy as np
 
 from .._errors import ConfigError
 from .._json import to_jsonable
-from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose, require_diagnosable
+from ..discrepancy.diagnosis import (
+    DEFAULT_CANDIDATES,
+    DiagnoseSpec,
+    diagnose,
+    require_diagnosable,
+)
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS, get_extension
 from ..model.system import LinearModel, param_kinds
@@ -389,10 +394,10 @@ def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> di
     exps, train, cut = diagnosis_records(prep.experiments, rig, d)
     weights = d.weights if d.weights != "auto" else ("spread" if len(train) > 1 else "none")
     t0 = time.perf_counter()
-    res = diagnose(exps, rig=rig, train=train, candidates=_candidates(rig, d),
-                   n_null=d.n_null, posterior=False, rng=d.seed, n_starts=d.n_starts,
-                   max_effects=d.max_effects, global_search=d.global_search,
-                   progress=progress, weights=weights)
+    res = diagnose(exps, DiagnoseSpec(
+        candidates=_candidates(rig, d), n_null=d.n_null, posterior=False,
+        n_starts=d.n_starts, max_effects=d.max_effects, global_search=d.global_search,
+        weights=weights), rig=rig, train=train, rng=d.seed, progress=progress)
     out = {"key": key, "finished": now_iso(), "elapsed_s": time.perf_counter() - t0,
            "split_at_rest": cut, "weights": weights,
            "candidates": _candidates(rig, d), "diagnosis": res.as_dict()}

@@ -16,6 +16,7 @@ from .null import (
     infer_quantum,
     quantise,
 )
+from .spec import DiagnoseSpec
 from .workflow import DEFAULT_CANDIDATES, diagnose, require_diagnosable
 
 __all__ = [
@@ -24,6 +25,7 @@ __all__ = [
     "Cause",
     "ForwardResult",
     "DEFAULT_CANDIDATES",
+    "DiagnoseSpec",
     "Diagnosis",
     "Interval",
     "NoiseModel",

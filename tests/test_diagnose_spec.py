@@ -1,0 +1,64 @@
+"""``DiagnoseSpec``: the settings of a diagnosis in one checked object, and ``diagnose``'s
+way of taking it (as an object or setting by setting)."""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+import pytest
+
+from bayesmodal._errors import ConfigError
+from bayesmodal.data import Experiment
+from bayesmodal.discrepancy.diagnosis import DiagnoseSpec, diagnose
+from bayesmodal.discrepancy.diagnosis.spec import with_diagnose_settings
+from bayesmodal.model.simulate import simulate_linear
+from bayesmodal.model.system import LinearModel, Rig
+
+
+def test_diagnose_takes_at_most_eight_parameters():
+    params = [p for p in inspect.signature(diagnose).parameters.values()
+              if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    assert len(params) <= 8
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(candidates=["pink_friction"]), r"unknown candidate extension\(s\) \['pink_friction'\]"),
+    (dict(candidates=[]), r"unknown candidate extension"),
+    (dict(weights="equal"), r"weights must be None or one of"),
+    (dict(quantum_m=-1.0), r"quantum_m must be finite and >= 0"),
+    (dict(n_starts=0), r"n_starts must be a positive integer"),
+    (dict(max_effects=True), r"max_effects must be a positive integer"),
+])
+def test_a_spec_is_checked_when_built(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        DiagnoseSpec(**kw)
+
+
+def test_settings_by_name_replace_the_spec_and_an_unknown_name_is_refused():
+    spec = with_diagnose_settings(DiagnoseSpec(n_null=80), {"alpha": 0.1})
+    assert (spec.n_null, spec.alpha) == (80, 0.1)
+    assert DiagnoseSpec(candidates=["backlash"]).candidates == ("backlash",)
+    with pytest.raises(TypeError, match=r"unknown setting\(s\) \['n_nul'\]"):
+        diagnose([], n_nul=10)
+
+
+def _linear_record(seed=0):
+    """A record of the linear model with white noise: nothing for a diagnosis to find."""
+    model = LinearModel(Rig(), "free")
+    theta = np.array([5.5, 1.5, 1.45, 1.15, 3.0, 2.0, 1.5, 0.5, 0.5])
+    t = np.arange(1500) * 0.005
+    v = 3.0 * ((t > 0.5) & (t < 0.55)) - 3.0 * ((t > 4.0) & (t < 4.05))
+    y = simulate_linear(model, theta, v, 0.005)
+    y = y + 2e-6 * np.random.default_rng(seed).standard_normal(y.shape)
+    return Experiment(t, v, y, name="linear")
+
+
+def test_an_object_and_settings_by_name_give_the_same_diagnosis():
+    rec = _linear_record()
+    a = diagnose(rec, DiagnoseSpec(n_null=19, posterior=False, max_effects=1), rng=3)
+    b = diagnose(rec, n_null=19, posterior=False, max_effects=1, rng=3)
+    assert a.as_dict() == b.as_dict()
+    # negative control: another null calibration gives another threshold
+    c = diagnose(rec, n_null=19, posterior=False, max_effects=1, rng=4)
+    assert c.threshold != a.threshold
