@@ -318,4 +318,4 @@ def test_site_builds_without_warnings(tmp_path):
     assert (tmp_path / "html" / "api" / "index.html").is_file()
     api = (tmp_path / "html" / "api" / "generated" /
            "bayesmodal.inference.sampling.sample_posterior.html").read_text(encoding="utf-8")
-    assert "n_walkers" in api and "Parameters" in api   # numpydoc rendered the docstring
+    assert "SamplerSpec" in api and "Parameters" in api   # numpydoc rendered the docstring
