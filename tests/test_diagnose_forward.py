@@ -210,7 +210,7 @@ def test_final_causes_take_location_and_parameters_from_the_final_fit():
     from types import SimpleNamespace
 
     from bayesmodal.discrepancy.diagnosis.forward import Cause
-    from bayesmodal.discrepancy.diagnosis.workflow import _final_causes
+    from bayesmodal.discrepancy.diagnosis.location import final_causes
     from bayesmodal.model.effects import get_extension
 
     rig = Rig()
@@ -225,7 +225,7 @@ def test_final_causes_take_location_and_parameters_from_the_final_fit():
                   parameters={"Fc1": 0.4, "Fc2": 0.3}, gain={"in_sample": {"delta_lpd": 5}})
     dead = Cause(cause="drive_deadband", location=None, location_label="input",
                  parameters={"v_dead": 0.1}, gain={"in_sample": {"delta_lpd": 7}})
-    out = _final_causes((first, dead), fwd, rig, model)
+    out = final_causes((first, dead), fwd, rig, model)
     assert [c.cause for c in out] == list(names)
     assert out[0].location == [3] and out[0].parameters["Fc3"] == 0.9
     assert out[0].gain == first.gain and out[1].parameters == {"v_dead": 0.12}
@@ -235,7 +235,7 @@ def test_final_causes_take_location_and_parameters_from_the_final_fit():
     refined = Cause(cause="coulomb_directional", location=[3], location_label="cart 3",
                     parameters={}, gain={"in_sample": {"delta_lpd": 9}},
                     replaces="coulomb_friction")
-    out2 = _final_causes((refined, dead), fwd2, rig, model)
+    out2 = final_causes((refined, dead), fwd2, rig, model)
     assert out2[0].cause == "coulomb_friction" and out2[0].replaces is None
     assert out2[0].location == [3] and out2[0].gain == refined.gain
 
@@ -325,11 +325,8 @@ def _forced_first(case, seed, first):
     """Forward selection started from ``first`` (its local least-squares fit), whatever
     the first step would have chosen."""
     from bayesmodal.discrepancy.diagnosis.forward import forward_select
-    from bayesmodal.discrepancy.diagnosis.workflow import (
-        DEFAULT_CANDIDATES,
-        _location,
-        _outcomes,
-    )
+    from bayesmodal.discrepancy.diagnosis.location import effect_location
+    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES, _outcomes
 
     h = make_case(case, seed, N_SAMPLES)
     rig = Rig()
@@ -339,7 +336,7 @@ def _forced_first(case, seed, first):
     fw = forward_select(exps, rig, first, f, DEFAULT_CANDIDATES, linear=lin,
                         quantum_m=ECP_M_PER_COUNT, n_null=N_NULL, alpha=0.05,
                         rng=np.random.default_rng(seed), outcomes=_outcomes,
-                        location=_location, max_effects=3)
+                        location=effect_location, max_effects=3)
     return h, fw
 
 
@@ -441,11 +438,8 @@ def test_input_side_pairs_are_tried_only_when_no_single_candidate_gains(monkeypa
     exceed ``max_effects``, no pair is tried (negative controls).  ``_evaluate`` (fitting
     and testing) is replaced by a recorder; the recalibration is the real one."""
     from bayesmodal.discrepancy.diagnosis import forward
-    from bayesmodal.discrepancy.diagnosis.workflow import (
-        DEFAULT_CANDIDATES,
-        _location,
-        _outcomes,
-    )
+    from bayesmodal.discrepancy.diagnosis.location import effect_location
+    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES, _outcomes
 
     h = make_case("coulomb_friction+input_offset", 3, 800)
     rig = Rig()
@@ -472,7 +466,7 @@ def test_input_side_pairs_are_tried_only_when_no_single_candidate_gains(monkeypa
         fw = forward.forward_select(
             exps, rig, "coulomb_friction", first, DEFAULT_CANDIDATES, linear=lin,
             quantum_m=ECP_M_PER_COUNT, n_null=4, alpha=ALPHA, rng=np.random.default_rng(0),
-            outcomes=_outcomes, location=_location, max_effects=max_effects,
+            outcomes=_outcomes, location=effect_location, max_effects=max_effects,
             global_search=False)
         return calls, fw
 
