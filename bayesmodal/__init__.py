@@ -9,15 +9,16 @@ the rig and its model              ``Rig``, ``load_rig``, ``LinearModel``, ``sim
                                    ``discretize_zoh``, ``EXTENSIONS``, ``get_extension``
 records                            ``Experiment``, ``load_experiment``
 least squares                      ``fit_lsq``, ``fit_extension_lsq``
-posterior                          ``sample_posterior``, ``crossval``
-what the model misses              ``diagnose``
+posterior                          ``sample_posterior``, ``LikelihoodSpec``, ``SamplerSpec``,
+                                   ``crossval``
+what the model misses              ``diagnose``, ``DiagnoseSpec``
 runs                               ``RunConfig``, ``load_config``
 errors                             ``ConfigError``, ``DataError``, ``ModelError``,
                                    ``IdentificationError``
 =================================  ==========================================================
 
 The inference, diagnosis and run names load their layers (emcee, ArviZ) on first use, so
-that ``import bayesmodal`` and the command line start quickly.
+that ``import bayesmodal`` starts quickly.
 """
 
 from importlib import import_module
@@ -34,6 +35,9 @@ _LAZY = {
     "sample_posterior": "bayesmodal.inference.sampling",
     "crossval": "bayesmodal.inference.crossval",
     "diagnose": "bayesmodal.discrepancy.diagnosis.workflow",
+    "DiagnoseSpec": "bayesmodal.discrepancy.diagnosis.spec",
+    "LikelihoodSpec": "bayesmodal.inference.spec",
+    "SamplerSpec": "bayesmodal.inference.spec",
     "RunConfig": "bayesmodal.runs.config",
     "load_config": "bayesmodal.runs.config",
 }
@@ -41,7 +45,8 @@ _LAZY = {
 __all__ = [
     "Rig", "load_rig", "LinearModel", "simulate_linear", "discretize_zoh", "EXTENSIONS",
     "get_extension", "Experiment", "load_experiment", "fit_lsq", "fit_extension_lsq",
-    "sample_posterior", "crossval", "diagnose", "RunConfig", "load_config",
+    "sample_posterior", "LikelihoodSpec", "SamplerSpec", "crossval", "diagnose",
+    "DiagnoseSpec", "RunConfig", "load_config",
     "ConfigError", "DataError", "ModelError", "IdentificationError", "__version__",
 ]
 
