@@ -62,3 +62,18 @@ def test_an_object_and_settings_by_name_give_the_same_diagnosis():
     # negative control: another null calibration gives another threshold
     c = diagnose(rec, n_null=19, posterior=False, max_effects=1, rng=4)
     assert c.threshold != a.threshold
+
+
+def test_the_diagnosis_plots_are_one_per_diagnostic_and_record(tmp_path):
+    """``plots.diagnosis.write_plots``: the residuals and every diagnostic of each training
+    record, and the fit before and after of every record, each a non-empty PNG."""
+    from bayesmodal.discrepancy.diagnosis.null import run_diagnostics
+    from bayesmodal.plots.diagnosis import write_plots
+
+    rec = _linear_record()
+    d = diagnose(rec, n_null=19, posterior=False, max_effects=1, rng=3)
+    out = write_plots(d, [rec], tmp_path)
+    lin = d.detail["linear"]
+    n_diag = len(run_diagnostics(rec, lin.model, lin.theta))
+    assert len(out) == 1 + n_diag + 1 and len(set(out)) == len(out)
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in out)

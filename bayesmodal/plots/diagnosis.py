@@ -71,27 +71,23 @@ def _write_plots(diagnosis, experiments, folder: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     lin = diagnosis.detail["linear"]
     written = []
+
+    def save(fig, name: str) -> None:
+        p = folder / f"{name}.png"
+        fig.savefig(p, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        written.append(p)
+
     for i in diagnosis.train:
         e = experiments[i]
         res = linear_residuals(e, lin.model, lin.theta)
         fig, ax = plt.subplots(figsize=(9, 4))
         plot_residuals(res, ax=ax)
-        p = folder / f"{e.name}_residuals.png"
-        fig.savefig(p, dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        written.append(p)
+        save(fig, f"{e.name}_residuals")
         for name, d in run_diagnostics(e, lin.model, lin.theta, quantum_m=res.quantum_m).items():
             fig, ax = plt.subplots(figsize=(8, 4))
             plot_diagnostic(d, ax=ax)
-            p = folder / f"{e.name}_{name}.png"
-            fig.savefig(p, dpi=110, bbox_inches="tight")
-            plt.close(fig)
-            written.append(p)
+            save(fig, f"{e.name}_{name}")
     for e in experiments:
-        ax = plot_before_after(diagnosis, e)
-        fig = ax[0].figure
-        p = folder / f"{e.name}_before_after.png"
-        fig.savefig(p, dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        written.append(p)
+        save(plot_before_after(diagnosis, e)[0].figure, f"{e.name}_before_after")
     return written
