@@ -74,6 +74,6 @@ def test_the_diagnosis_plots_are_one_per_diagnostic_and_record(tmp_path):
     d = diagnose(rec, n_null=19, posterior=False, max_effects=1, rng=3)
     out = write_plots(d, [rec], tmp_path)
     lin = d.detail["linear"]
-    n_diag = len(run_diagnostics(rec, lin.model, lin.theta))
+    n_diag = len(run_diagnostics(rec, lin.model, lin.theta, quantum_m=0.0))
     assert len(out) == 1 + n_diag + 1 and len(set(out)) == len(out)
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in out)
