@@ -406,6 +406,8 @@ def test_calibrated_temperature_run_reuses_the_calibrations_check(tmp_path, monk
     temperature is measured by the calibration; the run's [crossval] check is that study,
     not a second identical one: one study per calibrated temperature, no more."""
     import bayesmodal.inference.crossval as cv
+    import bayesmodal.inference.temperature as temperature_module
+    import bayesmodal.runs.runner as runner_module
 
     calls = []
     real = cv.crossval
@@ -414,7 +416,9 @@ def test_calibrated_temperature_run_reuses_the_calibrations_check(tmp_path, monk
         calls.append(args[1].temperature)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(cv, "crossval", counting)
+    # the calibration and the run's own check each call crossval: count both
+    monkeypatch.setattr(temperature_module, "crossval", counting)
+    monkeypatch.setattr(runner_module, "crossval", counting)
     _record(tmp_path / "a.csv", 600, 0.1, 1)
     _record(tmp_path / "b.csv", 600, 0.2, 2)
     cfg = tmp_path / "loro.toml"
