@@ -46,6 +46,18 @@ def _resolve_data(path_text: str, base: Path) -> Path | None:
     return None
 
 
+def _resolve_files(files, key: str, err, base: Path, check_files: bool) -> tuple[str, ...]:
+    """Each path resolved (``_resolve_data``); a missing file is reported under ``key``."""
+    out = []
+    for f in files:
+        p = _resolve_data(f, base)
+        if p is None and check_files:
+            err(key, f"file not found: {f!r} (looked relative to {base} and in the data root "
+                "$BAYESMODAL_DATA or ../shared/data)")
+        out.append(str(p) if p is not None else f)
+    return tuple(out)
+
+
 def _parse_data(values, kw, err, base: Path, check_files: bool):
     """``[data]``: the files, the reading options; returns the files and m per count."""
     files = values.get(("data", "files"))
@@ -55,30 +67,16 @@ def _parse_data(values, kw, err, base: Path, check_files: bool):
     elif not files or not all(isinstance(f, str) for f in files):
         err("data.files", f"must be a non-empty list of paths, got {files!r}")
         files = []
-    resolved = []
-    for f in files:
-        if not isinstance(f, str):
-            continue
-        p = _resolve_data(f, base)
-        if p is None and check_files:
-            err("data.files", f"file not found: {f!r} (looked relative to {base} and in the "
-                "data root $BAYESMODAL_DATA or ../shared/data)")
-        resolved.append(str(p) if p is not None else f)
-    kw["data_files"] = tuple(resolved)
+    kw["data_files"] = _resolve_files([f for f in files if isinstance(f, str)], "data.files",
+                                      err, base, check_files)
 
     heldout = values.get(("data", "heldout"))
     if heldout is not None:
         if not all(isinstance(f, str) for f in heldout):
             err("data.heldout", f"must be a list of paths, got {heldout!r}")
         else:
-            found = []
-            for f in heldout:
-                p = _resolve_data(f, base)
-                if p is None and check_files:
-                    err("data.heldout", f"file not found: {f!r} (looked relative to {base} "
-                        "and in the data root $BAYESMODAL_DATA or ../shared/data)")
-                found.append(str(p) if p is not None else f)
-            kw["heldout_files"] = tuple(found)
+            kw["heldout_files"] = _resolve_files(heldout, "data.heldout", err, base,
+                                                 check_files)
 
     mpc = values.get(("data", "m_per_count"))
     if mpc is not None:
