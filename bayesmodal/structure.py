@@ -73,7 +73,6 @@ class Structure:
 
 
 def _generic_point(model) -> np.ndarray:
-
     u = np.random.default_rng(_SEED).uniform(-1.0, 1.0, model.n_params)
     start = default_start(model)
     return np.where(start > 0, start, 1e-3) * np.exp(0.2 * u)

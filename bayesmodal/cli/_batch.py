@@ -39,7 +39,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers} (leave it out to use "
                           "one process per CPU)")

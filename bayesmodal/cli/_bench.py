@@ -53,7 +53,6 @@ def run(args) -> int:
                                              names=names)
         out["headline"] = headline(out["extensions"])
     if not args.no_sampler:
-
         out["sampler"] = bench_sampler(args.samples, quick=args.quick)
     if args.json:
         print_json(out)
@@ -100,7 +99,6 @@ def run(args) -> int:
                       f"{r['target']:g}x: {'met' if r['meets_target'] else 'NOT MET'}), "
                       f"{r['ratio_random_input']:.1f}x on the random input")
         if "sampler" in out:
-
             r = out["sampler"]
             print(f"sampler throughput, N={r['n_samples']} samples, {r['n_walkers']} walkers "
                   f"(likelihood evaluations per second; target >= "

@@ -49,7 +49,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-
     out = Path(args.out)
     if args.data and any(Path(d).is_dir() for d in args.data):
         return _run_dirs(args, out)

@@ -87,7 +87,6 @@ def spec_from_args(args):
     """The ``CrossvalSpec`` of the command line (or of ``--config``)."""
 
     if args.config:
-
         cfg = load_config(args.config, check_files=False)
         if cfg.temperature == "loro":  # [likelihood] temperature = "loro": calibrate
             args.temperature = "loro"
@@ -106,7 +105,6 @@ def _calibrating(args) -> bool:
 
 
 def _number(text: str, flag: str) -> float:
-
     try:
         return float(text)
     except ValueError:
@@ -114,7 +112,6 @@ def _number(text: str, flag: str) -> float:
 
 
 def run(args) -> int:
-
     exps = load_args(args)
     spec = spec_from_args(args)
     say = None if args.quiet else (lambda line: print(f"bayesmodal crossval: {line}",
@@ -124,7 +121,6 @@ def run(args) -> int:
             f"{spec.n_walkers} walkers x {spec.n_steps} steps each")
     cal = None
     if _calibrating(args):
-
         grid = [_number(t, "--temperatures") for t in args.temperatures.split(",")]
         cal, res = calibrate_loro(exps, spec, temperatures=grid, criterion=args.criterion,
                                   workers=args.workers, scheduler=args.scheduler,

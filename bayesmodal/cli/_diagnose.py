@@ -162,10 +162,8 @@ def _report(d) -> str:
 
 
 def run(args) -> int:
-
     exps, train = load_args(args), args.train
     if args.split_at_rest:
-
         exps, train = split_records(exps, args.split_at_rest, train)
     spec = DiagnoseSpec(
         candidates=args.candidates, n_null=args.null, posterior=not args.no_posterior,
@@ -175,7 +173,6 @@ def run(args) -> int:
     d = diagnose(exps, spec, rig=load_rig(args), train=train, rng=args.seed,
                  progress=not args.quiet)
     if args.plots:
-
         write_plots(d, exps, Path(args.plots))
     if args.json:
         print_json(d.as_dict())

@@ -72,7 +72,6 @@ def run(args) -> int:
                       f"(see the notes)", stacklevel=2)
     files = []
     if args.plots:
-
         files = save_ema_figures(res, args.plots)
     summary = res.as_dict()
     summary["data"] = exp.name

@@ -56,7 +56,6 @@ def register(sub) -> None:
 
 
 def _config(args):
-
     first = Path(args.inputs[0])
     if first.suffix.lower() == ".toml":
         if len(args.inputs) > 1 or args.rig:
@@ -72,7 +71,6 @@ def _config(args):
 
 
 def run(args) -> int:
-
     cfg = _config(args)
     spec = spec_from_config(cfg)  # the config's [identify] table, else the defaults
     diag, final = spec.diagnosis, spec.final

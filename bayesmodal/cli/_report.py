@@ -34,7 +34,6 @@ def _write_text(path: Path, text: str) -> None:
 
 
 def run(args) -> int:
-
     tables = reproduce_report(args.data_dir)
     text = format_tables(tables)
     summary = tables.as_dict()

@@ -28,7 +28,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-
     res = rerun_run(args.run_dir, args.out, progress=not args.quiet)
     if args.json:
         print_json(res.as_dict())

@@ -44,7 +44,6 @@ def register(sub) -> None:
 
 
 def _identify(cfg, args) -> int:
-
     out = args.out or default_out_dir(cfg, args.out_root)
     res = identify(spec_from_config(cfg), out, force=args.force, progress=not args.quiet)
     if not args.quiet:
@@ -53,7 +52,6 @@ def _identify(cfg, args) -> int:
 
 
 def run(args) -> int:
-
     try:
         cfg = load_config(args.config)
         if args.threads is not None:

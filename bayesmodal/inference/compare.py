@@ -589,7 +589,6 @@ def choose_model(
                                      rng=gen, maxcall=maxcall)
     pred = {}
     if test is not None:
-
         tests = as_experiments(test)
         for m, idt in idatas.items():
             lik = likelihood_from_idata(idt, tests)
@@ -656,7 +655,6 @@ class ElpdChange:
 
 
 def _as_idata(run_or_idata):
-
     if hasattr(run_or_idata, "groups"):
         return with_pointwise_loglik(run_or_idata)
 

@@ -111,7 +111,6 @@ class CrossvalSpec:
         d = asdict(self)
         d["layout"] = self.layout.to_dict()
         if self.rig is not None:
-
             d["rig"] = rig_to_dict(self.rig)
         return d
 
@@ -235,7 +234,6 @@ class CrossvalResult:
 
 
 def _model(spec: CrossvalSpec):
-
     if spec.rig is not None:
         return LinearModel(spec.rig, spec.damping)
     rig = Rig() if spec.springs_n_m is None else Rig(tuple(spec.springs_n_m))

@@ -364,7 +364,6 @@ def model_from_idata(idata):
 
 
 def _rig_toml(rig) -> str:
-
     return rig_to_toml(rig)
 
 
@@ -400,7 +399,6 @@ def likelihood_from_idata(idata, experiments=None):
     a = idata.posterior.attrs
     layout = a.get("record_layout_json")
     if layout:
-
         at = a.get("record_scale_at_json")
         return RecordsLikelihood(model_from_idata(idata), tuple(exps), a["noise"],
                                  extension_from_idata(idata),
@@ -497,7 +495,6 @@ def load_idata(path: str | os.PathLike):
     az = arviz()
     path = Path(path)
     if not path.is_file():
-
         raise DataError(f"{path}: no such InferenceData file")
     with az.rc_context({"data.load": "eager"}):
         return az.from_netcdf(str(path))

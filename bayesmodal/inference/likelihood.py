@@ -326,7 +326,6 @@ class Likelihood:
         if self.noise not in NOISE_MODELS:
             raise ConfigError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
         if self.initial_state != "rest":
-
             check_records(self.model, exps, self.initial_state)
             if self.extension is not None:
                 raise ModelError("initial_state='estimate' works with the linear model only; "

@@ -485,7 +485,6 @@ def default_priors(
         # initial positions within 10 cm, velocities within 2 m/s of rest
         add(nm, Uniform(-0.1, 0.1) if nm.startswith("x") else Uniform(-2.0, 2.0), "identity")
     if extension is not None:
-
         ext = resolve_extension(extension, model)
         for spec in ext.specs(model.rig):
             lo, hi = (float(b) for b in spec.bounds)

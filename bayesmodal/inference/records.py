@@ -162,7 +162,6 @@ def choose_noise(experiments, model, start, *, extension=None, max_p: int = AUTO
         if extension is None:
             yh = simulate_linear(model, theta, e.v_volt, e.dt)
         else:
-
             yh = resolve_extension(extension, model).simulate(model.rig, theta[None],
                                                               e.v_volt, e.dt)[0]
         choice = choose_order(e.y_m - yh, max_p=max_p)

@@ -472,5 +472,4 @@ def _run_config(model, lik, priors, exps, spec: LikelihoodSpec, smp: SamplerSpec
 
 
 def _rig_dict(rig) -> dict:
-
     return rig_to_dict(rig)

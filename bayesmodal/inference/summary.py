@@ -109,7 +109,6 @@ _UNITS = {"g_v": "N/V", "ca": "1/s", "cb": "s"}
 
 
 def _extension_units() -> dict[str, str]:
-
     return {p.name: p.unit for ext in EXTENSIONS.values() for p in ext.specs(Rig())}
 
 

@@ -612,7 +612,6 @@ class LinearSimulator:
                 direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
                                                     Yc.reshape(-1))
                 if sums is not None:
-
                     extra = ()
                     if affine is not None:
                         Bc = np.empty_like(Yc)

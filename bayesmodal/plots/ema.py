@@ -177,7 +177,6 @@ def plot_stabilization(diagram, *, ax=None, frf=None, band=None):
     ax.set_xlabel("natural frequency |lambda| (rad/s)")
     ax.set_ylabel("number of modes n")
     if frf is not None:
-
         ax2 = ax.twinx()
         w = frf.omega_rad_s
         sel = np.ones(w.size, bool) if band is None else (w >= band[0]) & (w <= band[1])

@@ -197,7 +197,6 @@ def _labels(paths: list[Path]) -> list[str]:
 
 
 def _load_run(path: Path):
-
     if not path.is_dir():
         raise ConfigError(f"{path}: not a run folder")
     st = path / "status.json"
@@ -287,7 +286,6 @@ def compare_runs(run_dirs, *, test=None) -> RunComparison:
     notes = tuple(dict.fromkeys(str(w.message) for w in caught))
     tests = None
     if test is not None:
-
         tests = as_experiments(test)
     rows = []
     for lab, path, (summary, idt) in zip(labels, paths, loaded, strict=True):

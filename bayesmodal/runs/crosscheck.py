@@ -60,7 +60,6 @@ class LSCECheck:
         om = np.full(ref.size, np.nan)
         ze = np.full(ref.size, np.nan)
         if self.omega_rad_s.size:
-
             idx = match_modes(self.omega_rad_s, ref)
             used = set()
             for i, j in enumerate(idx):

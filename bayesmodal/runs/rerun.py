@@ -150,7 +150,6 @@ def _check_data(summary: dict, folder: Path) -> None:
 
 
 def _version_changes(summary: dict) -> dict:
-
     run = summary.get("run", {})
     now = {"bayesmodal": __version__, **dependency_versions()}
     then = {"bayesmodal": run.get("bayesmodal_version"), **run.get("dependencies", {})}

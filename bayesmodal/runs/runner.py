@@ -128,7 +128,6 @@ class RunOutcome:
 
 
 def _prior(ov):
-
     return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
 
 
@@ -366,7 +365,6 @@ def _verdict_detail(diag: dict) -> str:
 
 def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolder,
                   progress: bool) -> dict:
-
     cfg = prep.config
     model = prep.model
     ext = run.likelihood.extension
@@ -599,7 +597,6 @@ def _config_text(cfg: RunConfig) -> str:
 
 def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
               t_start: float, started: str, caught: list, start=None) -> dict:
-
     cfg = prep.config
     stages = _Stages(tuple(st for st in _STAGES if cfg.crossval or st != "crossval"),
                      progress, cfg.name)

@@ -70,11 +70,9 @@ def cross_experiment_consistency(
     if model is None:
         model = LinearModel(Rig(), "free")
     if fit is None:
-
         def fit(es):
             return fit_lsq(es, model).theta
     if simulate is None:
-
         def simulate(theta, e):
             return simulate_linear(model, theta, e.v_volt, e.dt)
     thetas = np.array([np.asarray(fit([e]), float) for e in experiments])

@@ -204,7 +204,6 @@ class AR1Noise(NoiseModel):
         return _sigma_ok(params[:, :n]) & np.all(np.isfinite(phi) & (np.abs(phi) < 1), axis=-1)
 
     def loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
-
         R = np.asarray(R, dtype=float)
         n_out = R.shape[1]
         params = self._params(params, n_out)
