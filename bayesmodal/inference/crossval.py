@@ -38,8 +38,8 @@ from .noise_spec import parse_noise
 from .predictive import PredictiveScores, new_record_parameters, predict_new_record, score_samples
 from .propagate import propagate_modes
 from .records import DEFAULT_LAYOUT, RecordLayout, RecordsLikelihood, choose_noise, record_priors
-from .sampling import burn_in_steps, sample_posterior
-from .spec import LikelihoodSpec, SamplerSpec
+from .sampling import sample_posterior
+from .spec import LikelihoodSpec, SamplerSpec, burn_in_steps
 
 __all__ = ["CrossvalSpec", "FoldResult", "CrossvalResult", "crossval", "run_fold"]
 

@@ -64,8 +64,7 @@ def restart_seed(gen: np.random.Generator, split: int | None):
 
 
 def run_ensemble(log_post, priors: PriorSet, centre: np.ndarray, sampler: SamplerSpec, *,
-                 gen: np.random.Generator, backend, chash: str, threads: int,
-                 n_walkers: int, restart: int | None, prune: int | None
+                 gen: np.random.Generator, backend, chash: str, threads: int
                  ) -> EnsembleRun:
     """Advance emcee's ensemble on ``log_post`` from ``centre`` to ``sampler.n_steps``.
 
@@ -77,7 +76,8 @@ def run_ensemble(log_post, priors: PriorSet, centre: np.ndarray, sampler: Sample
     centre : ndarray, shape (P,)
         The start point, physical units.
     sampler : SamplerSpec
-        Steps, moves, start method and width, refinement, progress.
+        Walkers, steps, moves, start method and width, refinement, the step between the
+        two stages (``restart`` or ``prune``), progress.
     gen : numpy.random.Generator
         The run's generator (the start ball, emcee's moves, the second stage's seed).
     backend : str, path, emcee backend or None
@@ -86,15 +86,13 @@ def run_ensemble(log_post, priors: PriorSet, centre: np.ndarray, sampler: Sample
         The run's configuration hash, stored in and checked against the checkpoint.
     threads : int
         Threads evaluating each half-ensemble.
-    n_walkers : int
-    restart, prune : int or None
-        The step between the two stages, checked against the burn-in.
 
     Returns
     -------
     EnsembleRun
     """
     n_par, n_steps = priors.n_params, int(sampler.n_steps)
+    n_walkers, restart, prune = int(sampler.n_walkers), sampler.restart, sampler.prune
     split = restart if restart is not None else prune  # the one step between two stages
     seed2 = restart_seed(gen, split)
     be, done = _open_backend(backend, n_walkers, n_par, chash)

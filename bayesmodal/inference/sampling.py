@@ -45,7 +45,7 @@ from .moves import default_moves
 from .noise_spec import NoiseSpec, parse_noise
 from .priors import PriorSet, default_priors
 from .records import RecordLayout, RecordsLikelihood, choose_noise, record_priors, records_start
-from .spec import LikelihoodSpec, SamplerSpec, burn_in_steps, with_settings
+from .spec import LikelihoodSpec, SamplerSpec, with_settings
 from .threads import resolve_threads
 
 __all__ = [
@@ -328,7 +328,6 @@ def sample_posterior(
         )
     burn = smp.burn_steps
     thin = default_thin(n_walkers, n_steps - burn) if smp.thin is None else int(smp.thin)
-    restart, prune = burn_in_steps(smp.restart, smp.prune, burn)
     threads = resolve_threads(smp.threads)
     check_backend_folder(backend)   # before the least-squares start, not at the first save
     lik, lsq, centre = _start_point(exps, model, lik, priors, lik_spec, start, noise,
@@ -336,12 +335,11 @@ def sample_posterior(
     log_post = LogPosterior(lik, priors, float(lik_spec.temperature))
 
     gen = np.random.default_rng(rng)
-    config = _run_config(model, lik, priors, exps, lik_spec, smp, rng, restart, prune,
-                         n_walkers)
+    config = _run_config(model, lik, priors, exps, lik_spec, smp, rng)
     # the hash identifies the target and ensemble; a resumed run may extend n_steps
     chash = config_hash(config)
     ens = run_ensemble(log_post, priors, centre, smp, gen=gen, backend=backend, chash=chash,
-                       threads=threads, n_walkers=n_walkers, restart=restart, prune=prune)
+                       threads=threads)
     be = ens.backend
     z_chain = be.get_chain()[:n_steps]
     blobs = be.get_blobs()[:n_steps]
@@ -437,8 +435,8 @@ def _start_point(exps, model: LinearModel, lik, priors: PriorSet, spec: Likeliho
     return lik, lsq, _inside_priors(records_start(lik, theta_mech), priors)
 
 
-def _run_config(model, lik, priors, exps, spec: LikelihoodSpec, smp: SamplerSpec, rng,
-                restart, prune, n_walkers) -> dict:
+def _run_config(model, lik, priors, exps, spec: LikelihoodSpec, smp: SamplerSpec,
+                rng) -> dict:
     """What identifies a run (its hash names the checkpoint and the run folder).
 
     Keys at their default are left out where earlier runs did not have them, so that
@@ -452,24 +450,20 @@ def _run_config(model, lik, priors, exps, spec: LikelihoodSpec, smp: SamplerSpec
         **({} if ext is None else {"extension": ext.name}),
         **({"extension_revisions": revised} if revised else {}),
         "springs_n_m": list(model.rig.springs_n_m),
-        **({} if model.rig.is_chain else {"rig": _rig_dict(model.rig)}),
+        **({} if model.rig.is_chain else {"rig": rig_to_dict(model.rig)}),
         **({} if spec.initial_state == "rest" else {"initial_state": spec.initial_state}),
         "noise": lik.noise,
         "priors": [repr(p) for p in priors.priors],
         "transforms": list(priors.transforms),
-        "n_walkers": n_walkers,
+        "n_walkers": int(smp.n_walkers),
         "data": [e.sha256 or e.name for e in exps],
         "moves": _moves_key(smp.moves),
         # an integer seed is part of the identity of a run; a Generator cannot be recorded
         "seed": int(rng) if isinstance(rng, (int, np.integer)) else None,
         "refine": bool(smp.refine),
-        **({} if restart is None else {"restart": restart}),
-        **({} if prune is None else {"prune": prune}),
+        **({} if smp.restart is None else {"restart": smp.restart}),
+        **({} if smp.prune is None else {"prune": smp.prune}),
         **({} if not isinstance(lik, RecordsLikelihood) else {"layout": lik.layout.to_dict()}),
         **({} if temperature == 1.0 else {"temperature": temperature}),
         **({} if smp.init == "ball" else {"init": smp.init}),
     }
-
-
-def _rig_dict(rig) -> dict:
-    return rig_to_dict(rig)

@@ -131,7 +131,9 @@ class SamplerSpec:
             raise ConfigError(f"thin must be >= 1, got {self.thin}")
         if self.init not in INIT_METHODS:
             raise ConfigError(f"init must be 'ball' or 'laplace', got {self.init!r}")
-        burn_in_steps(self.restart, self.prune, self.burn_steps)
+        restart, prune = burn_in_steps(self.restart, self.prune, self.burn_steps)
+        object.__setattr__(self, "restart", restart)   # as integers, checked once
+        object.__setattr__(self, "prune", prune)
 
     @property
     def burn_steps(self) -> int:

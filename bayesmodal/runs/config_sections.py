@@ -17,6 +17,7 @@ from ..data import in_data_root
 from ..inference.moves import move_spec
 from ..inference.noise_spec import NOISE_MODELS, parse_noise
 from ..inference.record_scale import NOISE_SCALES
+from ..inference.spec import INIT_METHODS
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS
 from ..model.rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict
@@ -263,7 +264,7 @@ def _parse_sampler(values, kw, err) -> None:
                 f"{2 * step + 2} steps")
     init = values.get(("sampler", "init"))
     if init is not None:
-        if init not in ("ball", "laplace"):
+        if init not in INIT_METHODS:
             err("sampler.init", f"must be 'ball' or 'laplace', got {init!r}")
         kw["init"] = init
     threads = values.get(("sampler", "threads"))
