@@ -26,7 +26,7 @@ import numpy as np
 
 from .._errors import ConfigError
 
-__all__ = ["LikelihoodSpec", "SamplerSpec", "with_settings", "burn_in_steps",
+__all__ = ["LikelihoodSpec", "SamplerSpec", "with_settings", "put_settings", "burn_in_steps",
            "INIT_METHODS", "INITIAL_STATES"]
 
 #: How the walkers start (``SamplerSpec.init``).
@@ -181,8 +181,40 @@ def _burn_in_step(name: str, step, burn: int) -> int | None:
 
 
 
-_OWNER = {f.name: LikelihoodSpec for f in fields(LikelihoodSpec)} | {
-    f.name: SamplerSpec for f in fields(SamplerSpec)}
+def put_settings(sections: tuple, settings: dict, who: str) -> tuple:
+    """Each frozen section with the ``settings`` that name one of its fields.
+
+    Parameters
+    ----------
+    sections : tuple of dataclass instances
+        Sections whose field names do not overlap.
+    settings : dict
+        Setting name -> value; each name a field of one section.
+    who : str
+        The entry point, for the message.
+
+    Returns
+    -------
+    tuple
+        The sections, in order, each rebuilt (and so checked again) where a setting
+        replaced one of its fields.
+
+    Raises
+    ------
+    TypeError
+        For a name no section has, listing the names.
+    """
+    names = [{f.name for f in fields(s)} for s in sections]
+    known = set().union(*names)
+    unknown = sorted(set(settings) - known)
+    if unknown:
+        raise TypeError(f"{who} got unknown setting(s) {unknown}; the settings are "
+                        f"{sorted(known)}")
+    out = []
+    for section, own in zip(sections, names, strict=True):
+        mine = {k: v for k, v in settings.items() if k in own}
+        out.append(replace(section, **mine) if mine else section)
+    return tuple(out)
 
 
 def with_settings(likelihood: LikelihoodSpec | None, sampler: SamplerSpec | None,
@@ -211,16 +243,6 @@ def with_settings(likelihood: LikelihoodSpec | None, sampler: SamplerSpec | None
     >>> lik.noise, smp.n_steps, smp.n_walkers
     ('white', 60, 32)
     """
-    likelihood = LikelihoodSpec() if likelihood is None else likelihood
-    sampler = SamplerSpec() if sampler is None else sampler
-    unknown = sorted(set(settings) - set(_OWNER))
-    if unknown:
-        raise TypeError(f"sample_posterior got unknown setting(s) {unknown}; the settings "
-                        f"are {sorted(_OWNER)}")
-    own = {cls: {k: v for k, v in settings.items() if _OWNER[k] is cls}
-           for cls in (LikelihoodSpec, SamplerSpec)}
-    if own[LikelihoodSpec]:
-        likelihood = replace(likelihood, **own[LikelihoodSpec])
-    if own[SamplerSpec]:
-        sampler = replace(sampler, **own[SamplerSpec])
-    return likelihood, sampler
+    return put_settings((LikelihoodSpec() if likelihood is None else likelihood,
+                         SamplerSpec() if sampler is None else sampler),
+                        settings, "sample_posterior")

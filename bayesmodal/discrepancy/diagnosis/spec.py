@@ -16,12 +16,13 @@ any fit.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..._errors import ConfigError
 from ...fit.effects import WEIGHTINGS
+from ...inference.spec import put_settings
 from ...model.effects import EXTENSIONS
 
 __all__ = ["DiagnoseSpec", "with_diagnose_settings"]
@@ -102,9 +103,6 @@ class DiagnoseSpec:
         _positive_int("max_effects", self.max_effects)
 
 
-_FIELDS = frozenset(f.name for f in fields(DiagnoseSpec))
-
-
 def with_diagnose_settings(spec: DiagnoseSpec | None, settings: dict) -> DiagnoseSpec:
     """``spec`` with ``settings`` put in.
 
@@ -129,9 +127,5 @@ def with_diagnose_settings(spec: DiagnoseSpec | None, settings: dict) -> Diagnos
     >>> with_diagnose_settings(None, {"n_null": 80}).n_null
     80
     """
-    spec = DiagnoseSpec() if spec is None else spec
-    unknown = sorted(set(settings) - _FIELDS)
-    if unknown:
-        raise TypeError(f"diagnose got unknown setting(s) {unknown}; the settings are "
-                        f"{sorted(_FIELDS)}")
-    return replace(spec, **settings) if settings else spec
+    return put_settings((DiagnoseSpec() if spec is None else spec,), settings,
+                        "diagnose")[0]
