@@ -38,7 +38,7 @@ from scipy.ndimage import convolve1d
 
 from ..._errors import DataError
 from ..priors import LogUniform, PriorSet
-from .base import COEF_PRIOR, HALF_LOG_2PI, SIGMA_PRIOR, NoiseModel, check_residual
+from .base import COEF_PRIOR, HALF_LOG_2PI, SIGMA_PRIOR, AR1Noise, NoiseModel, check_residual
 
 __all__ = ["MotionAR1Noise", "REST_PRIOR", "quantum_of", "speed_weight"]
 
@@ -225,8 +225,7 @@ class MotionAR1Noise(NoiseModel):
         r = check_residual(r)
         n = r.shape[1]
         w = self._weight(*r.shape)[1:]
-        phi = np.clip(np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0),
-                      -0.9999, 0.9999)
+        phi = AR1Noise().start(r)[n:]   # the AR(1) moment estimate of phi
         e = np.abs(r[1:] - phi * r[:-1])
         rest = np.ones(n)
         for j in range(n):
