@@ -273,7 +273,6 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     seed = spec.seed + (0 if heldout is None else 1000 * (heldout + 1))
     noise = spec.noise
     if isinstance(noise, str) and parse_noise(noise).kind == "ar:auto":  # from training only
-
         noise = choose_noise(train, model, fit_lsq(train, model))
     lik = RecordsLikelihood(model, tuple(train), noise, spec.extension, spec.layout)
     priors = record_priors(lik)

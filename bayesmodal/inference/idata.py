@@ -358,7 +358,6 @@ def model_from_idata(idata):
 
     a = idata.posterior.attrs
     if "rig_toml" in a:  # a rig other than the chain
-
         return LinearModel(rig_from_toml(a["rig_toml"], where="idata"), a["damping"])
     return LinearModel(Rig(tuple(json.loads(a["springs_n_m"]))), a["damping"])
 

@@ -228,7 +228,6 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     y_hat = _predict_mech(lik, mech, v0, experiment)
     R = experiment.y_m[:, :, None] - np.moveaxis(y_hat, 0, -1)
     if getattr(lik, "noise", "") == "process":  # the random force goes through the dynamics
-
         n = lik.n_outputs
         q, sig = noise[:, :n], noise[:, n:]
         y_pred = simulate_process_noise(lik.model, mech, q, sig, experiment.v_volt,

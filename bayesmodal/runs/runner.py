@@ -402,7 +402,6 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         out["lsce"].append(d)
     if cfg.plots:
         if lsce:  # the modal-interval plot of write_run, now with the LSCE values
-
             write_modal_plot(idata, folder.path, lsce=[
                 (c.experiment, *c.matched(omega_med)) for c in lsce if not c.error])
         atomic_savefig(plot_residuals(res_checks).flat[0].figure, folder.path / "residuals.png",
