@@ -197,7 +197,8 @@ def diagnose(
     check_structure(model, train_exps)  # a layout no record identifies: before any fit
     q = infer_quantum(exps) if spec.quantum_m is None else float(spec.quantum_m)
     st = _null_stage(train_exps, held_exps, model, q, spec, rng, progress)
-    order = sorted(cands, key=lambda c: (-st.signature(cands)[c], cands.index(c)))
+    signature = st.signature(cands)
+    order = sorted(cands, key=lambda c: (-signature[c], cands.index(c)))
     gain = _gain_before(st, train_exps, held_exps)
     notes: list[str] = []
     if skipped:
@@ -207,7 +208,6 @@ def diagnose(
         tests=tuple(st.tests), experiments=tuple(e.name for e in exps), train=tr,
         n_null=st.cal.n_null, alpha=float(spec.alpha), rule=st.cal.rule,
         weights=spec.weights or "none")
-    signature = st.signature(cands)
     if not st.discrepancy:
         ranking = tuple(CandidateScore(
             name=c, signature=signature[c], fitted=False, gain_nll=np.nan,
@@ -219,8 +219,8 @@ def diagnose(
                          linear_parameters={}, gain=gain, interval_method="none",
                          notes=("the diagnostics do not reject the linear model",),
                          detail={"calibration": st.cal, "linear": st.linear}, **base)
-    scored, fits, after_tests = _fit_candidates(st, train_exps, rig, cands, order, spec,
-                                                progress)
+    scored, fits, after_tests = _fit_candidates(st, train_exps, rig, cands, order, signature,
+                                                spec, progress)
     ranking = tuple(sorted(scored, key=lambda s: -s.score if np.isfinite(s.score) else np.inf))
     accepted = next((s for s in ranking if s.fitted and s.significant and s.passes), None)
     if accepted is None:
@@ -301,7 +301,6 @@ class _NullStage:
     held_lin: list
     q: float
     model: LinearModel
-    alpha: float
 
     @property
     def discrepancy(self) -> bool:
@@ -339,7 +338,7 @@ def _null_stage(train_exps, held_exps, model, q, spec, rng, progress) -> _NullSt
         lin_pointwise=crit.pointwise([e.y_m - y for e, y in zip(train_exps, y_lin,
                                                                  strict=True)]),
         held_lin=[simulate_linear(model, linear.theta, e.v_volt, e.dt) for e in held_exps],
-        q=q, model=model, alpha=float(spec.alpha))
+        q=q, model=model)
 
 
 def _gain_before(st: _NullStage, train_exps, held_exps) -> dict:
@@ -355,12 +354,12 @@ def _gain_before(st: _NullStage, train_exps, held_exps) -> dict:
     return gain
 
 
-def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, spec, progress):
+def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, spec,
+                    progress):
     """Fit each candidate (the strongest signatures first), score it against the linear
     model and judge its residuals (step 4): the scores, and each fit with its residual
     tests."""
     model, linear, cal, crit = st.model, st.linear, st.cal, st.crit
-    signature = st.signature(cands)
     to_fit = order if spec.max_fits is None else order[: max(int(spec.max_fits), 1)]
     level = spec.alpha / len(cands)
     scored: list[CandidateScore] = []
