@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from ..inference.crossval import CrossvalSpec, crossval
+from ..inference.noise_spec import accepted_noise
 from ..inference.record_scale import NOISE_SCALES
 from ..inference.records import parse_layout
 from ..inference.temperature import calibrate_loro
@@ -44,8 +45,8 @@ def register(sub) -> None:
                    help="damping model (default: the rig's [dampers] proportional "
                         "declaration, else free)")
     p.add_argument("--noise", default="ar1", metavar="MODEL",
-                   help="residual model: ar1, white, iar1, arP (e.g. ar4), ar(p1,p2,p3) or ar:auto "
-                   "(orders by BIC on each fold's training records) (default ar1)")
+                   help=f"residual model: {accepted_noise()}; ar:auto chooses on each "
+                   "fold's training records (default ar1)")
     p.add_argument("--per-record", default="g_v=hierarchical,v0=shared",
                    metavar="NAME=KIND,...",
                    help="per-record parameters, KIND independent, hierarchical or shared (v0), "

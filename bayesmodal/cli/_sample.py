@@ -10,6 +10,7 @@ from pathlib import Path
 from .._errors import DataError
 from .._format import param_unit, sig
 from ..inference import LikelihoodSpec, SamplerSpec, sample_posterior, to_inference_data
+from ..inference.noise_spec import accepted_noise
 from ..inference.record_scale import NOISE_SCALES
 from ..inference.records import parse_layout
 from ..model.system import LinearModel
@@ -56,9 +57,7 @@ def add_sampler_args(p) -> None:
                    "(C = ca M + cb K)"
                    " (default: the rig's [dampers] proportional declaration, else free)")
     p.add_argument("--noise", default="ar1", metavar="MODEL",
-                   help="residual model: ar1 (AR(1) Gaussian per output), white, iar1 (AR(1) "
-                   "increments, started at rest), arP (e.g. "
-                   "ar4), ar(p1,p2,p3) or ar:auto (orders by BIC)")
+                   help=f"residual model: {accepted_noise()}")
     p.add_argument("--per-record", default="none", metavar="NAME=KIND,...",
                    help="several DATA records, one physical system: parameters with one "
                    "value per record, KIND independent or hierarchical, e.g. "

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from .._errors import ConfigError
 
-__all__ = ["NOISE_KINDS", "NOISE_MODELS", "NoiseKind", "NoiseSpec", "parse_noise"]
+__all__ = ["NOISE_KINDS", "NOISE_MODELS", "accepted_noise", "NoiseKind", "NoiseSpec", "parse_noise"]
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,8 @@ _BY_KIND = {k.kind: k for k in NOISE_KINDS}
 NOISE_MODELS: tuple[str, ...] = tuple(sorted(k.kind for k in NOISE_KINDS if k.one_record))
 
 
-def _accepted() -> str:
+def accepted_noise() -> str:
+    """The noise models a run may name, as error messages and ``--help`` list them."""
     syn = [k.syntax for k in NOISE_KINDS]
     return ", ".join(syn[:-1]) + " or " + syn[-1]
 
@@ -203,4 +204,4 @@ def parse_noise(text) -> NoiseSpec:
             return NoiseSpec("arp", (int(m.group("order")),), per_output=False)
         return NoiseSpec("arp", tuple(int(x) for x in m.group("orders").split(",")),
                          per_output=True)
-    raise ConfigError(f"noise model {text!r}: use {_accepted()}")
+    raise ConfigError(f"noise model {text!r}: use {accepted_noise()}")

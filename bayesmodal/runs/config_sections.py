@@ -231,7 +231,7 @@ def _parse_likelihood(raw, values, kw, err, files) -> None:
         parse_noise(noise)
     except ConfigError:
         err("likelihood.noise", f"must be one of {NOISE_MODELS}, 'arP' (e.g. 'ar4'), "
-            f"'ar(p1,...,pn)', 'ar:auto', 'iar1' or 'process', got {noise!r}")
+            f"'ar(p1,...,pn)', 'ar:auto', 'iar1', 'ar1:motion' or 'process', got {noise!r}")
     kw["noise"] = noise
 
 
