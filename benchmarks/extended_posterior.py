@@ -70,20 +70,22 @@ def _one(job: dict) -> dict:
 
     cfg = load_config(job["config"])
     prep = prepare_run(cfg)
-    threads = resolve_threads(job["threads"] or cfg.threads)
-    steps = job["steps"] or cfg.steps
-    burn = cfg.burn if job["burn"] is None else job["burn"]
-    walkers = job["walkers"] or cfg.walkers
+    threads = resolve_threads(job["threads"] or cfg.sampler.threads)
+    steps = job["steps"] or cfg.sampler.steps
+    burn = cfg.sampler.burn if job["burn"] is None else job["burn"]
+    walkers = job["walkers"] or cfg.sampler.walkers
     t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        smp = cfg.sampler
         run = sample_posterior(
-            list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
+            list(prep.experiments), prep.model, noise=prep.noise or cfg.likelihood.noise,
             priors=prep.priors, n_walkers=walkers, n_steps=steps, burn=burn,
             moves=prep.moves, rng=job["seed"], warn=False, extension=prep.extension,
-            restart=cfg.restart if cfg.restart is not None and cfg.restart < burn else None,
-            prune=cfg.prune if cfg.prune is not None and cfg.prune < burn else None,
-            layout=cfg.layout, temperature=cfg.temperature, init=job["init"] or cfg.init,
+            restart=smp.restart if smp.restart is not None and smp.restart < burn else None,
+            prune=smp.prune if smp.prune is not None and smp.prune < burn else None,
+            layout=cfg.layout, temperature=cfg.likelihood.temperature,
+            init=job["init"] or smp.init,
             backend=job["backend"], progress=job["progress"],
             threads=threads)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0

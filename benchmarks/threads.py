@@ -45,12 +45,12 @@ def _log_post(config: str):
         # a few steps from a ball at the start (no mode search): the likelihood, priors
         # and a spread of walkers of the right shape
         run = sample_posterior(
-            list(prep.experiments), prep.model, noise=prep.noise or cfg.noise,
-            priors=prep.priors, n_walkers=cfg.walkers, n_steps=24, burn=4,
-            moves=prep.moves, rng=cfg.seed, warn=False, extension=prep.extension,
+            list(prep.experiments), prep.model, noise=prep.noise or cfg.likelihood.noise,
+            priors=prep.priors, n_walkers=cfg.sampler.walkers, n_steps=24, burn=4,
+            moves=prep.moves, rng=cfg.sampler.seed, warn=False, extension=prep.extension,
             layout=cfg.layout, init="ball", refine=False)
     lp = LogPosterior(run.likelihood, run.priors)
-    z = run.priors.to_sampling(run.chain[-1])[: cfg.walkers // 2]
+    z = run.priors.to_sampling(run.chain[-1])[: cfg.sampler.walkers // 2]
     return cfg, lp, z
 
 
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
                 threaded = _best(tp, z, args.repeats)
                 rounds.append((serial, threaded))
         ratios = [s / t for s, t in rounds]
-        row = {"config": config, "extensions": list(cfg.extensions),
+        row = {"config": config, "extensions": list(cfg.model.extensions),
                "walkers_per_call": int(z.shape[0]),
                "serial_ms": [1e3 * s for s, _ in rounds],
                "threaded_ms": [1e3 * t for _, t in rounds],

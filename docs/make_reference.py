@@ -278,20 +278,18 @@ def _help(a, prog: str) -> str:
 
 
 # --------------------------------------------------------------------------- config
-#: ``[section] key`` -> the ``RunConfig`` field it sets, where the name is neither
-#: ``section_key`` nor ``key`` (tried in that order).
-CONFIG_FIELDS = {("data", "files"): "data_files", ("data", "heldout"): "heldout_files",
-                 ("outputs", "dir"): "out_dir", ("outputs", "chain"): "chain_storage",
-                 ("crossval", "enabled"): "crossval", ("evidence", "enabled"): "evidence"}
+#: ``[section]`` of the file -> the ``RunConfig`` section holding its keys (each field
+#: of a section is named as its key).
+CONFIG_SECTIONS = {"data": "data", "rig": "model", "model": "model", "records": "records",
+                   "likelihood": "likelihood", "sampler": "sampler", "crossval": "crossval",
+                   "outputs": "outputs", "evidence": "evidence"}
 #: Keys checked but not kept (no ``RunConfig`` field): key -> the one value a run takes.
 CONFIG_CHECKED_ONLY = {("data", "release"): "none"}
 #: Keys of ``[rig]`` that are a rig description inline (``docs/rigs.md``).
 RIG_TABLES = ("file", "name", "clamped", "carts", "springs", "dampers", "drive", "sensors")
-#: ``RunConfig`` fields no key sets directly.
-CONFIG_DERIVED = {"name": "the configuration file's stem",
-                  "source": "the configuration file's path",
-                  "priors": "the keys of [priors]",
-                  "rig": "the tables of [rig]"}
+#: Section fields no key sets directly.
+CONFIG_DERIVED = {("model", "priors"): "the keys of [priors]",
+                  ("model", "rig"): "the tables of [rig]"}
 
 
 def _example_notes() -> dict[tuple[str, str], tuple[str, str]]:
@@ -323,9 +321,11 @@ def _example_notes() -> dict[tuple[str, str], tuple[str, str]]:
 
 
 def config_page() -> str:
-    from bayesmodal.runs.config import _SCHEMA, RunConfig
+    from bayesmodal.runs.config import _SCHEMA
+    from bayesmodal.runs.description import SECTIONS
 
-    fields = {f.name: f for f in dataclasses.fields(RunConfig)}
+    fields = {(name, f.name): f for name, cls in SECTIONS.items()
+              for f in dataclasses.fields(cls)}
     notes = _example_notes()
     for section, key in notes:
         if section not in _SCHEMA or (section != "priors" and key not in _SCHEMA[section]):
@@ -355,7 +355,7 @@ def config_page() -> str:
         for key, typ in keys.items():
             if section == "rig" and key in RIG_TABLES:
                 default = "none"
-                field_name = "rig"
+                field_name = ("model", "rig")
             elif (section, key) in CONFIG_CHECKED_ONLY:
                 default = CONFIG_CHECKED_ONLY[(section, key)]
                 field_name = None
@@ -363,11 +363,11 @@ def config_page() -> str:
                 default = _identify_default(key)
                 field_name = "identify"
             else:
-                field_name = next((f for f in (CONFIG_FIELDS.get((section, key)),
-                                               f"{section}_{key}", key) if f in fields), None)
-                if field_name is None:
-                    raise KeyError(f"[{section}] {key}: no RunConfig field of that name; "
-                                   "add it to CONFIG_FIELDS")
+                field_name = (CONFIG_SECTIONS.get(section), key)
+                if field_name not in fields:
+                    raise KeyError(f"[{section}] {key}: no field {key} in the RunConfig "
+                                   f"section {field_name[0]}; add it there, or the section "
+                                   "to CONFIG_SECTIONS")
                 default = _config_default(fields[field_name])
             used.add(field_name)
             value, comment = notes.get((section, key), ("", ""))
@@ -379,8 +379,8 @@ def config_page() -> str:
                        f"{_cell(f'`{value}`') if value else ''} | {_cell(comment)} |\n")
     missing = sorted(set(fields) - used)
     if missing:
-        raise KeyError(f"RunConfig fields no key sets: {missing}; add them to "
-                       "CONFIG_FIELDS or CONFIG_DERIVED")
+        raise KeyError(f"RunConfig section fields no key sets: {missing}; add them to "
+                       "CONFIG_SECTIONS or CONFIG_DERIVED")
     return "".join(out)
 
 

@@ -45,10 +45,10 @@ def test_good_config_parses(cfg_dir):
     p.write_text(GOOD)
     c = load_config(p)
     assert c.name == "good"
-    assert c.damping == "proportional" and c.noise == "white"
-    assert c.walkers == 16 and c.seed == 7
-    assert c.priors["g_v"].scale == "log"
-    assert c.data_files[0].endswith("exp.csv")
+    assert c.model.damping == "proportional" and c.likelihood.noise == "white"
+    assert c.sampler.walkers == 16 and c.sampler.seed == 7
+    assert c.model.priors["g_v"].scale == "log"
+    assert c.data.files[0].endswith("exp.csv")
     # the hash ignores where the file lives and the output folder
     c2 = parse_config({**_toml(GOOD), "outputs": {"dir": "elsewhere"}}, base=cfg_dir)
     assert c2.hash() == c.hash()
@@ -149,7 +149,7 @@ def test_broken_toml_and_missing_file(cfg_dir):
 def test_calibrated_temperature_is_accepted(cfg_dir):
     c = parse_config({**_toml(GOOD), "likelihood": {"noise": "ar1", "temperature": "loro"}},
                      base=cfg_dir)
-    assert c.temperature == "loro"
+    assert c.likelihood.temperature == "loro"
     assert c.crossval_spec().temperature == 1.0  # each calibration study sets its own
     fixed = parse_config({**_toml(GOOD), "likelihood": {"noise": "ar1", "temperature": 1}},
                          base=cfg_dir)
@@ -160,14 +160,14 @@ def test_snooker_runs_hash_apart_from_the_released_move(cfg_dir, monkeypatch):
     """A configuration naming the snooker move hashes with the corrected move's revision,
     so a run sampled with emcee 3.1.6's contracting move (same TOML) does not resume; a
     configuration without it keeps its hash."""
-    import bayesmodal.runs.config as config
+    import bayesmodal.runs.description as description
 
     snooker = parse_config(_toml(GOOD), base=cfg_dir)
-    assert "de-snooker" in snooker.moves
+    assert "de-snooker" in snooker.sampler.moves
     de = parse_config({**_toml(GOOD), "sampler": {**_toml(GOOD)["sampler"], "moves": "de"}},
                       base=cfg_dir)
     now = snooker.hash(), de.hash()
-    monkeypatch.setattr(config, "MOVE_REVISIONS", {})
+    monkeypatch.setattr(description, "MOVE_REVISIONS", {})
     assert snooker.hash() != now[0]
     assert de.hash() == now[1]
 
@@ -193,3 +193,33 @@ def test_lugre_runs_hash_apart_from_the_eight_substep_kernel(cfg_dir, monkeypatc
     monkeypatch.setattr(effects, "EXTENSION_REVISIONS", {})
     assert lugre.hash() != now[0]
     assert coulomb.hash() == now[1]
+
+
+def test_the_description_has_one_section_per_table(cfg_dir):
+    """Each key of the file lands in the section of its table under its own name, and the
+    flat form (``config.json``) reads back into the same description."""
+    from dataclasses import fields
+
+    from bayesmodal.runs.description import FLAT_NAMES, SECTIONS, RunConfig
+
+    c = parse_config(_toml(GOOD), base=cfg_dir)
+    assert c.sampler.walkers == _toml(GOOD)["sampler"]["walkers"]
+    assert c.model.priors["g_v"].scale == _toml(GOOD)["priors"]["g_v"]["scale"]
+    # every section field has exactly one flat name, and every flat name one field
+    section_fields = {(s, f.name) for s, cls in SECTIONS.items() for f in fields(cls)}
+    assert sorted(FLAT_NAMES.values()) == sorted(section_fields)
+    flat = c.to_dict()
+    flat["priors"] = c.model.priors  # config.json holds them as tables; rerun reads them
+    back = RunConfig.from_flat(flat)
+    assert back == c and back.hash() == c.hash()
+
+
+def test_a_section_of_the_wrong_type_is_refused(cfg_dir):
+    """Negative control: a flat keyword or a plain table where a section belongs."""
+    from bayesmodal.runs.description import RunConfig
+
+    c = parse_config(_toml(GOOD), base=cfg_dir)
+    with pytest.raises(ConfigError, match="RunConfig.sampler must be a SamplerSection"):
+        RunConfig(name="x", source="y", data=c.data, sampler={"walkers": 8})
+    with pytest.raises(TypeError, match="unknown field"):
+        RunConfig.from_flat({**c.to_dict(), "walker": 8})

@@ -65,7 +65,7 @@ def test_run_config_reads_a_lab_file_like_the_command_line(lab):
 
     (lab / "cfg.toml").write_text(CONFIG.format(scale="5/4096"))
     cfg = load_config(lab / "cfg.toml")
-    assert cfg.columns == MAP and cfg.input_scale == V_PER_UNIT
+    assert cfg.data.columns == MAP and cfg.data.input_scale == V_PER_UNIT
     prep, warned_cfg = _quiet(prepare_run, cfg)
     # the command line's reading of the same file
     p = argparse.ArgumentParser()
@@ -95,7 +95,7 @@ def test_lab_file_keys_leave_the_hash_alone_at_their_defaults():
     plain = parse_config(base, check_files=False)
     written = parse_config({"data": {"files": ["a.csv"], "input_scale": 1, "time_scale": "1"}},
                            check_files=False)
-    assert written.hash() == plain.hash() and plain.columns is None
+    assert written.hash() == plain.hash() and plain.data.columns is None
     mapped = parse_config({"data": {**base["data"], "columns": MAP}}, check_files=False)
     scaled = parse_config({"data": {**base["data"], "input_scale": "5/4096"}},
                           check_files=False)
@@ -153,10 +153,10 @@ def test_rig_sensor_scale_is_the_default_counts_scale():
     d["sensors"] = [{"cart": c.name, "unit": "count", "m_per_unit": 2.5e-6}
                     for c in rig.carts]
     cfg = parse_config({"data": {"files": ["a.mat"]}, "rig": d}, check_files=False)
-    assert cfg.m_per_count == 2.5e-6
+    assert cfg.data.m_per_count == 2.5e-6
     explicit = parse_config({"data": {"files": ["a.mat"], "m_per_count": 1e-6}, "rig": d},
                             check_files=False)
-    assert explicit.m_per_count == 1e-6
+    assert explicit.data.m_per_count == 1e-6
 
 
 @pytest.mark.parametrize(("data", "key", "match"), [

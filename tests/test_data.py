@@ -171,7 +171,7 @@ def test_data_root_may_be_the_parent_or_the_data_set_folder(data_tree, monkeypat
     expected = data_tree / "data" / "ecp210-3dof" / "rec.csv"
     assert find_data("ecp210-3dof/rec.csv") == expected
     cfg = parse_config({"data": {"files": ["ecp210-3dof/rec.csv"]}}, base=data_tree / "cfg")
-    assert cfg.data_files == (str(expected.resolve()),)
+    assert cfg.data.files == (str(expected.resolve()),)
     from bayesmodal.reproduce import default_data_dir  # `bayesmodal report`'s folder
 
     assert default_data_dir() == data_tree / "data" / "ecp210-3dof"

@@ -204,16 +204,16 @@ def test_final_config_keeps_the_records_and_takes_the_final_sampler(tmp_path):
     assert spec.linear.identify is None  # the linear run is the configuration without it
     assert spec.diagnosis.candidates == INPUT_CANDIDATES and spec.final.steps == 400
     cfg = final_config(spec, ("lugre_friction",))
-    assert cfg.data_files == spec.linear.data_files and cfg.rig == spec.linear.rig
-    assert cfg.extensions == ("lugre_friction",) and cfg.walkers == spec.final.walkers
+    assert cfg.data.files == spec.linear.data.files and cfg.model.rig == spec.linear.model.rig
+    assert cfg.model.extensions == ("lugre_friction",) and cfg.sampler.walkers == spec.final.walkers
     assert cfg.name == "rig_final" and cfg.hash() != spec.linear.hash()
-    assert cfg.per_record == spec.linear.per_record
+    assert cfg.records.per_record == spec.linear.records.per_record
     # the population layer: every mass of the core per record
     from dataclasses import replace
 
     pop = final_config(replace(spec, final=replace(spec.final, population=True)),
                        ("lugre_friction",))
-    assert pop.per_record == {"m1": "hierarchical"}
+    assert pop.records.per_record == {"m1": "hierarchical"}
 
 
 def test_summary_without_crossval_has_no_heldout_rows():

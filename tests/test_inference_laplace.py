@@ -120,7 +120,7 @@ def test_config_key():
                             check_files=False)
 
     cfg = cfg_of({"init": "laplace"})
-    assert cfg.init == "laplace"
+    assert cfg.sampler.init == "laplace"
     with pytest.raises(ConfigError, match=r"sampler\.init"):
         cfg_of({"init": "whitened"})
     # the default keeps the hash of configurations written before the key

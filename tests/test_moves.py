@@ -117,7 +117,7 @@ def test_emcee_316_snooker_contracts_the_posterior():
 def test_default_and_configured_moves_use_the_corrected_snooker():
     # the default is differential evolution alone, in the API and in a run configuration
     assert [type(m).__name__ for m, _ in default_moves()] == ["DEMove"]
-    configured = config.RunConfig.__dataclass_fields__["moves"].default
+    configured = config.SamplerSection.__dataclass_fields__["moves"].default
     assert configured == "de"
     assert [type(m).__name__ for m, _ in parse_moves(configured)] == ["DEMove"]
     assert [type(m).__name__ for m, _ in parse_moves("de:0.8, de-snooker:0.2")] == [

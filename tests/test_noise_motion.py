@@ -282,4 +282,4 @@ def test_a_run_configuration_names_it(tmp_path):
     p.write_text('[data]\nfiles=["exp.csv"]\n[likelihood]\nnoise="ar1:motion"\n',
                  encoding="utf-8")
     cfg = load_config(p)
-    assert cfg.noise == "ar1:motion" and cfg.layout is not None  # several-record path
+    assert cfg.likelihood.noise == "ar1:motion" and cfg.layout is not None  # several-record path

@@ -158,7 +158,7 @@ def test_outputs_pointwise_loglik_key():
     base = {"data": {"files": ["a.csv"]}}
     on = parse_config(base, check_files=False)
     off = parse_config({**base, "outputs": {"pointwise_loglik": False}}, check_files=False)
-    assert on.pointwise_loglik is True and off.pointwise_loglik is False
+    assert on.outputs.pointwise_loglik is True and off.outputs.pointwise_loglik is False
     assert on.hash() == off.hash()   # storage only: the posterior is the same
     with pytest.raises(ConfigError, match="outputs.pointwise_loglik"):
         parse_config({**base, "outputs": {"pointwise_loglik": "no"}}, check_files=False)

@@ -126,7 +126,7 @@ def test_rerun_refuses_an_edited_record_or_changed_data(recorded, tmp_path, caps
     (edited / "config.json").write_text(json.dumps(c))
     with pytest.raises(ConfigError, match="edited after the run"):
         recorded_config(edited)
-    assert recorded_config(run_dir).seed == 21
+    assert recorded_config(run_dir).sampler.seed == 21
     # data changed after the run: refused before any sampling
     moved = tmp_path / "moved"
     moved.mkdir()

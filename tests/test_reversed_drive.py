@@ -67,7 +67,7 @@ def test_signed_scales_are_read():
     cfg = parse_config({"data": {"files": ["a.csv"], "input_scale": "-1",
                                  "m_per_count": -4.4125e-6}},
                        source="cfg.toml", check_files=False)
-    assert cfg.input_scale == -1.0 and cfg.m_per_count == -4.4125e-6
+    assert cfg.data.input_scale == -1.0 and cfg.data.m_per_count == -4.4125e-6
 
 
 def test_a_reversed_drive_is_guessed_from_the_static_response(tmp_path):

@@ -641,7 +641,7 @@ def test_config_rig_table(tmp_path):
     assert cfg.make_rig().springs_n_m == (396.0,)
     chain = parse_config({**base, "rig": {"springs_n_m": [774.0, 770.0, 396.0]}},
                          check_files=False)
-    assert chain.rig is None and chain.make_rig() == Rig()
+    assert chain.model.rig is None and chain.make_rig() == Rig()
     with pytest.raises(ValueError, match="give one of springs_n_m, file"):
         parse_config({**base, "rig": {"springs_n_m": [500.0], "file": "one.toml"}},
                      base=tmp_path, check_files=False)

@@ -97,11 +97,11 @@ def test_contradictory_declarations_give_one_line_errors(tmp_path, capsys):
     from bayesmodal.runs.config import parse_config
 
     base = {"data": {"files": ["x.csv"]}, "rig": _declared(True)}
-    assert parse_config(base, check_files=False).damping == "proportional"
+    assert parse_config(base, check_files=False).model.damping == "proportional"
     with pytest.raises(ConfigError, match=r"\[model.damping\] 'free' contradicts"):
         parse_config({**base, "model": {"damping": "free"}}, check_files=False)
     assert parse_config({**base, "model": {"damping": "proportional"}},
-                        check_files=False).damping == "proportional"
+                        check_files=False).model.damping == "proportional"
 
 
 def test_an_undeclared_rig_keeps_its_config_hash():
@@ -109,7 +109,7 @@ def test_an_undeclared_rig_keeps_its_config_hash():
 
     base = {"data": {"files": ["x.csv"]}}
     plain = parse_config({**base, "rig": rig_to_dict(TWO)}, check_files=False)
-    assert "proportional" not in plain.rig["dampers"]
-    assert plain.damping == "free"
+    assert "proportional" not in plain.model.rig["dampers"]
+    assert plain.model.damping == "free"
     declared = parse_config({**base, "rig": _declared(False)}, check_files=False)
     assert declared.hash() != plain.hash()   # a declaration is part of the description

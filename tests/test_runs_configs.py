@@ -34,16 +34,17 @@ SHIPPED = {
 def test_shipped_config_is_valid(name):
     cfg = load_config(RUNS / f"{name}.toml", check_files=False)
     damping, ext, stems = SHIPPED[name]
-    assert cfg.damping == damping and cfg.extensions == ext
-    assert [Path(f).stem for f in cfg.data_files] == stems
-    model = LinearModel(Rig(cfg.springs_n_m), cfg.damping)
-    n_par = default_priors(model, noise=cfg.noise,
-                           extension=cfg.extensions[0] if cfg.extensions else None).n_params
-    assert cfg.walkers >= 2 * n_par and cfg.walkers % 2 == 0
+    assert cfg.model.damping == damping and cfg.model.extensions == ext
+    assert [Path(f).stem for f in cfg.data.files] == stems
+    model = LinearModel(Rig(cfg.model.springs_n_m), cfg.model.damping)
+    n_par = default_priors(model, noise=cfg.likelihood.noise,
+                           extension=cfg.model.extension).n_params
+    assert cfg.sampler.walkers >= 2 * n_par and cfg.sampler.walkers % 2 == 0
     # about a thousand retained draws: posterior.nc stays near 100 MB on 7400 samples
-    draws = cfg.walkers * ((cfg.steps - cfg.burn + cfg.thin - 1) // cfg.thin)
+    smp = cfg.sampler
+    draws = smp.walkers * ((smp.steps - smp.burn + smp.thin - 1) // smp.thin)
     assert 500 <= draws <= 2000
-    assert cfg.report and cfg.plots
+    assert cfg.outputs.report and cfg.outputs.plots
 
 
 def test_every_shipped_config_is_documented():
@@ -57,7 +58,7 @@ def test_every_shipped_config_is_documented():
 @pytest.mark.parametrize("name", sorted(SHIPPED))
 def test_shipped_config_matches_the_measured_data(name):
     cfg = load_config(RUNS / f"{name}.toml", check_files=False)
-    missing = [f for f in cfg.data_files + cfg.heldout_files if not Path(f).is_file()]
+    missing = [f for f in cfg.data.files + cfg.data.heldout if not Path(f).is_file()]
     if missing:
         pytest.skip(f"measured data not found: {missing}")
     prep = prepare_run(cfg)

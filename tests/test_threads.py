@@ -121,7 +121,7 @@ def test_config_threads_parse_and_leave_the_hash_alone():
     plain = parse_config(base, check_files=False)
     two = parse_config({**base, "sampler": {"threads": 2}}, check_files=False)
     auto = parse_config({**base, "sampler": {"threads": "auto"}}, check_files=False)
-    assert plain.threads == 1 and two.threads == 2 and auto.threads >= 1
+    assert plain.sampler.threads == 1 and two.sampler.threads == 2 and auto.sampler.threads >= 1
     assert plain.hash() == two.hash() == auto.hash()
     with pytest.raises(ConfigError, match=r"\[sampler.threads\].*positive integer"):
         parse_config({**base, "sampler": {"threads": 0}}, check_files=False)

@@ -89,7 +89,7 @@ def spec_from_args(args):
 
     if args.config:
         cfg = load_config(args.config, check_files=False)
-        if cfg.temperature == "loro":  # [likelihood] temperature = "loro": calibrate
+        if cfg.likelihood.temperature == "loro":  # [likelihood] temperature = "loro": calibrate
             args.temperature = "loro"
         return cfg.crossval_spec()
     rig = load_rig(args) if getattr(args, "rig", None) else None

@@ -55,7 +55,8 @@ def run(args) -> int:
     try:
         cfg = load_config(args.config)
         if args.threads is not None:
-            cfg = replace(cfg, threads=resolve_threads(args.threads))
+            cfg = replace(cfg, sampler=replace(cfg.sampler,
+                                               threads=resolve_threads(args.threads)))
         if cfg.identify is not None:  # [identify] enabled: the whole workflow
             return _identify(cfg, args)
         prep = prepare_run(cfg)

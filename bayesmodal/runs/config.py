@@ -111,27 +111,16 @@ Data paths are looked up relative to the config file, then ``$BAYESMODAL_DATA``,
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import tomllib
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from .._errors import ConfigError
-from ..data import ECP_M_PER_COUNT
-from ..inference.crossval import CrossvalSpec
 from ..inference.moves import MOVE_REVISIONS, move_spec
 from ..inference.moves import MOVES as _MOVE_CLASSES
-from ..inference.noise_spec import parse_noise
 from ..inference.record_scale import NOISE_SCALES
-from ..inference.records import RecordLayout
 from ..model.effects import EXTENSION_REVISIONS, extension_revisions
-from ..model.rigs import rig_from_dict
-from ..model.system import ECP210_SPRINGS_N_M, Rig
-from ..reading import ReadOptions
 from .config_sections import (
-    DEFAULT_BURN,
     PriorOverride,
     _parse_data,
     _parse_likelihood,
@@ -140,9 +129,23 @@ from .config_sections import (
     _parse_priors,
     _parse_sampler,
 )
+from .description import (
+    CrossvalSection,
+    DataSection,
+    EvidenceSection,
+    LikelihoodSection,
+    ModelSection,
+    OutputsSection,
+    RecordsSection,
+    RunConfig,
+    SamplerSection,
+)
 
-__all__ = ["RunConfig", "load_config", "parse_config", "MOVES", "NOISE_SCALES",
-           "EXTENSION_REVISIONS", "MOVE_REVISIONS", "extension_revisions", "move_spec"]
+__all__ = ["RunConfig", "DataSection", "ModelSection", "RecordsSection",
+           "LikelihoodSection", "SamplerSection", "CrossvalSection", "OutputsSection",
+           "EvidenceSection", "PriorOverride", "load_config", "parse_config", "MOVES",
+           "NOISE_SCALES", "EXTENSION_REVISIONS", "MOVE_REVISIONS", "extension_revisions",
+           "move_spec"]
 
 #: Move names of ``[sampler] moves`` (``bayesmodal.inference.moves.MOVES``).
 MOVES = tuple(_MOVE_CLASSES)
@@ -179,140 +182,6 @@ IDENTIFY_DIAGNOSIS_KEYS = {"null": "n_null", "max_effects": "max_effects", "spli
 #: ``[identify]`` keys of the found model's sampler (``runs.identify.FinalSpec`` fields).
 IDENTIFY_FINAL_KEYS = ("walkers", "steps", "burn", "thin", "prune", "crossval_steps",
                        "population")
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """A validated run configuration.  See the module docstring for the file format."""
-
-    name: str
-    source: str
-    data_files: tuple[str, ...]
-    m_per_count: float = ECP_M_PER_COUNT
-    springs_n_m: tuple[float, ...] = ECP210_SPRINGS_N_M
-    damping: str = "free"
-    extensions: tuple[str, ...] = ()
-    priors: dict[str, PriorOverride] = field(default_factory=dict)
-    noise: str = "ar1"
-    walkers: int = 32
-    steps: int = 5000
-    burn: int = DEFAULT_BURN
-    thin: int = 5
-    seed: int = 1
-    moves: str = "de"
-    restart: int | None = None
-    prune: int | None = None
-    init: str = "ball"
-    threads: int = 1  # execution only: the chain is the same with any number
-    out_dir: str = ""
-    plots: bool = True
-    report: bool = True
-    predictive_draws: int = 200
-    heldout_files: tuple[str, ...] = ()
-    ema: bool = True
-    checkpoint_every_s: float = 5.0
-    pointwise_loglik: bool = True
-    chain_storage: str = "compact"
-    evidence: bool = False
-    evidence_nlive: int = 250
-    evidence_dlogz: float = 0.5
-    rig: dict | None = None
-    per_record: dict[str, str] = field(default_factory=dict)
-    noise_per_record: bool = False
-    noise_scale: str = "none"
-    temperature: float | str = 1.0  # or "loro" (calibrated, inference.temperature)
-    crossval: bool = False
-    crossval_draws: int = 200
-    crossval_walkers: int | None = None
-    crossval_steps: int | None = None
-    columns: dict[str, str] | None = None
-    input_scale: float = 1.0
-    time_scale: float = 1.0
-    time_base: str = "auto"
-    t_start: float | None = None
-    t_end: float | None = None
-    rest_offset: str = "none"
-    identify: dict | None = None  # the [identify] table (the workflow), None without
-
-    #: Fields left out of the hash at their defaults (configs written before them keep
-    #: their hashes).
-    _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "noise_scale": "none",
-                     "temperature": 1.0,
-                     "crossval": False, "crossval_draws": 200, "crossval_walkers": None,
-                     "crossval_steps": None, "columns": None, "input_scale": 1.0,
-                     "time_scale": 1.0, "time_base": "auto", "init": "ball", "prune": None,
-                     "t_start": None, "t_end": None, "rest_offset": "none",
-                     "identify": None}
-
-    def read_options(self):
-        """The ``ReadOptions`` of ``[data]`` (column map and scales; ``m_per_count`` is
-        given to the loader separately, for encoder files)."""
-
-        return ReadOptions(columns=self.columns, input_scale=self.input_scale,
-                           time_scale=self.time_scale, time_base=self.time_base,
-                           t_start=self.t_start, t_end=self.t_end,
-                           rest_offset=self.rest_offset)
-
-    def make_rig(self):
-        """The ``Rig``: the description of ``[rig]`` (``rig``), else the chain of springs."""
-
-        if self.rig is None:
-            return Rig(self.springs_n_m)
-        return rig_from_dict(self.rig, where=f"{self.source}: [rig]")
-
-    @property
-    def layout(self):
-        """The per-record layout (``RecordLayout``), or None for shared parameters."""
-
-        if not self.per_record and not self.noise_per_record and self.noise_scale == "none":
-            # AR(p) noise lives in the several-record likelihood: shared layout
-            return None if parse_noise(self.noise).one_record else RecordLayout({})
-
-        return RecordLayout(dict(self.per_record), self.noise_per_record, self.noise_scale)
-
-    def crossval_spec(self):
-        """The ``CrossvalSpec`` of this configuration (model, noise, layout, sampler)."""
-
-        return CrossvalSpec(
-            damping=self.damping, noise=self.noise,
-            extension="+".join(self.extensions) if self.extensions else None,
-            layout=self.layout or RecordLayout({}),
-            n_walkers=self.crossval_walkers or self.walkers,
-            n_steps=self.crossval_steps or self.steps, burn=None if self.crossval_steps
-            else self.burn, n_predictive=self.crossval_draws, seed=self.seed,
-            temperature=1.0 if self.temperature == "loro" else self.temperature,
-            springs_n_m=self.springs_n_m, init=self.init, moves=self.moves,
-            prune=self.prune, restart=self.restart,
-            rig=None if self.rig is None else self.make_rig())
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["priors"] = {k: asdict(v) for k, v in self.priors.items()}
-        return d
-
-    def hash(self) -> str:
-        """SHA-256 of the canonical JSON of everything that affects the result."""
-        d = self.to_dict()
-        for k in ("source", "name", "out_dir", "plots", "report", "ema",
-                  "checkpoint_every_s", "pointwise_loglik", "chain_storage", "threads"):
-            d.pop(k)
-        if d["restart"] is None:  # keeps the hashes of configs written before the key
-            d.pop("restart")
-        for k, default in self._NEW_DEFAULTS.items():
-            if d[k] == default:
-                d.pop(k)
-        if d["rig"] is None:  # likewise for a chain given by springs_n_m
-            d.pop("rig")
-        # where the data live does not change the result; their content is hashed separately
-        d["data_files"] = [Path(f).name for f in self.data_files]
-        d["heldout_files"] = [Path(f).name for f in self.heldout_files]
-        revised = {m: r for m, r in MOVE_REVISIONS.items() if m in d["moves"]}
-        if revised:
-            d["move_revisions"] = revised
-        ext_revised = extension_revisions(d["extensions"])
-        if ext_revised:
-            d["extension_revisions"] = ext_revised
-        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()
 
 
 def _type_name(t) -> str:
@@ -380,7 +249,7 @@ def parse_config(raw: dict, *, source: str = "<config>", base: Path | None = Non
 
     if errors:
         raise ConfigError(f"{len(errors)} problem(s) in the configuration:\n" + "\n".join(errors))
-    return RunConfig(**kw)
+    return RunConfig.from_flat(kw)
 
 
 def load_config(path: str | os.PathLike, *, check_files: bool = True) -> RunConfig:

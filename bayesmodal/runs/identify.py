@@ -331,20 +331,23 @@ def final_config(spec: IdentifySpec, effects: tuple[str, ...],
     """
     f = spec.final if walkers is None else replace(spec.final, walkers=int(walkers))
     base = spec.linear
-    per_record = dict(base.per_record if f.per_record is None else f.per_record)
+    per_record = dict(base.records.per_record if f.per_record is None else f.per_record)
     if f.population:  # every mass of the linear core per record
         core = LinearModel(base.make_rig(), "free")
         for name, kind in zip(core.names, param_kinds(core), strict=True):
             if kind == "mass" and name not in per_record:
                 per_record[name] = "hierarchical"
+    cv = base.crossval
     return replace(
-        base, name=f"{base.name}_final", extensions=tuple(effects), walkers=f.walkers,
-        steps=f.steps, burn=f.burn, thin=f.retained_thin, prune=f.prune, moves=f.moves, init=f.init,
-        threads=resolve_threads(f.threads), restart=None,
-        per_record=per_record,
-        crossval=base.crossval if f.crossval is None else f.crossval,
-        crossval_steps=base.crossval_steps if f.crossval_steps is None else f.crossval_steps,
-        out_dir="")
+        base, name=f"{base.name}_final",
+        model=replace(base.model, extensions=tuple(effects)),
+        sampler=replace(base.sampler, walkers=f.walkers, steps=f.steps, burn=f.burn,
+                        thin=f.retained_thin, prune=f.prune, moves=f.moves, init=f.init,
+                        threads=resolve_threads(f.threads), restart=None),
+        records=replace(base.records, per_record=per_record),
+        crossval=replace(cv, enabled=cv.enabled if f.crossval is None else f.crossval,
+                         steps=cv.steps if f.crossval_steps is None else f.crossval_steps),
+        outputs=replace(base.outputs, dir=""))
 
 
 def spec_from_config(config: RunConfig) -> IdentifySpec:

@@ -11,7 +11,6 @@ compares.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ from .._errors import ConfigError, DataError
 from .._version import __version__
 from ..data import file_sha256
 from .config import PriorOverride, RunConfig
+from .description import FLAT_NAMES
 from .provenance import dependency_versions
 from .runner import execute_run, prepare_run
 
@@ -84,8 +84,7 @@ def recorded_config(run_dir: str | os.PathLike) -> RunConfig:
     folder = Path(run_dir)
     summary = _read_json(folder / "summary.json")
     raw = _read_json(folder / "config.json")
-    names = {f.name for f in dataclasses.fields(RunConfig)}
-    unknown = sorted(set(raw) - names)
+    unknown = sorted(set(raw) - set(FLAT_NAMES) - {"name", "source", "identify"})
     if unknown:
         raise ConfigError(f"{folder / 'config.json'}: unknown field(s) {unknown}")
     kw = dict(raw)
@@ -94,7 +93,7 @@ def recorded_config(run_dir: str | os.PathLike) -> RunConfig:
         for key in ("data_files", "springs_n_m", "extensions", "heldout_files"):
             if key in kw:
                 kw[key] = tuple(kw[key])
-        cfg = RunConfig(**kw)
+        cfg = RunConfig.from_flat(kw)
     except TypeError as exc:
         raise ConfigError(f"{folder / 'config.json'}: malformed ({exc})") from exc
     want = summary.get("run", {}).get("config_hash")

@@ -48,7 +48,7 @@ from ..inference.moves import parse_moves
 from ..inference.noise_spec import parse_noise
 from ..inference.predictive import predict_new_record, score_samples
 from ..inference.records import RecordsLikelihood, choose_noise, record_priors
-from ..inference.spec import LikelihoodSpec, SamplerSpec
+from ..inference.spec import LikelihoodSpec
 from ..inference.temperature import calibrate_loro
 from ..metrics import fit_percent
 from ..model.effects import get_extension
@@ -152,13 +152,13 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
     for f in files:
         try:
             opts = cfg.read_options()
-            if cfg.rig is not None:  # the rig's sensors say what each column holds
+            if cfg.model.rig is not None:  # the rig's sensors say what each column holds
                 opts = options_for_rig(opts, cfg.make_rig(), f)
-            out.append(load_experiment(Path(f), m_per_count=cfg.m_per_count, options=opts))
+            out.append(load_experiment(Path(f), m_per_count=cfg.data.m_per_count, options=opts))
             if fitted:
-                if cfg.t_start is not None:  # a run starts every record from rest
+                if cfg.data.t_start is not None:  # a run starts every record from rest
                     _check_window_rest(out[-1])
-                if cfg.rest_offset == "none":
+                if cfg.data.rest_offset == "none":
                     _check_offset(out[-1])
                 check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
@@ -181,36 +181,36 @@ def prepare_run(config: RunConfig) -> PreparedRun:
 
     cfg = config
     src = cfg.source
-    exps = _load(cfg.data_files, cfg, "data.files")
-    held = _load(cfg.heldout_files, cfg, "data.heldout", fitted=False)
+    exps = _load(cfg.data.files, cfg, "data.files")
+    held = _load(cfg.data.heldout, cfg, "data.heldout", fitted=False)
     try:
-        model = LinearModel(cfg.make_rig(), cfg.damping)
+        model = LinearModel(cfg.make_rig(), cfg.model.damping)
     except ValueError as exc:
-        raise ConfigError(f"{src}: [rig{'' if cfg.rig else '.springs_n_m'}] {exc}") from exc
+        raise ConfigError(f"{src}: [rig{'' if cfg.model.rig else '.springs_n_m'}] {exc}") from exc
     for e in exps + held:
-        if cfg.rig is not None and e.n_outputs != model.n_outputs:
+        if cfg.model.rig is not None and e.n_outputs != model.n_outputs:
             raise ConfigError(
                 f"{src}: [rig] the rig has {model.n_outputs} sensors, but "
                 f"{e.source or e.name} has {e.n_outputs} measured outputs")
-        if cfg.rig is None and e.n_outputs != model.n_carts:
+        if cfg.model.rig is None and e.n_outputs != model.n_carts:
             raise ConfigError(
-                f"{src}: [rig.springs_n_m] {len(cfg.springs_n_m)} springs make "
+                f"{src}: [rig.springs_n_m] {len(cfg.model.springs_n_m)} springs make "
                 f"{model.n_carts} carts, but {e.source or e.name} has {e.n_outputs} measured "
                 "outputs")
     extension = None
-    if cfg.extensions:
+    if cfg.model.extensions:
         # several effects make one combined model, named "a+b" (extensions.Combined)
-        extension = "+".join(cfg.extensions)
+        extension = "+".join(cfg.model.extensions)
         try:
             get_extension(extension)
         except ValueError as exc:
             raise ConfigError(f"{src}: [model.extensions] {exc}") from exc
-        if cfg.damping != "free":
+        if cfg.model.damping != "free":
             raise ConfigError(
                 f"{src}: [model.damping] the {extension} extension is built on free "
-                f"damping, got {cfg.damping!r}")
+                f"damping, got {cfg.model.damping!r}")
     layout = cfg.layout
-    spec = parse_noise(cfg.noise)
+    spec = parse_noise(cfg.likelihood.noise)
     noise = spec.name
     if spec.kind == "ar:auto":
         if extension is not None:
@@ -226,7 +226,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
         except ValueError as exc:
             raise ConfigError(f"{src}: [records] {exc}") from exc
     overrides = {}
-    for name, ov in cfg.priors.items():
+    for name, ov in cfg.model.priors.items():
         if name not in base.names:
             raise ConfigError(
                 f"{src}: [priors.{name}] the sampler samples {list(base.names)}; "
@@ -237,12 +237,13 @@ def prepare_run(config: RunConfig) -> PreparedRun:
     except ConfigError as exc:
         raise ConfigError(f"{src}: [priors] {exc}") from exc
     n_par = priors.n_params
-    if cfg.walkers < 2 * n_par or cfg.walkers % 2:
+    if cfg.sampler.walkers < 2 * n_par or cfg.sampler.walkers % 2:
         raise ConfigError(
             f"{src}: [sampler.walkers] must be even and at least 2 x {n_par} parameters = "
-            f"{2 * n_par} for {cfg.damping} damping with {cfg.noise} noise, got {cfg.walkers}")
+            f"{2 * n_par} for {cfg.model.damping} damping with {cfg.likelihood.noise} noise, "
+            f"got {cfg.sampler.walkers}")
     try:
-        moves = parse_moves(cfg.moves)
+        moves = parse_moves(cfg.sampler.moves)
     except ConfigError as exc:
         raise ConfigError(f"{src}: {exc}") from exc
     return PreparedRun(cfg, exps, held, model, priors, moves, extension, noise)
@@ -260,8 +261,8 @@ def default_out_dir(config: RunConfig, out_root: str | os.PathLike = "runs") -> 
     from pathlib import PurePosixPath
 
     root = Path(out_root)
-    rel = config.out_dir or config.name
-    key = "[outputs.dir]" if config.out_dir else "(the configuration's name)"
+    rel = config.outputs.dir or config.name
+    key = "[outputs.dir]" if config.outputs.dir else "(the configuration's name)"
     parts = PurePosixPath(rel.replace("\\", "/"))
     if Path(rel).is_absolute() or parts.is_absolute() or ".." in parts.parts or \
             not rel.strip():
@@ -376,7 +377,7 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         "theta": dict(zip(names, lsq.theta.tolist(), strict=True)),
         "fit_percent": lsq.fit_percent.tolist(), "success": bool(lsq.success)}
     work = [("residuals", e) for e in prep.experiments]
-    if cfg.ema:
+    if cfg.outputs.ema:
         work += [("lsce", e) for e in prep.experiments]
     res_checks, lsce = [], []
     record_theta = _record_medians(run, idata)
@@ -400,7 +401,7 @@ def _cross_checks(prep: PreparedRun, run, idata, summary: dict, folder: RunFolde
         d = c.as_dict()
         d.update({"omega_matched": om.tolist(), "zeta_matched": ze.tolist()})
         out["lsce"].append(d)
-    if cfg.plots:
+    if cfg.outputs.plots:
         if lsce:  # the modal-interval plot of write_run, now with the LSCE values
             write_modal_plot(idata, folder.path, lsce=[
                 (c.experiment, *c.matched(omega_med)) for c in lsce if not c.error])
@@ -442,9 +443,9 @@ def _heldout(prep: PreparedRun, idata) -> dict | None:
             "fit_percent_median": np.asarray(ps.fit_percent_median).tolist(),
             "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
             "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist(),
-            "records": _coverage_records(lik, draws, prep.config.seed),
+            "records": _coverage_records(lik, draws, prep.config.sampler.seed),
             "fitted_records": _coverage_records(likelihood_from_idata(idata), draws,
-                                                prep.config.seed)}
+                                                prep.config.sampler.seed)}
 
 
 def _coverage_records(lik, draws, seed) -> list[dict]:
@@ -464,7 +465,7 @@ def _heldout_new_records(prep: PreparedRun, idata) -> dict:
 
     lik = likelihood_from_idata(idata)
     draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
-    rng = np.random.default_rng(prep.config.seed)
+    rng = np.random.default_rng(prep.config.sampler.seed)
     draws = draws[rng.choice(draws.shape[0], min(200, draws.shape[0]), replace=False)]
     scores, fits = [], []
     for e in prep.heldout:
@@ -490,15 +491,15 @@ def _heldout_new_records(prep: PreparedRun, idata) -> dict:
 
 def _evidence(prep: PreparedRun, run) -> dict | None:
     cfg = prep.config
-    if not cfg.evidence:
+    if not cfg.evidence.enabled:
         return None
 
-    ev = nested_evidence(run.likelihood, prep.priors, nlive=cfg.evidence_nlive,
-                         dlogz=cfg.evidence_dlogz, rng=cfg.seed)
+    ev = nested_evidence(run.likelihood, prep.priors, nlive=cfg.evidence.nlive,
+                         dlogz=cfg.evidence.dlogz, rng=cfg.sampler.seed)
     return {"log_z": ev.log_z, "log_z_err": ev.log_z_err,
             "information_nats": ev.information_nats, "n_calls": ev.n_calls,
-            "elapsed_s": ev.elapsed_s, "nlive": cfg.evidence_nlive,
-            "dlogz": cfg.evidence_dlogz}
+            "elapsed_s": ev.elapsed_s, "nlive": cfg.evidence.nlive,
+            "dlogz": cfg.evidence.dlogz}
 
 
 def _extensions(prep: PreparedRun, run, summary: dict) -> dict:
@@ -549,8 +550,8 @@ def _temperature(prep: PreparedRun, folder: RunFolder):
     reads it back instead of repeating the studies, and continues its chain at the
     temperature it started with (its [crossval] check is then measured again)."""
     cfg = prep.config
-    if cfg.temperature != "loro":
-        return float(cfg.temperature), None, None
+    if cfg.likelihood.temperature != "loro":
+        return float(cfg.likelihood.temperature), None, None
 
     path = folder.path / TEMPERATURE_FILE
     chash = cfg.hash()
@@ -581,7 +582,7 @@ def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
     res = study if study is not None else crossval(
         list(prep.experiments), replace(prep.config.crossval_spec(), temperature=temperature),
         joint=False, progress=say)
-    write_crossval(res, folder.path / "crossval", plots=prep.config.plots)
+    write_crossval(res, folder.path / "crossval", plots=prep.config.outputs.plots)
     d = res.to_dict()
     return {"records": d["records"], "total": d["total"], "own_lsq": d["own_lsq"],
             "spec": d["spec"], "wall_time_s": d["wall_time_s"]}
@@ -597,31 +598,31 @@ def _config_text(cfg: RunConfig) -> str:
 def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
               t_start: float, started: str, caught: list, start=None) -> dict:
     cfg = prep.config
-    stages = _Stages(tuple(st for st in _STAGES if cfg.crossval or st != "crossval"),
+    stages = _Stages(tuple(st for st in _STAGES if cfg.crossval.enabled or st != "crossval"),
                      progress, cfg.name)
     try:
         with stages.stage("sampling"):
-            backend = AtomicCheckpoint(folder.checkpoint_path, every_s=cfg.checkpoint_every_s)
+            backend = AtomicCheckpoint(folder.checkpoint_path,
+                                       every_s=cfg.outputs.checkpoint_every_s)
             steps_before = backend.iteration if backend.initialized else 0
             log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
-                     cfg.walkers, cfg.steps, steps_before, cfg.seed)
+                     cfg.sampler.walkers, cfg.sampler.steps, steps_before, cfg.sampler.seed)
             temperature, calibration, study = _temperature(prep, folder)
             run = sample_posterior(
                 list(prep.experiments), prep.model,
-                LikelihoodSpec(noise=prep.noise or cfg.noise, extension=prep.extension,
-                               layout=cfg.layout, temperature=temperature),
-                SamplerSpec(n_walkers=cfg.walkers, n_steps=cfg.steps, burn=cfg.burn,
-                            thin=cfg.thin, moves=prep.moves, init=cfg.init,
-                            restart=cfg.restart, prune=cfg.prune, threads=cfg.threads,
-                            progress=progress, warn=False),
-                priors=prep.priors, start=start, rng=cfg.seed, backend=backend)
+                LikelihoodSpec(noise=prep.noise or cfg.likelihood.noise,
+                               extension=prep.extension, layout=cfg.layout,
+                               temperature=temperature),
+                cfg.sampler.spec(prep.moves, progress=progress, warn=False),
+                priors=prep.priors, start=start, rng=cfg.sampler.seed, backend=backend)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
-            idata = to_inference_data(run, n_predictive=cfg.predictive_draws, rng=cfg.seed,
-                                      pointwise=cfg.pointwise_loglik)
+            idata = to_inference_data(run, n_predictive=cfg.outputs.predictive_draws,
+                                      rng=cfg.sampler.seed,
+                                      pointwise=cfg.outputs.pointwise_loglik)
         with stages.stage("outputs"):
-            summary = write_run(idata, folder.path, plots=cfg.plots)
+            summary = write_run(idata, folder.path, plots=cfg.outputs.plots)
         with stages.stage("cross-checks"):
             summary["crosscheck"] = _cross_checks(prep, run, idata, summary, folder, progress)
             held = _heldout(prep, idata)
@@ -635,7 +636,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                 summary["extensions"] = ext
         if calibration is not None:
             summary["temperature_calibration"] = calibration
-        if cfg.crossval:
+        if cfg.crossval.enabled:
             with stages.stage("crossval"):
                 summary["crossval"] = _crossval(prep, folder, progress, temperature, study)
         diag = summary["diagnostics"]
@@ -650,13 +651,14 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             "config_hash": cfg.hash(),
             "sampler_config_hash": summary["provenance"]["config_hash"],
             "config": cfg.to_dict(),
-            "data": data_digests(cfg.data_files),
-            "heldout_data": data_digests(cfg.heldout_files),
+            "data": data_digests(cfg.data.files),
+            "heldout_data": data_digests(cfg.data.heldout),
             "bayesmodal_version": __version__,
             "dependencies": dependency_versions(),
-            "seed": cfg.seed,
-            "walkers": cfg.walkers, "steps": cfg.steps, "burn": cfg.burn, "thin": cfg.thin,
-            "moves": cfg.moves,
+            "seed": cfg.sampler.seed,
+            "walkers": cfg.sampler.walkers, "steps": cfg.sampler.steps,
+            "burn": cfg.sampler.burn, "thin": cfg.sampler.thin,
+            "moves": cfg.sampler.moves,
         }
         summary["warnings"] = [f"{w.category.__name__}: {w.message}" for w in caught]
         # what depends on the clock or on how the run was split goes to timing.json, so
@@ -670,7 +672,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
         folder.write_json("timing.json", timing)
         folder.write_json("summary.json", summary)
         with stages.stage("report"):
-            if cfg.report:
+            if cfg.outputs.report:
                 write_report(folder.path, state="finished")
     finally:
         stages.close()
@@ -730,7 +732,7 @@ def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bo
             folder.write_text("config.toml", _config_text(cfg))
             folder.write_json("config.json", cfg.to_dict())
             folder.write_status("running", config=cfg.name, config_hash=chash,
-                                steps=cfg.steps, started=started, action=action)
+                                steps=cfg.sampler.steps, started=started, action=action)
             try:
                 summary = _pipeline(prepared, folder, action, progress, t0, started, caught,
                                     start)
@@ -744,10 +746,11 @@ def execute_run(prepared: PreparedRun, out_dir: str | os.PathLike, *, resume: bo
                     logger.warning("%s: %s", w.category.__name__, w.message)
             wall = time.perf_counter() - t0
             folder.write_status("finished", finished=now_iso(), wall_time_s=wall)
-            if cfg.chain_storage == "compact":
+            if cfg.outputs.chain == "compact":
                 # after "finished": a compacted chain is never resumed as a checkpoint
                 try:
-                    compact_checkpoint(folder.checkpoint_path, burn=cfg.burn, thin=cfg.thin)
+                    compact_checkpoint(folder.checkpoint_path, burn=cfg.sampler.burn,
+                                       thin=cfg.sampler.thin)
                 except OSError as exc:
                     logger.warning("chain.h5 kept in full: %s", exc)
             logger.info("run finished in %.1f s; converged: %s", wall,
