@@ -153,8 +153,8 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "runs.report.write_report": ('run_dir', 'state'),
     "runs.rerun.json_differences": ('a', 'b', 'path', 'limit'),
     "runs.rerun.recorded_config": ('run_dir',),
-    "runs.runner.default_out_dir": ('config', 'out_root'),
-    "runs.runner.prepare_run": ('config',),
+    "runs.prepare.default_out_dir": ('config', 'out_root'),
+    "runs.prepare.prepare_run": ('config',),
     "runs.verdict.cell_statuses": ('record', 'prob'),
     "runs.verdict.coverage_status": (
         'coverage', 'prob', 'coverage_pit', 'band_factor_pit', 'level'),

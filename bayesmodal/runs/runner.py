@@ -25,41 +25,29 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import ConfigError, DataError, one_line
+from .._errors import one_line
 from .._progress import progress_bar
 from .._version import __version__
-from .._window import motion_at_start, offset_at_rest
-from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
-from ..fit.linear import fit_lsq
 from ..inference import (
-    LogUniform,
-    Uniform,
-    default_priors,
-    likelihood_from_idata,
     nested_evidence,
     posterior_matrix,
-    predictive_check,
     sample_posterior,
     to_inference_data,
 )
-from ..inference.coverage_reference import reference_fields
 from ..inference.crossval import crossval
 from ..inference.moves import parse_moves
-from ..inference.noise_spec import parse_noise
-from ..inference.predictive import predict_new_record, score_samples
-from ..inference.records import RecordsLikelihood, choose_noise, record_priors
 from ..inference.spec import LikelihoodSpec
 from ..inference.temperature import calibrate_loro
 from ..metrics import fit_percent
-from ..model.effects import get_extension
-from ..model.system import LinearModel
 from ..plots.runs import plot_residual_acf, plot_residuals
 from .checkpoint import AtomicCheckpoint, checkpoint_iteration, compact_checkpoint
 from .config import RunConfig, load_config
-from .crosscheck import lsce_check, predictive_coverage, residual_check
+from .crosscheck import lsce_check, residual_check
 from .crossval import write_crossval
 from .folder import RunExistsError, RunFolder, atomic_savefig, now_iso
+from .heldout import heldout_scores
 from .outputs import write_modal_plot, write_run
+from .prepare import PreparedRun, default_out_dir, prepare_run
 from .provenance import data_digests, dependency_versions
 from .report import write_report
 
@@ -70,34 +58,6 @@ __all__ = ["PreparedRun", "RunOutcome", "prepare_run", "execute_run", "run_confi
 LOGGER_NAME = "bayesmodal"
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, eq=False)
-class PreparedRun:
-    """A configuration checked against its data, ready to sample.
-
-    Attributes
-    ----------
-    config : RunConfig
-    experiments : tuple of Experiment
-        The fitted records.
-    heldout : tuple of Experiment
-        Records scored, not fitted.
-    model : LinearModel
-    priors : bayesmodal.inference.PriorSet
-    moves : list of (emcee move, weight)
-    extension : str or None
-        The model extension sampled with the linear model (``[model] extensions``).
-    """
-
-    config: RunConfig
-    experiments: tuple[Experiment, ...]
-    heldout: tuple[Experiment, ...]
-    model: LinearModel
-    priors: object
-    moves: list
-    extension: str | None = None
-    noise: str | None = None  # the resolved noise model (``ar:auto`` -> its orders)
 
 
 @dataclass(frozen=True)
@@ -125,155 +85,6 @@ class RunOutcome:
     action: str
     summary: dict
     wall_time_s: float
-
-
-def _prior(ov):
-    return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
-
-
-def _check_window_rest(e: Experiment) -> None:
-    why = motion_at_start(e.y_m, e.v_volt, e.dt)
-    if why:
-        raise DataError(f"{e.source or e.name}: the window starts at t = {e.t_s[0]:g} s with "
-                        f"{why}, not at rest; a run starts every record from rest: set "
-                        "t_start where the carts rest at 0 with no input")
-
-
-def _check_offset(e: Experiment) -> None:
-    why = offset_at_rest(e.y_m, e.v_volt)
-    if why:
-        raise DataError(f"{e.source or e.name}: before the first input the carts rest with "
-                        f"{why}, not at 0 where a run starts every record; an encoder not "
-                        "zeroed at rest: set rest_offset = \"initial\" in [data]")
-
-
-def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Experiment, ...]:
-    out = []
-    for f in files:
-        try:
-            opts = cfg.read_options()
-            if cfg.model.rig is not None:  # the rig's sensors say what each column holds
-                opts = options_for_rig(opts, cfg.make_rig(), f)
-            out.append(load_experiment(Path(f), m_per_count=cfg.data.m_per_count, options=opts))
-            if fitted:
-                if cfg.data.t_start is not None:  # a run starts every record from rest
-                    _check_window_rest(out[-1])
-                if cfg.data.rest_offset == "none":
-                    _check_offset(out[-1])
-                check_identifiable(out[-1])
-        except (DataError, OSError, ValueError) as exc:
-            raise ConfigError(f"{cfg.source}: [{key}] {exc}") from exc
-    return tuple(out)
-
-
-def prepare_run(config: RunConfig) -> PreparedRun:
-    """Check a configuration against its data before any sampling.
-
-    Raises
-    ------
-    ConfigError
-        Naming the file and the key: unreadable data (``[data.files]``), outputs that do
-        not match the rig (``[rig.springs_n_m]``), priors the sampler cannot use
-        (``[priors.NAME]``), too few or an odd number of walkers (``[sampler.walkers]``),
-        model extensions that cannot be combined (``[model.extensions]``) or an extension
-        without free damping (``[model.damping]``).
-    """
-
-    cfg = config
-    src = cfg.source
-    exps = _load(cfg.data.files, cfg, "data.files")
-    held = _load(cfg.data.heldout, cfg, "data.heldout", fitted=False)
-    try:
-        model = LinearModel(cfg.make_rig(), cfg.model.damping)
-    except ValueError as exc:
-        raise ConfigError(f"{src}: [rig{'' if cfg.model.rig else '.springs_n_m'}] {exc}") from exc
-    for e in exps + held:
-        if cfg.model.rig is not None and e.n_outputs != model.n_outputs:
-            raise ConfigError(
-                f"{src}: [rig] the rig has {model.n_outputs} sensors, but "
-                f"{e.source or e.name} has {e.n_outputs} measured outputs")
-        if cfg.model.rig is None and e.n_outputs != model.n_carts:
-            raise ConfigError(
-                f"{src}: [rig.springs_n_m] {len(cfg.model.springs_n_m)} springs make "
-                f"{model.n_carts} carts, but {e.source or e.name} has {e.n_outputs} measured "
-                "outputs")
-    extension = None
-    if cfg.model.extensions:
-        # several effects make one combined model, named "a+b" (extensions.Combined)
-        extension = "+".join(cfg.model.extensions)
-        try:
-            get_extension(extension)
-        except ValueError as exc:
-            raise ConfigError(f"{src}: [model.extensions] {exc}") from exc
-        if cfg.model.damping != "free":
-            raise ConfigError(
-                f"{src}: [model.damping] the {extension} extension is built on free "
-                f"damping, got {cfg.model.damping!r}")
-    layout = cfg.layout
-    spec = parse_noise(cfg.likelihood.noise)
-    noise = spec.name
-    if spec.kind == "ar:auto":
-        if extension is not None:
-            raise ConfigError(f"{src}: [likelihood.noise] 'ar:auto' is built for the linear "
-                              "model; give the orders, e.g. 'ar4'")
-        noise = choose_noise(exps, model, fit_lsq(list(exps), model)).name
-    if layout is None:
-        base = default_priors(model, noise=noise, n_outputs=model.n_carts,
-                              extension=extension)
-    else:
-        try:
-            base = record_priors(RecordsLikelihood(model, exps, noise, extension, layout))
-        except ValueError as exc:
-            raise ConfigError(f"{src}: [records] {exc}") from exc
-    overrides = {}
-    for name, ov in cfg.model.priors.items():
-        if name not in base.names:
-            raise ConfigError(
-                f"{src}: [priors.{name}] the sampler samples {list(base.names)}; "
-                "remove this entry")
-        overrides[name] = _prior(ov)
-    try:
-        priors = base.replace(overrides)
-    except ConfigError as exc:
-        raise ConfigError(f"{src}: [priors] {exc}") from exc
-    n_par = priors.n_params
-    if cfg.sampler.walkers < 2 * n_par or cfg.sampler.walkers % 2:
-        raise ConfigError(
-            f"{src}: [sampler.walkers] must be even and at least 2 x {n_par} parameters = "
-            f"{2 * n_par} for {cfg.model.damping} damping with {cfg.likelihood.noise} noise, "
-            f"got {cfg.sampler.walkers}")
-    try:
-        moves = parse_moves(cfg.sampler.moves)
-    except ConfigError as exc:
-        raise ConfigError(f"{src}: {exc}") from exc
-    return PreparedRun(cfg, exps, held, model, priors, moves, extension, noise)
-
-
-def default_out_dir(config: RunConfig, out_root: str | os.PathLike = "runs") -> Path:
-    """``out_root / (outputs.dir or the config name)``, a folder strictly inside the root.
-
-    Raises
-    ------
-    ConfigError
-        When it would not be: ``..``, an absolute path, a configuration named ``...toml``
-        (stem ``..``), or a symbolic link inside the root that points out of it.
-    """
-    from pathlib import PurePosixPath
-
-    root = Path(out_root)
-    rel = config.outputs.dir or config.name
-    key = "[outputs.dir]" if config.outputs.dir else "(the configuration's name)"
-    parts = PurePosixPath(rel.replace("\\", "/"))
-    if Path(rel).is_absolute() or parts.is_absolute() or ".." in parts.parts or \
-            not rel.strip():
-        raise ConfigError(f"{config.source}: {key} {rel!r} must be a relative folder inside "
-                          f"the output root {root}")
-    out = root / rel
-    real_root, real_out = root.resolve(), out.resolve()
-    if real_out == real_root or real_root not in real_out.parents:
-        raise ConfigError(f"{config.source}: {key} {rel!r} leads to {real_out}, not into "
-                          f"the output root {real_root} (a symbolic link?)")
-    return out
 
 
 def _decide(folder: RunFolder, chash: str, resume: bool, force: bool) -> str:
@@ -426,69 +237,6 @@ def _record_medians(run, idata) -> dict:
             for r, e in enumerate(lik.experiments)}
 
 
-def _heldout(prep: PreparedRun, idata) -> dict | None:
-    if not prep.heldout:
-        return None
-
-    if idata.posterior.attrs.get("record_layout_json"):
-        return _heldout_new_records(prep, idata)
-    lik = likelihood_from_idata(idata, prep.heldout)
-    draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
-    ps = predictive_check(lik, draws)
-    # references for the held-out numbers: the same scores on the fitted records
-    fitted = predictive_check(likelihood_from_idata(idata), draws)
-    return {"experiments": list(ps.experiments), "lpd": ps.lpd,
-            "lpd_per_obs": ps.lpd_per_obs, "mean_log_lik": ps.mean_log_lik,
-            "fitted_lpd_per_obs": fitted.lpd_per_obs,
-            "fit_percent_median": np.asarray(ps.fit_percent_median).tolist(),
-            "fit_percent_lo": np.asarray(ps.fit_percent_lo).tolist(),
-            "fit_percent_hi": np.asarray(ps.fit_percent_hi).tolist(),
-            "records": _coverage_records(lik, draws, prep.config.sampler.seed),
-            "fitted_records": _coverage_records(likelihood_from_idata(idata), draws,
-                                                prep.config.sampler.seed)}
-
-
-def _coverage_records(lik, draws, seed) -> list[dict]:
-    """Coverage of the 90 % posterior-predictive band per record (``summary.json`` form)."""
-
-    return [{"name": c["name"], "coverage_90": c["coverage"].tolist(),
-             "width_90": c["width_m"].tolist(), "fit_percent": c["fit_percent"].tolist(),
-             "band_factor_90": c["band_factor"].tolist(),
-             **({} if c["reference"] is None else
-                reference_fields(c["reference"], {0.9: c["coverage"]}, c["band_factor"]))}
-            for c in predictive_coverage(lik, draws, prob=0.9, rng=seed)]
-
-
-def _heldout_new_records(prep: PreparedRun, idata) -> dict:
-    """Held-out records of a several-record run, each predicted as a new record (gain and
-    offset drawn from their populations): fit percents, band coverage and lpd."""
-
-    lik = likelihood_from_idata(idata)
-    draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)
-    rng = np.random.default_rng(prep.config.sampler.seed)
-    draws = draws[rng.choice(draws.shape[0], min(200, draws.shape[0]), replace=False)]
-    scores, fits = [], []
-    for e in prep.heldout:
-        y_hat, y_pred, ll = predict_new_record(lik, draws, e, rng=rng)
-        scores.append(score_samples(e.name, e.y_m, y_pred, ll))
-        fits.append([fit_percent(e.y_m, yh) for yh in y_hat])
-    fits = np.array(fits)  # (n_exp, S, n_out)
-    q = np.quantile(fits, [0.5, 0.05, 0.95], axis=1)
-    n_obs = sum(e.n_samples * e.n_outputs for e in prep.heldout)
-    lpd = float(sum(s.lpd for s in scores))
-    return {"experiments": [e.name for e in prep.heldout], "lpd": lpd,
-            "lpd_per_obs": lpd / n_obs, "mean_log_lik": None,
-            "fit_percent_median": q[0].tolist(), "fit_percent_lo": q[1].tolist(),
-            "fit_percent_hi": q[2].tolist(), "scores": [s.to_dict() for s in scores],
-            "records": [{"name": sc.name, "coverage_90": sc.coverage_90.tolist(),
-                         "width_90": (sc.width_90 * np.std(e.y_m, axis=0)).tolist(),
-                         "fit_percent": sc.fit_percent.tolist(),
-                         "band_factor_90": sc.band_factor_90.tolist(),
-                         **sc.reference_dict()}
-                        for sc, e in zip(scores, prep.heldout, strict=True)],
-            "predicted_as": "new records (per-record parameters drawn from the population)"}
-
-
 def _evidence(prep: PreparedRun, run) -> dict | None:
     cfg = prep.config
     if not cfg.evidence.enabled:
@@ -625,7 +373,7 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             summary = write_run(idata, folder.path, plots=cfg.outputs.plots)
         with stages.stage("cross-checks"):
             summary["crosscheck"] = _cross_checks(prep, run, idata, summary, folder, progress)
-            held = _heldout(prep, idata)
+            held = heldout_scores(prep, idata)
             if held is not None:
                 summary["heldout"] = held
             ev = _evidence(prep, run)
