@@ -24,7 +24,6 @@ LARGE_MODULES = {
     "bayesmodal/inference/compare.py": 750,
     "bayesmodal/inference/noise/kalman.py": 665,
     "bayesmodal/inference/records.py": 1013,
-    "bayesmodal/model/simulate.py": 878,
     "bayesmodal/reading.py": 694,
     "bayesmodal/runs/runner.py": 787,
 }

@@ -7,7 +7,9 @@
   dampers, drive and sensors it is built of; ``_param_layout``: where each parameter of
   a general rig goes in the matrices;
 - ``rigs``: rig descriptions as TOML files and the shipped presets;
-- ``simulate``: the exact zero-order-hold simulator of the linear model;
+- ``simulate``: the exact zero-order-hold simulator of the linear model, with
+  ``discretize`` (the exact discretisation, a record's steps), ``_modal_form`` and
+  ``_chunks`` (the modal form of a batch, the loop over the compiled kernels);
 - ``effects``: the effects the linear model leaves out (friction, end stop, backlash,
   dead band, ...), one module each, behind one registry (``EXTENSIONS``);
 - ``kernels``, ``_kernels``, ``_qep``: compiled array code only.
@@ -16,11 +18,12 @@ It imports nothing from the layers above it (data, fitting, inference, diagnosis
 plots, the command line): ``tests/test_layers.py`` reads the imports from the source.
 """
 
+from .discretize import discretize_zoh
 from .effects import EXTENSIONS, EffectLocation, Extension, ParamSpec, get_extension
 from .elements import ECP_M_PER_COUNT, FRAME, Cart, Damper, Drive, Sensor, Spring
 from .rig import Rig
 from .rigs import PRESETS, load_rig, rig_from_toml, rig_to_toml, save_rig
-from .simulate import discretize_zoh, simulate_linear
+from .simulate import simulate_linear
 from .system import LinearModel
 
 __all__ = [
