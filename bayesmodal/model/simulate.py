@@ -37,29 +37,34 @@ state).  The recursion is the same; only the output gains change, plus one multi
 per acceleration output and sample.  ``lambda_m = log(mu_m) / dt`` is exact while every
 ``|Im lambda| dt < pi`` (checked by a bound, as for recorded stamps); lanes outside it
 and lanes without a modal form take the full-state recursion and the output matrix.
+
+The discretisation and a record's steps are in ``discretize``, the modal form of a batch in
+``_modal_form``, and the loop over chunks of lanes that runs the compiled kernels in
+``_chunks``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
-from scipy.linalg import expm
 
 from .._errors import DataError, ModelError
-from ._kernels import (
-    aligned_empty,
-    direct_kernel,
-    direct_steps_kernel,
-    modal_affine_sums_kernel,
-    modal_feed_kernel,
-    modal_kernel,
-    modal_steps_kernel,
-    modal_sums_kernel,
-    padded_width,
+from ._chunks import ChunkRunner
+from ._kernels import aligned_empty
+from ._modal_form import (
+    _MODAL_DC_RTOL,
+    _modal_form,
+    _output_form,
+    _second_order_state_space,
+    _steps_form,
+    _steps_from_poles,
 )
 from ._qep import modal_form_mck
-from ._resid_kernels import ar1_sums_lanes
+from .discretize import (
+    Discretized,
+    _check_steps,
+    discretize_zoh,
+    step_groups,  # noqa: F401  (re-exported: defined in discretize)
+)
 
 __all__ = [
     "Discretized",
@@ -69,190 +74,8 @@ __all__ = [
     "simulate_state_space",
 ]
 
-#: Largest relative mismatch of the modal static gain accepted for the modal kernel.
-_MODAL_DC_RTOL = 1e-10
 
-
-@dataclass(frozen=True)
-class Discretized:
-    """Zero-order-hold discretisation of a batch of continuous systems.
-
-    Attributes
-    ----------
-    Ad : ndarray, shape (nb, s, s)
-    Bd : ndarray, shape (nb, s)
-    dt : float
-        Sample interval, s.
-    """
-
-    Ad: np.ndarray
-    Bd: np.ndarray
-    dt: float
-
-
-def _check_dt(dt: float) -> float:
-    if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
-        raise DataError(f"sample interval dt must be finite and > 0 s, got {dt!r}")
-    return float(dt)
-
-
-def step_groups(steps: np.ndarray, t_max: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct values of a record's steps and, for each step, which one it is.
-
-    Steps are differences of stamps, each exact only to the stamps' own rounding, so two
-    steps are the same when they differ by less than ``4 eps max(|t|)`` (a difference of
-    two floats near ``t`` is off by up to ``eps |t|``; stamps rounded to ms that should give
-    exactly 1 ms give 0.001 +- 1e-18..1e-15 s).
-
-    Parameters
-    ----------
-    steps : ndarray, shape (N - 1,)
-        Steps ``t[k+1] - t[k]``, s (> 0).
-    t_max : float
-        Largest ``|t|`` of the stamps, s (the resolution's scale; default the sum of
-        the steps).
-
-    Returns
-    -------
-    values : ndarray, shape (J,)
-        Each group's first step, s, in order of first appearance.
-    index : ndarray of int64, shape (N,)
-        ``values[index[k]]`` is the step from sample ``k`` to ``k + 1``; the last entry
-        (no step follows) is 0.
-
-    Examples
-    --------
-    >>> v, i = step_groups(np.diff(np.array([0.0, 0.001, 0.002, 0.004, 0.005])))
-    >>> v.tolist(), i.tolist()
-    ([0.001, 0.002], [0, 0, 1, 0, 0])
-    """
-    h = np.asarray(steps, dtype=float)
-    scale = max(float(t_max), float(np.sum(h)))
-    tol = 4 * np.finfo(float).eps * scale
-    order = np.argsort(h, kind="stable")
-    hs = h[order]
-    label_sorted = np.concatenate([[0], np.cumsum(np.diff(hs) > tol)])
-    label = np.empty(h.size, np.int64)
-    label[order] = label_sorted
-    # renumber the groups by first appearance, so that step 0's group is block 0
-    _, first = np.unique(label, return_index=True)
-    rank = np.empty(first.size, np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
-    index = rank[label]
-    # each group's first step stands for it (all agree to the stamps' resolution; a
-    # constant array of steps gives back its value exactly)
-    values = h[np.sort(first)]
-    return values, np.concatenate([index, [0]])
-
-
-def _check_steps(dt, n_samples: int):
-    """``(dt, None, None)`` for a scalar step, else ``(h_0, values, index)`` of
-    :func:`step_groups` for per-sample steps (one group: a uniform step again)."""
-    if np.isscalar(dt):
-        return _check_dt(dt), None, None
-    h = np.asarray(dt, dtype=float)
-    if h.shape != (n_samples - 1,):
-        raise DataError(f"steps must be a scalar dt or have shape ({n_samples - 1},) (one "
-                        f"per interval between the {n_samples} samples), got {h.shape}")
-    if not np.all(np.isfinite(h) & (h > 0)):
-        k = int(np.argmax(~(np.isfinite(h) & (h > 0))))
-        raise DataError(f"steps must be finite and > 0 s; step {k} is {h[k]!r}")
-    values, index = step_groups(h)
-    if values.size == 1:
-        return float(values[0]), None, None
-    return float(values[0]), values, index
-
-
-def _step_ratios(mu0: np.ndarray, mus: list[np.ndarray]) -> np.ndarray:
-    """Input weights ``r_j = (mu_j - 1) / (mu_0 - 1)``, shape (J, nb, m); ``r_0 = 1``
-    exactly."""
-    r = np.empty((len(mus),) + mu0.shape, complex)
-    r[0] = 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for j in range(1, len(mus)):
-            r[j] = (mus[j] - 1.0) / (mu0 - 1.0)
-    return r
-
-
-def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
-    """Exact ZOH discretisation of ``x' = A x + B u`` for a stack of systems.
-
-    Parameters
-    ----------
-    A : ndarray, shape (nb, s, s) or (s, s)
-    B : ndarray, shape (nb, s) or (s,)
-    dt : float
-        Sample interval, s (> 0).
-
-    Returns
-    -------
-    Discretized
-        With leading batch dimension (nb = 1 for unbatched input).
-
-    Examples
-    --------
-    >>> d = discretize_zoh(np.array([[-1.0]]), np.array([1.0]), 0.1)
-    >>> float(d.Ad[0, 0, 0])  # exp(-0.1)
-    0.9048374180359595
-    """
-    dt = _check_dt(dt)
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    if A.ndim == 2:
-        A = A[None]
-    if B.ndim == 1:
-        B = B[None]
-    nb, s, _ = A.shape
-    F = np.zeros((nb, s + 1, s + 1))
-    F[:, :s, :s] = A * dt
-    F[:, :s, s] = B * dt
-    E = expm(F)
-    return Discretized(Ad=E[:, :s, :s], Bd=E[:, :s, s], dt=dt)
-
-
-def _modal_form(A, B, x0, dt, n_out):
-    """Scaled modal form of each lane, or None for lanes where it is not reliable.
-
-    Returns ``ok`` (nb,) and, for all lanes, ``mu`` (nb, m), ``G`` (nb, n_out, m),
-    ``w0`` (nb, m) (meaningful only where ``ok``).
-    """
-    nb, s, _ = A.shape
-    if s % 2:
-        return np.zeros(nb, bool), None, None, None
-    n_modes = s // 2
-    lam, V = np.linalg.eig(A)
-    # modes with positive imaginary part, in a fixed order
-    order = np.argsort(-lam.imag, axis=1, kind="stable")[:, :n_modes]
-    lam_m = np.take_along_axis(lam, order, axis=1)
-    scale = np.abs(lam).max(axis=1, keepdims=True) + 1e-300
-    ok = np.all(lam_m.imag > 1e-8 * scale, axis=1)
-    rhs = np.concatenate([B[..., None], x0[..., None]], axis=2).astype(complex)
-    try:
-        sol = np.linalg.solve(V, rhs)
-    except np.linalg.LinAlgError:
-        return np.zeros(nb, bool), None, None, None
-    beta = np.take_along_axis(sol[..., 0], order, axis=1)
-    z0 = np.take_along_axis(sol[..., 1], order, axis=1)
-    mu = np.exp(lam_m * dt)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gamma = beta * (mu - 1.0) / lam_m
-        ok &= np.all(np.abs(gamma) > 1e-12 * np.abs(gamma).max(axis=1, keepdims=True), axis=1)
-        Vm = np.take_along_axis(V[:, :n_out, :], order[:, None, :], axis=2)
-        G = 2.0 * Vm * gamma[:, None, :]
-        w0 = z0 / gamma
-        # static gain of the modal recursion vs the exact -A^-1 B (positions)
-        dc_modal = np.real(np.sum(G / (1.0 - mu)[:, None, :], axis=2))
-    try:
-        dc_exact = -np.linalg.solve(A, B[..., None])[:, :n_out, 0]
-    except np.linalg.LinAlgError:
-        return np.zeros(nb, bool), None, None, None
-    err = np.max(np.abs(dc_modal - dc_exact), axis=1)
-    ok &= np.isfinite(err) & (err <= _MODAL_DC_RTOL * (np.abs(dc_exact).max(axis=1) + 1e-300))
-    ok &= np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(w0), axis=1)
-    return ok, mu, G, w0
-
-
-class LinearSimulator:
+class LinearSimulator(ChunkRunner):
     """Simulate one input record for many parameter sets, reusing work buffers.
 
     This is the object a likelihood holds on to: each call simulates a batch (for emcee, all
@@ -530,258 +353,6 @@ class LinearSimulator:
                              f"outputs; this simulator has dt={self._time_key}, "
                              f"n_out={self.n_out}: prepare it here")
         return tuple(form)
-
-    def _dispatch(self, ok, mu, G, w0, A, B, x0b, lanes_last: bool = False,
-                  sums_against: np.ndarray | None = None, affine: np.ndarray | None = None,
-                  steps: tuple | None = None, feed: np.ndarray | None = None,
-                  **second_order) -> np.ndarray:
-        """Run each chunk of lanes with the modal kernel if all its lanes allow, else direct
-        (with ``sums_against``: return the residual sums, see :meth:`residual_sums`)."""
-        nb, s = x0b.shape
-        width = padded_width(nb)
-        n_chunks = -(-nb // width)
-        sums = None
-        if sums_against is not None:
-            sums = np.zeros((n_chunks, 4 * self.n_out, width))
-            Y = None
-        else:
-            Y = self._buffer(n_chunks, width)
-        direct = None
-        nm = s // 2
-        for c in range(n_chunks):
-            lanes = np.arange(c * width, (c + 1) * width)
-            real = np.where(lanes < nb, lanes, nb - 1)  # pad with a repeated valid lane
-            # per-lane gain and offset; padding lanes get g = v0 = 0 (their sums are dropped)
-            gv = (None if affine is None
-                  else np.where(lanes < nb, affine[:, np.minimum(lanes, nb - 1)], 0.0))
-            if steps is not None:
-                A, B = self._run_steps(c, real, ok, steps, G, w0, A, B, x0b, second_order,
-                                       Y, width, feed)
-                continue
-            if np.all(ok[real]):
-                # blocks on 64 bytes: off it the kernel took 17-18.5 instead of 11.6 us
-                # per evaluation (_kernels.ALIGN_BYTES)
-                Q = aligned_empty((2 * nm + 2 * nm * self.n_out, width))
-                Q[0 : 2 * nm : 2] = mu[real].real.T
-                Q[1 : 2 * nm : 2] = mu[real].imag.T
-                g = G[real].reshape(width, self.n_out * nm).T  # rows i*nm + m
-                Q[2 * nm :: 2] = g.real
-                Q[2 * nm + 1 :: 2] = g.imag
-                W = aligned_empty((2 * nm, width))
-                W[0::2] = w0[real].real.T
-                W[1::2] = w0[real].imag.T
-                if sums is not None and affine is not None:
-                    modal_affine_sums_kernel(nm, self.n_out, width)(
-                        Q.ravel(), self.u, W.ravel(), W.ravel().copy(), gv.ravel(),
-                        sums_against.ravel(), sums[c].reshape(-1))
-                    continue
-                if sums is not None:
-                    modal_sums_kernel(nm, self.n_out, width)(
-                        Q.ravel(), self.u, W.ravel(), sums_against.ravel(), sums[c].reshape(-1))
-                    continue
-                if feed is not None:  # acceleration outputs: the input's feedthrough
-                    D = aligned_empty((self.n_out, width))
-                    D[:] = feed[real].T
-                    modal_feed_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
-                                                             D.ravel(), Y[c].reshape(-1))
-                    continue
-                modal_kernel(nm, self.n_out, width)(Q.ravel(), self.u, W.ravel(),
-                                                    Y[c].reshape(-1))
-            elif self.outputs is not None:
-                if A is None:
-                    A, B = _second_order_state_space(**second_order)
-                if direct is None:
-                    direct = discretize_zoh(A, B, self.dt)
-                P = aligned_empty((s * s + s, width))
-                P[: s * s] = direct.Ad[real].reshape(width, s * s).T
-                P[s * s :] = direct.Bd[real].T
-                X = np.ascontiguousarray(x0b[real].T)
-                Xs = np.empty((self.u.size, s, width))
-                direct_kernel(s, s, width)(P.ravel(), self.u, X.ravel(), Xs.reshape(-1))
-                _outputs_of_states(self.outputs, Xs, self.u, A[real], B[real], Y[c])
-            else:
-                if direct is None:
-                    if A is None:
-                        A, B = _second_order_state_space(**second_order)
-                    direct = discretize_zoh(A, B, self.dt)
-                P = aligned_empty((s * s + s, width))
-                P[: s * s] = direct.Ad[real].reshape(width, s * s).T
-                P[s * s :] = direct.Bd[real].T
-                X = np.ascontiguousarray(x0b[real].T)
-                Yc = Y[c] if sums is None else np.empty((self.u.size, self.n_out, width))
-                direct_kernel(s, self.n_out, width)(P.ravel(), self.u, X.ravel(),
-                                                    Yc.reshape(-1))
-                if sums is not None:
-                    extra = ()
-                    if affine is not None:
-                        Bc = np.empty_like(Yc)
-                        X = np.ascontiguousarray(x0b[real].T)  # the kernel advanced X
-                        direct_kernel(s, self.n_out, width)(P.ravel(), np.ones(self.u.size),
-                                                            X.ravel(), Bc.reshape(-1))
-                        extra = (Bc[None], gv[0], gv[1])
-                    for i, a in enumerate(ar1_sums_lanes(sums_against, Yc[None], width,
-                                                         *extra)):
-                        sums[c, i * self.n_out : (i + 1) * self.n_out] = a
-        if sums is not None:
-            # (chunk, 4 n_out, width) -> four (n_out, nb) arrays
-            flat = sums.reshape(n_chunks, 4, self.n_out, width).transpose(1, 2, 0, 3)
-            flat = flat.reshape(4, self.n_out, n_chunks * width)[:, :, :nb]
-            return tuple(np.ascontiguousarray(a) for a in flat)
-        if lanes_last:
-            return Y
-        # (chunk, N, out, lane) -> (lane, N, out); a view when there is one chunk
-        y = Y.transpose(0, 3, 1, 2)
-        if n_chunks == 1:
-            return y[0, :nb]
-        return y.reshape(n_chunks * width, self.u.size, self.n_out)[:nb]
-
-    def _run_steps(self, c, real, ok, steps, G, w0, A, B, x0b, second_order, Y, width,
-                   feed=None):
-        """Chunk ``c`` (lanes ``real``) over the recorded steps: the modal recursion with a
-        pole and an input weight per distinct step when all its lanes allow, else the
-        full-state recursion with the exact ZOH of each distinct step."""
-        s = x0b.shape[1]
-        nm = s // 2
-        n_steps = self.step_values.size
-        idx = self.step_index
-        mu, r = steps
-        if mu is not None and np.all(ok[real]):
-            g_rows = 2 * nm * self.n_out
-            Q = aligned_empty((g_rows + 4 * nm * n_steps, width))
-            g = G[real].reshape(width, self.n_out * nm).T  # rows i*nm + m
-            Q[0:g_rows:2] = g.real
-            Q[1:g_rows:2] = g.imag
-            for j in range(n_steps):
-                o = g_rows + 4 * nm * j
-                Q[o : o + 2 * nm : 2] = mu[j, real].real.T
-                Q[o + 1 : o + 2 * nm : 2] = mu[j, real].imag.T
-                Q[o + 2 * nm : o + 4 * nm : 2] = r[j, real].real.T
-                Q[o + 2 * nm + 1 : o + 4 * nm : 2] = r[j, real].imag.T
-            W = aligned_empty((2 * nm, width))
-            W[0::2] = w0[real].real.T
-            W[1::2] = w0[real].imag.T
-            modal_steps_kernel(nm, self.n_out, width)(Q.ravel(), idx, self.u, W.ravel(),
-                                                      Y[c].reshape(-1))
-            if feed is not None:
-                _add_feedthrough(Y[c], self.u, feed[real])
-            return A, B
-        if A is None:
-            A, B = _second_order_state_space(**second_order)
-        rows = s * s + s
-        P = aligned_empty((n_steps * rows, width))
-        for j, h in enumerate(self.step_values):
-            d = discretize_zoh(A[real], B[real], float(h))
-            P[j * rows : j * rows + s * s] = d.Ad.reshape(width, s * s).T
-            P[j * rows + s * s : (j + 1) * rows] = d.Bd.T
-        X = np.ascontiguousarray(x0b[real].T)
-        if self.outputs is None:
-            direct_steps_kernel(s, self.n_out, width)(P.ravel(), idx, self.u, X.ravel(),
-                                                      Y[c].reshape(-1))
-            return A, B
-        Xs = np.empty((self.u.size, s, width))
-        direct_steps_kernel(s, s, width)(P.ravel(), idx, self.u, X.ravel(), Xs.reshape(-1))
-        _outputs_of_states(self.outputs, Xs, self.u, A[real], B[real], Y[c])
-        return A, B
-
-
-def _output_form(spec, ok, mu, G, masses, C, K, b, dt):
-    """Output gains and feedthrough of the outputs ``spec`` (n_out, 2) from the modal
-    form of all positions: ``ok`` (nb,), ``G_out`` (nb, n_out, m), ``feed`` (nb, n_out)
-    (None without acceleration outputs).
-
-    ``lambda = log(mu) / dt`` is exact while ``|Im lambda| dt < pi``, which the bound of
-    :func:`_steps_from_poles` guarantees; lanes outside it are left to the full-state
-    recursion.
-    """
-    dofs, orders = spec[:, 0], spec[:, 1]
-    G_out = G[:, dofs, :]
-    if np.any(orders > 0):
-        inv_m = 1.0 / masses[:, :, None]
-        bound = (np.sqrt(np.sum((inv_m * C) ** 2, axis=(1, 2)))
-                 + np.sqrt(np.sqrt(np.sum((inv_m * K) ** 2, axis=(1, 2)))))
-        ok = ok & np.isfinite(bound) & (bound * dt < np.pi)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            lam = np.log(mu) / dt  # (lanes without a modal form hold zeros: not used)
-            G_out = G_out * lam[:, None, :] ** orders[None, :, None]
-        ok = ok & np.all(np.isfinite(G_out), axis=(1, 2))
-    feed = None
-    if np.any(orders == 2):
-        feed = np.where(orders == 2, (b / masses)[:, dofs], 0.0)
-    return ok, G_out, feed
-
-
-def _add_feedthrough(Yc, u, feed_lanes):
-    """``Yc[k, i, :] += feed[:, i] u[k]`` in place (acceleration outputs)."""
-    Yc += u[:, None, None] * feed_lanes.T[None]
-
-
-def _outputs_of_states(spec, Xs, u, A, B, Yc):
-    """Outputs ``spec`` of full states ``Xs`` (N, s, width) into ``Yc`` (N, n_out, width):
-    positions and velocities are states, accelerations the velocity rows of
-    ``A x + B u`` at each sample."""
-    n = Xs.shape[1] // 2
-    for i, (dof, order) in enumerate(spec):
-        if order < 2:
-            Yc[:, i, :] = Xs[:, dof + n * order, :]
-        else:
-            row = n + dof
-            Yc[:, i, :] = (np.einsum("wj,kjw->kw", A[:, row, :], Xs)
-                           + u[:, None] * B[None, :, row])
-
-
-def _steps_from_poles(mu0, values, masses, C, K):
-    """``(mu, r)`` of each distinct step from the first step's poles, or None.
-
-    ``mu_j = exp(lambda h_j) = exp(log(mu_0) h_j / h_0)``: the principal logarithm gives
-    back ``lambda h_0`` when ``|Im(lambda)| h_0 < pi``, which holds for every mode when
-    ``(||M^-1 C|| + sqrt(||M^-1 K||)) h_0 < pi`` (a root of ``lambda^2 M + lambda C + K``
-    has ``|lambda|^2 <= |lambda| ||M^-1 C|| + ||M^-1 K||``; Frobenius norms bound the
-    spectral ones).  This saves a modal decomposition per step.
-    """
-    h0 = float(values[0])
-    inv_m = 1.0 / masses[:, :, None]
-    bound = (np.sqrt(np.sum((inv_m * C) ** 2, axis=(1, 2)))
-             + np.sqrt(np.sqrt(np.sum((inv_m * K) ** 2, axis=(1, 2)))))
-    if not np.all(np.isfinite(bound) & (bound * h0 < np.pi)):
-        return None
-    with np.errstate(divide="ignore", invalid="ignore"):
-        log_mu0 = np.log(mu0)
-        mus = [mu0] + [np.exp(log_mu0 * (float(h) / h0)) for h in values[1:]]
-    return np.stack(mus), _step_ratios(mu0, mus)
-
-
-def _steps_form(forms):
-    """Combine the modal forms of each distinct step: ``ok`` (nb,) and ``(mu, r)``, each
-    shape (J, nb, m), poles and input weights (``_step_ratios``).
-
-    ``forms`` is ``[(ok_j, mu_j, G_j), ...]``, step 0 first.  Each step's output gains
-    are ``G_j = r_j G_0`` when the modes come in the same order; a lane where they do
-    not (to 1e-8, far above the rounding of ``r_j``) is left to the full-state recursion.
-    """
-    ok0, mu0, G0 = forms[0]
-    if mu0 is None or any(f[1] is None for f in forms):
-        nb = ok0.size
-        return np.zeros(nb, bool), (None, None)
-    ok = ok0.copy()
-    r = _step_ratios(mu0, [f[1] for f in forms])
-    with np.errstate(invalid="ignore", over="ignore"):
-        for j, (ok_j, _, G_j) in enumerate(forms[1:], start=1):
-            err = np.max(np.abs(G_j - r[j][:, None, :] * G0), axis=(1, 2))
-            size = np.max(np.abs(G_j), axis=(1, 2))
-            ok &= ok_j & (err <= 1e-8 * size) & np.all(np.isfinite(r[j]), axis=1)
-    return ok, (np.stack([f[1] for f in forms]), r)
-
-
-def _second_order_state_space(masses, C, K, b):
-    nb, n = masses.shape
-    inv_m = 1.0 / masses
-    A = np.zeros((nb, 2 * n, 2 * n))
-    A[:, :n, n:] = np.eye(n)
-    A[:, n:, :n] = -inv_m[:, :, None] * K
-    A[:, n:, n:] = -inv_m[:, :, None] * C
-    B = np.zeros((nb, 2 * n))
-    B[:, n:] = inv_m * b
-    return A, B
 
 
 def simulate_state_space(

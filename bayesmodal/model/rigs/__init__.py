@@ -61,7 +61,8 @@ from pathlib import Path
 import tomli_w
 
 from ..._errors import ModelError
-from ..system import FRAME, Cart, Damper, Drive, Rig, Sensor, Spring
+from ..elements import FRAME, Cart, Damper, Drive, Sensor, Spring
+from ..rig import Rig
 
 __all__ = [
     "PRESETS",
