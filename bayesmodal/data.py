@@ -514,7 +514,7 @@ def _assemble(path: Path, roles: dict, opts: ReadOptions, kind: str, name: str) 
     t = cols["t"] * opts.time_scale
     v = cols["v"] * opts.input_scale
     y = raw_y * scale_y
-    # rounded stamps go on their uniform grid, jittered ones are kept (reading.py);
+    # rounded stamps go on their uniform grid, jittered ones are kept (timebase.py);
     # anything else is left for Experiment to refuse
     stamps = False
     if t.size >= 3 and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0):
@@ -620,7 +620,7 @@ def load_experiment(
         With ``sha256`` of the file recorded.  Timestamps rounded to a coarser clock are
         replaced by the fitted uniform grid with a warning that says by how much they
         moved; jittered ones are kept as recorded (``recorded_stamps``) with a warning
-        that gives the steps' range (``reading.choose_time_base``; ``options.time_base``
+        that gives the steps' range (``timebase.choose_time_base``; ``options.time_base``
         chooses otherwise).  A record
         whose carts move against the input at low frequency is read as it is, with a
         warning that the drive may be reversed and the fix, ``input_scale=-1``
