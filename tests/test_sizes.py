@@ -18,7 +18,6 @@ MAX_FUNCTION_LINES = 150
 
 #: Modules over the limit today, with their line counts (may only fall).
 LARGE_MODULES = {
-    "bayesmodal/data.py": 754,
     "bayesmodal/discrepancy/diagnosis/forward.py": 767,
     "bayesmodal/ema/frf.py": 826,
     "bayesmodal/inference/compare.py": 750,
