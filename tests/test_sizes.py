@@ -31,8 +31,6 @@ LARGE_MODULES = {
 LARGE_FUNCTIONS = {
     "bayesmodal/discrepancy/checks/amplitude.py:amplitude_dependence": 199,
     "bayesmodal/discrepancy/diagnosis/forward.py:forward_select": 167,
-    "bayesmodal/ema/analyze.py:identify": 153,
-    "bayesmodal/ema/lsce.py:lsce": 162,
     "bayesmodal/fit/effects.py:fit_extension_lsq": 164,
     "bayesmodal/fit/records.py:fit_records_lsq": 165,
     "bayesmodal/model/system.py:__post_init__": 181,
