@@ -34,17 +34,10 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import check_identifiable
 from .circle import circle_fit_modes
+from .excitation import free_decay_segments, is_pulse_train, is_step_input, step_increments
 from .forms import form_units, orders_of, receptance_estimate
-from .frf import (
-    FRF,
-    free_decay_segments,
-    frf_from_experiment,
-    impulse_response,
-    is_pulse_train,
-    is_step_input,
-    peak_prominence,
-    step_increments,
-)
+from .frf import FRF, frf_from_experiment, peak_prominence
+from .irf import impulse_response
 from .lsce import StabilizationDiagram, lsce, lsce_frf, stabilization_diagram
 from .multimode import _linear, modal_basis, multimode_fit
 from .peaks import pick_peaks

@@ -37,7 +37,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import DataError
-from .frf import FRF, impulse_response
+from .frf import FRF
+from .irf import impulse_response
 from .result import ModalEstimate, modal_estimate
 
 __all__ = [
