@@ -19,7 +19,7 @@ The printed time is rounded: the servo's sample period (8.854 ms on the ECP 210)
 whole number of milliseconds.  The sample index is exact, so the period is the slope of
 the least-squares line of the printed times on the index, and the times are replaced by
 that line when every printed time lies within half a printing quantum of some line (the
-Chebyshev test of :mod:`bayesmodal.reading`): rounding, and nothing else, explains them.
+Chebyshev test of :mod:`bayesmodal.timebase`): rounding, and nothing else, explains them.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import DataError
-from .reading import _minimax_line
+from .timebase import _minimax_line
 
 #: A column name of the export: index, time, commanded and measured positions (velocities
 #: and accelerations when gathered), control effort.

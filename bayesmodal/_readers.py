@@ -2,7 +2,7 @@
 
 Each reader returns what the file holds, without interpreting it: MATLAB variables (struct
 fields flattened to ``struct.field``) with a kind per variable, or a text table with its
-header names.  ``bayesmodal.data`` decides which column is time, input and output.
+header names.  ``bayesmodal._columns`` decides which column is time, input and output.
 """
 
 from __future__ import annotations

@@ -20,7 +20,8 @@ import numpy as np
 
 from ._window import offset_at_rest
 from .data import ECP_M_PER_COUNT, load_experiment
-from .reading import ReadOptions, choose_time_base, drive_sign
+from .reading import ReadOptions, drive_sign
+from .timebase import choose_time_base
 
 __all__ = ["InputEvent", "Inspection", "inspect_file", "input_events"]
 

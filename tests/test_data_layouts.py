@@ -19,7 +19,8 @@ from bayesmodal import ConfigError, DataError
 from bayesmodal.data import ECP_M_PER_COUNT, ReadOptions, load_experiment
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
-from bayesmodal.reading import parse_columns, parse_scale, regularise_time
+from bayesmodal.reading import parse_columns, parse_scale
+from bayesmodal.timebase import regularise_time
 
 DT = 0.00442  # s, an ECP servo period; not a whole number of milliseconds
 N = 1500

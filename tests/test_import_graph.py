@@ -93,6 +93,7 @@ ROOT_LAYER = {
     "_channels": "data", "_ecp_export": "data", "_instruments": "data", "_readers": "data",
     "_release": "data", "_tdms": "data", "_uff": "data", "_window": "data", "data": "data",
     "reading": "data", "segments": "data", "inspection": "data", "structure": "data",
+    "_columns": "data", "timebase": "data",
     "identified": "fit", "metrics": "fit", "static": "fit",
     "reproduce": "runs", "bench": "runs", "bench_sampler": "runs", "__main__": "cli"}
 

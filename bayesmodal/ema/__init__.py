@@ -3,7 +3,8 @@
 These methods use only input/output data, never the physical rig model, so they are an
 independent check of the model-based identification.
 
-FRF estimation (:mod:`.frf`):
+FRF estimation (:mod:`.frf`; the signal tools in :mod:`.excitation`, :mod:`.irf`,
+:mod:`.spectra`):
 
 - :func:`welch_frf` -- H1/H2 and coherence from Welch-averaged spectra;
 - :func:`pulse_frf` -- the same over the pulse-to-pulse transients of a pulse train;
@@ -41,25 +42,20 @@ from .analyze import METHODS, EMAResult, check_resonances, default_band, identif
 from .beam import CANTILEVER_BETA_L, CantileverBeam
 from .circle import CircleFit, CircleFitModes, circle_fit, circle_fit_modes, fit_circle
 from .examples import LECTURE_POLES, LECTURE_SHAPES, ModalSystem, lecture_irfs, lecture_system
+from .excitation import (
+    free_decay_segments,
+    is_pulse_train,
+    is_step_input,
+    pulse_segments,
+    step_increments,
+)
 from .forms import FRF_FORMS, form_units, orders_of, receptance_estimate, to_receptance
 from .frf import (
     FRF,
-    IRF,
-    Spectrogram,
-    Spectrum,
     band_coherence,
-    free_decay_segments,
-    frequency_grid,
     frf_from_experiment,
-    impulse_response,
-    is_pulse_train,
-    is_step_input,
     peak_prominence,
     pulse_frf,
-    pulse_segments,
-    spectrogram,
-    spectrum,
-    step_increments,
     welch_frf,
     zoh_factor,
 )
@@ -70,6 +66,7 @@ from .impact import (
     force_window,
     impact_frf,
 )
+from .irf import IRF, frequency_grid, impulse_response
 from .lsce import (
     ErrorCurve,
     LSCEResult,
@@ -83,6 +80,7 @@ from .mac import mac, mac_estimates
 from .multimode import MultiModeFit, modal_basis, multimode_fit
 from .peaks import Peaks, mode_indicator, pick_peaks
 from .result import ModalEstimate, match_modes, modal_estimate, normalise_shapes
+from .spectra import Spectrogram, Spectrum, spectrogram, spectrum
 from .tfest import TFEstimate, tfest
 
 __all__ = [

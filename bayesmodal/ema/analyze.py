@@ -34,17 +34,10 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import check_identifiable
 from .circle import circle_fit_modes
+from .excitation import free_decay_segments, is_pulse_train, is_step_input, step_increments
 from .forms import form_units, orders_of, receptance_estimate
-from .frf import (
-    FRF,
-    free_decay_segments,
-    frf_from_experiment,
-    impulse_response,
-    is_pulse_train,
-    is_step_input,
-    peak_prominence,
-    step_increments,
-)
+from .frf import FRF, frf_from_experiment, peak_prominence
+from .irf import impulse_response
 from .lsce import StabilizationDiagram, lsce, lsce_frf, stabilization_diagram
 from .multimode import _linear, modal_basis, multimode_fit
 from .peaks import pick_peaks
@@ -188,6 +181,40 @@ def _fitted_from_poles(frf: FRF, poles: np.ndarray, band) -> np.ndarray:
     return Gall @ a
 
 
+def _lsce_fit(u, y, dt: float, full: FRF, band, n: int, *, stride, decay_s, reference,
+              stabilization_orders):
+    """LSCE of order ``n`` on the free decays after the pulses (pulse data) or on the IRF
+    of the whole FRF ``full`` (other data); the fit and its stabilisation diagram (None
+    without ``stabilization_orders``)."""
+    stab = None
+    if is_pulse_train(u):
+        seg = free_decay_segments(u, dt, duration_s=decay_s)
+        recs = [y[a:b] for a, b in seg]
+        stride = _stride(stride, dt, band, min(b - a for a, b in seg), n)
+        det = lsce(recs, dt, n, stride=stride, reference=reference)
+        if stabilization_orders is not None:
+            stab = stabilization_diagram(recs, dt, stabilization_orders, stride=stride)
+    else:
+        irf = impulse_response(full)
+        stride = _stride(stride, irf.dt, band, irf.h.shape[0], n)
+        det = lsce_frf(full, n, stride=stride, reference=reference)
+        if stabilization_orders is not None:
+            stab = stabilization_diagram(irf.h, irf.dt, stabilization_orders, stride=stride)
+    return det, stab
+
+
+def _in_band(est: ModalEstimate, band) -> ModalEstimate:
+    """Keep the oscillating poles of the band; the rest (real poles, noise modes near the
+    Nyquist frequency) stay in the fit's ``details``, named in a note."""
+    keep = (est.poles.imag >= band[0]) & (est.poles.imag <= band[1])
+    dropped = [f"{lam:.4g}" for lam in est.poles[~keep]]
+    est = _subset(est, keep)
+    if dropped:
+        est = replace(est, notes=est.notes + (
+            f"{len(dropped)} root(s) outside the band left out: {', '.join(dropped)} 1/s",))
+    return est
+
+
 def identify(
     experiment,
     method: str = "lsce",
@@ -305,29 +332,10 @@ def identify(
         est = det.estimate
         fitted = det.frf(frf.omega_rad_s)
     else:
-        n = order or 2 * n_modes
-        if is_pulse_train(u):
-            seg = free_decay_segments(u, dt, duration_s=decay_s)
-            recs = [y[a:b] for a, b in seg]
-            stride = _stride(stride, dt, band, min(b - a for a, b in seg), n)
-            det = lsce(recs, dt, n, stride=stride, reference=reference)
-            if stabilization_orders is not None:
-                stab = stabilization_diagram(recs, dt, stabilization_orders, stride=stride)
-        else:
-            irf = impulse_response(full)
-            stride = _stride(stride, irf.dt, band, irf.h.shape[0], n)
-            det = lsce_frf(full, n, stride=stride, reference=reference)
-            if stabilization_orders is not None:
-                stab = stabilization_diagram(irf.h, irf.dt, stabilization_orders, stride=stride)
-        est = det.estimate
-        # keep the oscillating poles of the band; the rest (real poles, noise modes near
-        # the Nyquist frequency) stay in ``details``
-        keep = (est.poles.imag >= band[0]) & (est.poles.imag <= band[1])
-        dropped = [f"{lam:.4g}" for lam in est.poles[~keep]]
-        est = _subset(est, keep)
-        if dropped:
-            est = replace(est, notes=est.notes + (
-                f"{len(dropped)} root(s) outside the band left out: {', '.join(dropped)} 1/s",))
+        det, stab = _lsce_fit(u, y, dt, full, band, order or 2 * n_modes, stride=stride,
+                              decay_s=decay_s, reference=reference,
+                              stabilization_orders=stabilization_orders)
+        est = _in_band(det.estimate, band)
         if np.any(est.identified):
             fitted = _fitted_from_poles(frf, est.poles[est.identified], band)
     est = check_resonances(est, frf, min_prominence=min_prominence)

@@ -18,6 +18,10 @@ Pulse data.  The impulse records hold a train of short pulses, each followed by 
 decay that dies out before the next pulse.  Each pulse-to-pulse segment is then a complete
 transient, and a rectangular window (zero-padded FFT) introduces no leakage; the segments
 serve as the averages of H1/H2.
+
+The signal tools around the FRF live beside it and are importable from here too: the
+record's excitation and its segments (:mod:`.excitation`), impulse responses by inverse
+FFT (:mod:`.irf`) and the spectra of single signals (:mod:`.spectra`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,15 @@ from scipy import signal
 from scipy.ndimage import maximum_filter1d
 
 from .._errors import DataError
+from .excitation import (
+    free_decay_segments,
+    is_pulse_train,
+    is_step_input,
+    pulse_segments,
+    step_increments,
+)
+from .irf import IRF, frequency_grid, impulse_response
+from .spectra import Spectrogram, Spectrum, spectrogram, spectrum
 
 __all__ = [
     "FRF",
@@ -209,58 +222,6 @@ class FRF:
         return replace(self, H=self.H[:, idx], coherence=coh)
 
 
-@dataclass(frozen=True)
-class IRF:
-    """Sampled impulse response functions (or free decays) of several outputs.
-
-    Attributes
-    ----------
-    t_s : ndarray, shape (N,)
-        Times, s (uniform, ``t_s[k] = t0 + k dt``).
-    h : ndarray, shape (N, n_outputs)
-        Response per unit impulse (m/(V s) for an FRF in m/V).
-    dt : float
-        Sample interval, s.
-    """
-
-    t_s: np.ndarray
-    h: np.ndarray
-    dt: float
-
-
-@dataclass(frozen=True)
-class Spectrum:
-    """One-sided amplitude spectrum.
-
-    Attributes
-    ----------
-    omega_rad_s : ndarray, shape (n_freq,)
-    amplitude : ndarray, shape (n_freq,) or (n_freq, n_signals)
-        Amplitude of the sinusoid each bin stands for (signal units).
-    """
-
-    omega_rad_s: np.ndarray
-    amplitude: np.ndarray
-
-
-@dataclass(frozen=True)
-class Spectrogram:
-    """Short-time power spectral density.
-
-    Attributes
-    ----------
-    t_s : ndarray, shape (n_times,)
-        Centre of each segment, s.
-    omega_rad_s : ndarray, shape (n_freq,)
-    psd : ndarray, shape (n_freq, n_times)
-        Power spectral density, (signal units)^2 s/rad.
-    """
-
-    t_s: np.ndarray
-    omega_rad_s: np.ndarray
-    psd: np.ndarray
-
-
 # --------------------------------------------------------------------------- helpers
 def _check_io(u, y, dt) -> tuple[np.ndarray, np.ndarray, float]:
     u = np.asarray(u, dtype=float)
@@ -395,102 +356,6 @@ def welch_frf(
 
 
 # --------------------------------------------------------------------------- pulses
-def pulse_segments(u, *, min_gap: int = 20, drop_truncated: bool = True) -> np.ndarray:
-    """Split a pulse train into pulse-to-pulse segments.
-
-    Parameters
-    ----------
-    u : ndarray, shape (N,)
-        Input with isolated pulses on a zero background.
-    min_gap : int
-        Runs of at least this many zero samples separate two pulses.
-    drop_truncated : bool
-        Drop the last segment when the end of the record cuts its free decay short (it
-        is shorter than a quarter of the median of the others, or than 8 samples): a
-        transient cut off early leaks into every frequency.  Ignored with one pulse.
-
-    Returns
-    -------
-    ndarray of int, shape (n_pulses, 3)
-        Rows ``(start, pulse_end, stop)``: the pulse occupies ``start:pulse_end`` and the
-        free decay ``pulse_end:stop``; ``stop`` is the next pulse's start (or N).
-
-    Raises
-    ------
-    DataError
-        If the input has no pulse.
-
-    Examples
-    --------
-    >>> u = np.zeros(100); u[5:8] = 1.0; u[55:58] = 1.0
-    >>> pulse_segments(u).tolist()
-    [[5, 8, 55], [55, 58, 100]]
-    >>> u[98] = 1.0                     # a pulse two samples before the end of the record
-    >>> pulse_segments(u).tolist()
-    [[5, 8, 55], [55, 58, 98]]
-    """
-    u = np.asarray(u, dtype=float)
-    nz = np.flatnonzero(u != 0)
-    if nz.size == 0:
-        raise DataError("the input is all zeros; it holds no pulse")
-    breaks = np.flatnonzero(np.diff(nz) > min_gap)
-    starts = np.r_[nz[0], nz[breaks + 1]]
-    ends = np.r_[nz[breaks], nz[-1]] + 1
-    stops = np.r_[starts[1:], u.size]
-    seg = np.column_stack([starts, ends, stops]).astype(int)
-    if drop_truncated and len(seg) > 1:
-        span = seg[:, 2] - seg[:, 0]
-        if span[-1] < max(8.0, 0.25 * float(np.median(span[:-1]))):
-            seg = seg[:-1]
-    return seg
-
-
-def is_pulse_train(u, *, max_duty: float = 0.1) -> bool:
-    """True if the input is zero on all but a fraction ``max_duty`` of the samples."""
-    u = np.asarray(u, dtype=float)
-    return bool(np.any(u != 0) and np.mean(u != 0) <= max_duty)
-
-
-def is_step_input(u, *, max_changes: float = 0.01) -> bool:
-    """True for steps: a piecewise-constant input that changes on at most a fraction
-    ``max_changes`` of the samples and is not a pulse train."""
-    u = np.asarray(u, dtype=float)
-    changes = np.count_nonzero(np.diff(u))
-    return bool(changes >= 1 and changes <= max_changes * u.size and not is_pulse_train(u))
-
-
-def step_increments(u, y) -> tuple[np.ndarray, np.ndarray]:
-    """Sample-to-sample increments of input and outputs, zero at the first sample.
-
-    A step input becomes an impulse train, and its response a free decay after each
-    impulse (the increments of a decay to a new rest position).  The system relating
-    the increments is the same discrete system as the one relating ``u`` and ``y``
-    (differencing commutes with it), so their FRF is the FRF of the record, without
-    the leakage of a step that never returns to zero.
-
-    Parameters
-    ----------
-    u : ndarray, shape (N,)
-    y : ndarray, shape (N,) or (N, n_outputs)
-
-    Returns
-    -------
-    du : ndarray, shape (N,)
-    dy : ndarray, shape (N, n_outputs)
-
-    Examples
-    --------
-    >>> du, dy = step_increments(np.r_[0.0, 0.0, 1.0, 1.0], np.zeros(4))
-    >>> du.tolist()
-    [0.0, 0.0, 1.0, 0.0]
-    """
-    u = np.asarray(u, dtype=float)
-    y = np.asarray(y, dtype=float)
-    if y.ndim == 1:
-        y = y[:, None]
-    return np.diff(u, prepend=u[:1]), np.diff(y, axis=0, prepend=y[:1])
-
-
 def summed_spectra(segments, n_fft: int):
     """Auto and cross spectra summed over input-output segments (zero-padded FFTs).
 
@@ -602,45 +467,6 @@ def pulse_frf(
                power)
 
 
-def free_decay_segments(
-    u,
-    dt: float,
-    *,
-    skip_s: float = 0.0,
-    duration_s: float | None = None,
-    min_gap: int = 20,
-) -> np.ndarray:
-    """Index ranges of the free decays that follow each pulse.
-
-    Parameters
-    ----------
-    u : ndarray, shape (N,)
-        Pulse-train input.
-    dt : float
-        Sample interval, s.
-    skip_s : float
-        Time skipped after the end of each pulse, s.
-    duration_s : float, optional
-        Length kept, s (default: until the next pulse).
-    min_gap : int
-        See ``pulse_segments``.
-
-    Returns
-    -------
-    ndarray of int, shape (n_segments, 2)
-        Rows ``(start, stop)`` with zero input on ``start:stop``.
-    """
-    seg = pulse_segments(u, min_gap=min_gap)
-    start = seg[:, 1] + int(round(skip_s / dt))
-    stop = seg[:, 2].copy()
-    if duration_s is not None:
-        stop = np.minimum(stop, start + int(round(duration_s / dt)))
-    ok = stop - start >= 8
-    if not np.any(ok):
-        raise DataError("no free decay of at least 8 samples after the pulses")
-    return np.column_stack([start[ok], stop[ok]])
-
-
 FRF_METHODS = ("auto", "pulse", "step", "welch", "transient")
 
 
@@ -682,107 +508,6 @@ def frf_from_experiment(experiment, *, method: str = "auto", **kwargs) -> FRF:
             kwargs.setdefault("baseline", False)
         return pulse_frf(u, y, dt, segments=np.array([[0, u.size]]), **kwargs)
     return welch_frf(u, y, dt, **kwargs)
-
-
-# --------------------------------------------------------------------------- IRF
-def frequency_grid(n_samples: int, dt: float) -> np.ndarray:
-    """The one-sided FFT grid ``2 pi k / (n_samples dt)``, k from 0 to ``n_samples // 2``, rad/s."""
-    return 2 * np.pi * np.fft.rfftfreq(int(n_samples), dt)
-
-
-def impulse_response(frf: FRF, *, n_samples: int | None = None) -> IRF:
-    """Impulse response by inverse FFT of an FRF on a full one-sided FFT grid.
-
-    Parameters
-    ----------
-    frf : FRF
-        Values at ``k d_omega`` for ``k = k0 .. n_samples // 2`` (``k0`` is 0 or 1; a
-        missing DC value is extrapolated as the first value's real part).
-    n_samples : int, optional
-        Length of the time record ``N``; by default ``2 (n_freq - 1)`` (even N).  The
-        sample interval is ``dt = 2 pi / (N d_omega)``.
-
-    Returns
-    -------
-    IRF
-        ``h[k] ~ h(k dt)`` in FRF units per second, periodic with period ``N dt`` (a pole
-        ``lambda`` stays the same pole after this time aliasing; only its residue is
-        scaled by ``1 / (1 - exp(lambda N dt))``).
-
-    Raises
-    ------
-    DataError
-        If the frequencies are not uniform multiples of one step.
-    """
-    w = frf.omega_rad_s
-    dw = w[1] - w[0]
-    k = w / dw
-    if not np.allclose(k, np.round(k), atol=1e-6) or not np.allclose(np.diff(k), 1, atol=1e-6):
-        raise DataError("impulse_response needs an FRF on a uniform grid k * d_omega")
-    k0 = int(round(k[0]))
-    if k0 not in (0, 1):
-        raise DataError(f"the FRF grid must start at 0 or d_omega; it starts at {w[0]:g} rad/s")
-    H = frf.H
-    if k0 == 1:
-        H = np.vstack([H[:1].real, H])
-    n_freq = H.shape[0]
-    N = 2 * (n_freq - 1) if n_samples is None else int(n_samples)
-    if N // 2 + 1 != n_freq:
-        raise DataError(f"n_samples = {N} does not match {n_freq} one-sided frequencies")
-    dt = 2 * np.pi / (N * dw)
-    h = np.fft.irfft(H, N, axis=0) / dt
-    return IRF(np.arange(N) * dt, h, dt)
-
-
-# --------------------------------------------------------------------------- spectra
-def spectrum(x, dt: float, *, window: str | tuple = "boxcar") -> Spectrum:
-    """One-sided amplitude spectrum of one or several signals.
-
-    Parameters
-    ----------
-    x : ndarray, shape (N,) or (N, n_signals)
-    dt : float
-        Sample interval, s.
-    window : str or tuple
-        Window (amplitude-corrected by its mean).
-
-    Returns
-    -------
-    Spectrum
-    """
-    x = np.asarray(x, dtype=float)
-    n = x.shape[0]
-    win = signal.get_window(window, n)
-    shape = (n,) + (1,) * (x.ndim - 1)
-    X = np.fft.rfft(x * win.reshape(shape), axis=0)
-    amp = 2 * np.abs(X) / (n * np.mean(win))
-    amp[0] /= 2
-    return Spectrum(2 * np.pi * np.fft.rfftfreq(n, dt), amp)
-
-
-def spectrogram(
-    x, dt: float, *, nperseg: int = 256, noverlap: int | None = None, window="hann"
-) -> Spectrogram:
-    """Spectrogram (``scipy.signal.spectrogram``) on an angular-frequency axis.
-
-    Parameters
-    ----------
-    x : ndarray, shape (N,)
-    dt : float
-        Sample interval, s.
-    nperseg, noverlap, window
-        As in scipy.
-
-    Returns
-    -------
-    Spectrogram
-        PSD converted to per rad/s.
-    """
-    x = np.asarray(x, dtype=float)
-    if x.ndim != 1:
-        raise DataError(f"spectrogram needs a 1-D signal, got shape {x.shape}")
-    f, t, S = signal.spectrogram(x, 1 / dt, window=window, nperseg=nperseg, noverlap=noverlap)
-    return Spectrogram(t, 2 * np.pi * f, S / (2 * np.pi))
 
 
 # --------------------------------------------------------------------------- checks

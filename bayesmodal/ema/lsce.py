@@ -37,7 +37,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import DataError
-from .frf import FRF, impulse_response
+from .frf import FRF
+from .irf import impulse_response
 from .result import ModalEstimate, modal_estimate
 
 __all__ = [
@@ -125,6 +126,80 @@ def _hankel_rows(h: np.ndarray, order: int, M: int) -> tuple[np.ndarray, np.ndar
     return h[idx], -h[order + np.arange(M)]
 
 
+def _polynomial(recs: list[np.ndarray], n_modes: int, M: int | None
+                ) -> tuple[np.ndarray, float]:
+    """The coefficients ``alpha`` (shape (2 n + 1,), leading 1) of the polynomial whose
+    roots are ``exp(lambda dt)``, fitted by least squares to the Hankel equations of
+    every output of every record, and the relative residual of that fit."""
+    order = 2 * n_modes
+    Bs, Rs = [], []
+    for j, h in enumerate(recs):
+        m_avail = h.shape[0] - order
+        m = m_avail if M is None else int(M)
+        if m < 1 or m > m_avail:
+            raise DataError(
+                f"record {j}: {h.shape[0]} samples allow M <= {m_avail} equations for "
+                f"n = {n_modes} modes, got M = {m}"
+            )
+        for i in range(h.shape[1]):
+            B, R = _hankel_rows(h[:, i], order, m)
+            Bs.append(B)
+            Rs.append(R)
+    B = np.vstack(Bs)
+    R = np.concatenate(Rs)
+    if B.shape[0] < order:
+        raise DataError(f"{B.shape[0]} equations for {order} coefficients; use longer records")
+    scale = np.max(np.abs(B)) or 1.0
+    a = np.linalg.lstsq(B / scale, R / scale, rcond=None)[0]
+    rnorm = float(np.sum(R**2))
+    err = float(np.sum((B @ a - R) ** 2) / rnorm) if rnorm > 0 else 0.0
+    return np.r_[1.0, a], err
+
+
+def _amplitudes(recs: list[np.ndarray], lam: np.ndarray, dt_eff: float, order: int,
+                P: int | None, t0: float):
+    """Amplitudes per record from the Vandermonde system (least squares over P samples).
+
+    Returns the amplitudes of the ``order`` roots referred to ``t = 0``, shape
+    (n_rec, order, s), the squared misfit and the squared data summed over the records,
+    and each root's squared part of the fitted response, shape (order,).
+    """
+    amps = []
+    fit_sq = 0.0
+    data_sq = 0.0
+    comp_sq = None
+    for h in recs:
+        p = h.shape[0] if P is None else min(int(P), h.shape[0])
+        if p < order:
+            raise DataError(f"P = {p} samples cannot determine {order} residues")
+        k = np.arange(p)[:, None]
+        V = np.exp(lam[None, :] * dt_eff * k)
+        A = np.linalg.lstsq(V, h[:p].astype(complex), rcond=None)[0]  # (2n, s)
+        fitted = (V @ A).real
+        fit_sq += float(np.sum((h[:p] - fitted) ** 2))
+        data_sq += float(np.sum(h[:p] ** 2))
+        parts = np.abs(V[:, :, None] * A[None, :, :]) ** 2  # (p, 2n, s), per root
+        c = np.sum(parts, axis=(0, 2))
+        comp_sq = c if comp_sq is None else comp_sq + c
+        amps.append(A * np.exp(-lam * t0)[:, None])
+    return np.array(amps), fit_sq, data_sq, comp_sq  # amps (n_rec, 2n, s)
+
+
+def _shapes(amps: np.ndarray, sel: np.ndarray) -> np.ndarray:
+    """One shape per selected root, shape (sel.size, s): the record's amplitudes for one
+    record, else the dominant rank-one part of the records' amplitudes (SVD)."""
+    shapes = []
+    for r in sel:
+        Ar = amps[:, r, :]
+        if Ar.shape[0] == 1:
+            shapes.append(Ar[0])
+        else:
+            u, s_, vh = np.linalg.svd(Ar, full_matrices=False)
+            j = int(np.argmax(np.abs(u[:, 0])))
+            shapes.append(u[j, 0] * s_[0] * vh[0])
+    return np.array(shapes).reshape(sel.size, -1)
+
+
 def lsce(
     records,
     dt: float,
@@ -191,52 +266,12 @@ def lsce(
     recs = _records(records, stride)
     dt_eff = dt * stride
     order = 2 * n_modes
-    Bs, Rs = [], []
-    for j, h in enumerate(recs):
-        m_avail = h.shape[0] - order
-        m = m_avail if M is None else int(M)
-        if m < 1 or m > m_avail:
-            raise DataError(
-                f"record {j}: {h.shape[0]} samples allow M <= {m_avail} equations for "
-                f"n = {n_modes} modes, got M = {m}"
-            )
-        for i in range(h.shape[1]):
-            B, R = _hankel_rows(h[:, i], order, m)
-            Bs.append(B)
-            Rs.append(R)
-    B = np.vstack(Bs)
-    R = np.concatenate(Rs)
-    if B.shape[0] < order:
-        raise DataError(f"{B.shape[0]} equations for {order} coefficients; use longer records")
-    scale = np.max(np.abs(B)) or 1.0
-    a = np.linalg.lstsq(B / scale, R / scale, rcond=None)[0]
-    rnorm = float(np.sum(R**2))
-    err = float(np.sum((B @ a - R) ** 2) / rnorm) if rnorm > 0 else 0.0
-    alpha = np.r_[1.0, a]
+    alpha, err = _polynomial(recs, n_modes, M)
     U = np.roots(alpha)
     with np.errstate(divide="ignore"):
         lam = np.log(U.astype(complex)) / dt_eff
     lam = np.where(np.isfinite(lam), lam, -1e3 / dt_eff)  # U = 0: infinitely fast decay
-    # amplitudes per record from the Vandermonde system (least squares over P samples)
-    amps = []
-    fit_sq = 0.0
-    data_sq = 0.0
-    comp_sq = None
-    for h in recs:
-        p = h.shape[0] if P is None else min(int(P), h.shape[0])
-        if p < order:
-            raise DataError(f"P = {p} samples cannot determine {order} residues")
-        k = np.arange(p)[:, None]
-        V = np.exp(lam[None, :] * dt_eff * k)
-        A = np.linalg.lstsq(V, h[:p].astype(complex), rcond=None)[0]  # (2n, s)
-        fitted = (V @ A).real
-        fit_sq += float(np.sum((h[:p] - fitted) ** 2))
-        data_sq += float(np.sum(h[:p] ** 2))
-        parts = np.abs(V[:, :, None] * A[None, :, :]) ** 2  # (p, 2n, s), per root
-        c = np.sum(parts, axis=(0, 2))
-        comp_sq = c if comp_sq is None else comp_sq + c
-        amps.append(A * np.exp(-lam * t0)[:, None])
-    amps = np.array(amps)  # (n_rec, 2n, s)
+    amps, fit_sq, data_sq, comp_sq = _amplitudes(recs, lam, dt_eff, order, P, t0)
     recon = float(np.sqrt(fit_sq / data_sq)) if data_sq > 0 else 0.0
     # one entry per conjugate pair (positive imaginary part) or real root
     tol = 1e-9 / dt_eff
@@ -246,16 +281,7 @@ def lsce(
     # a conjugate pair contributes twice the energy of one root
     contrib = np.sqrt(np.where(lam[sel].imag > tol, 2.0, 1.0) * comp_sq[sel] / data_sq) \
         if data_sq > 0 else np.zeros(sel.size)
-    shapes = []
-    for r in sel:
-        Ar = amps[:, r, :]
-        if Ar.shape[0] == 1:
-            shapes.append(Ar[0])
-        else:
-            u, s_, vh = np.linalg.svd(Ar, full_matrices=False)
-            j = int(np.argmax(np.abs(u[:, 0])))
-            shapes.append(u[j, 0] * s_[0] * vh[0])
-    shapes = np.array(shapes).reshape(sel.size, -1)
+    shapes = _shapes(amps, sel)
     lam_sel = lam[sel]
     omega = np.abs(lam_sel)
     zeta = -lam_sel.real / np.where(omega > 0, omega, 1.0)
