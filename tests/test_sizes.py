@@ -22,7 +22,6 @@ LARGE_MODULES = {
     "bayesmodal/discrepancy/diagnosis/forward.py": 767,
     "bayesmodal/ema/frf.py": 826,
     "bayesmodal/inference/compare.py": 750,
-    "bayesmodal/inference/noise/kalman.py": 665,
     "bayesmodal/inference/records.py": 1013,
     "bayesmodal/model/simulate.py": 878,
     "bayesmodal/model/system.py": 1246,
