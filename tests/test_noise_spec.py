@@ -18,13 +18,13 @@ from bayesmodal.inference.noise import (
     ProcessNoise,
     WhiteNoise,
 )
+from bayesmodal.inference.noise_choice import resolve_noise
 from bayesmodal.inference.noise_spec import (
     NOISE_KINDS,
     NOISE_MODELS,
     NoiseSpec,
     parse_noise,
 )
-from bayesmodal.inference.records import resolve_noise
 
 PACKAGE = Path(__file__).resolve().parents[1] / "bayesmodal"
 

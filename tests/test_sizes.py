@@ -21,7 +21,6 @@ LARGE_MODULES = {
     "bayesmodal/data.py": 754,
     "bayesmodal/discrepancy/diagnosis/forward.py": 767,
     "bayesmodal/ema/frf.py": 826,
-    "bayesmodal/inference/records.py": 1013,
     "bayesmodal/model/simulate.py": 878,
     "bayesmodal/model/system.py": 1246,
     "bayesmodal/reading.py": 694,

@@ -124,8 +124,8 @@ from ..inference.crossval import CrossvalSpec
 from ..inference.moves import MOVE_REVISIONS, move_spec
 from ..inference.moves import MOVES as _MOVE_CLASSES
 from ..inference.noise_spec import parse_noise
+from ..inference.record_layout import RecordLayout
 from ..inference.record_scale import NOISE_SCALES
-from ..inference.records import RecordLayout
 from ..model.effects import EXTENSION_REVISIONS, extension_revisions
 from ..model.rigs import rig_from_dict
 from ..model.system import ECP210_SPRINGS_N_M, Rig
