@@ -34,8 +34,10 @@ from .bench import _TABLE3, reused_linear, rig_input, time_per_call
 from .data import Experiment
 from .inference.likelihood import Likelihood, simulate_noise
 from .inference.priors import default_priors
-from .inference.records import DEFAULT_LAYOUT, RecordsLikelihood, record_priors
-from .inference.records import records_start as start
+from .inference.record_layout import DEFAULT_LAYOUT
+from .inference.record_priors import record_priors
+from .inference.record_priors import records_start as start
+from .inference.records import RecordsLikelihood
 from .inference.sampling import LogPosterior
 from .model.simulate import simulate_linear
 from .model.system import LinearModel, Rig

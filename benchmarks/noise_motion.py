@@ -28,7 +28,7 @@ from bayesmodal.data import find_data, load_experiment
 from bayesmodal.inference import elpd_change, sample_posterior
 from bayesmodal.inference.noise.motion import speed_weight
 from bayesmodal.inference.predictive import predict_new_record
-from bayesmodal.inference.records import RecordLayout
+from bayesmodal.inference.record_layout import RecordLayout
 from bayesmodal.model.system import LinearModel, Rig
 
 FILES = ("data_impulses.mat", "data_steps.mat", "data_sine_sweep_fast.mat",

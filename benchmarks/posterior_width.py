@@ -39,7 +39,8 @@ from bayesmodal.data import Experiment  # noqa: E402
 from bayesmodal.inference import sample_posterior  # noqa: E402
 from bayesmodal.inference.laplace import hessian_fd  # noqa: E402
 from bayesmodal.inference.moves import SnookerMove  # noqa: E402
-from bayesmodal.inference.records import RecordLayout, RecordsLikelihood  # noqa: E402
+from bayesmodal.inference.record_layout import RecordLayout  # noqa: E402
+from bayesmodal.inference.records import RecordsLikelihood  # noqa: E402
 from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
 MODEL = LinearModel(Rig(rt.SPRINGS), "free")

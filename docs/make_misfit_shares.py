@@ -23,11 +23,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _measured import measured_records  # noqa: E402
 
 from bayesmodal.fit import fit_lsq  # noqa: E402
-from bayesmodal.inference.records import (  # noqa: E402
-    RecordsLikelihood,
-    parse_layout,
-    records_start,
-)
+from bayesmodal.inference.record_layout import parse_layout  # noqa: E402
+from bayesmodal.inference.record_priors import records_start  # noqa: E402
+from bayesmodal.inference.records import RecordsLikelihood  # noqa: E402
 from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
 

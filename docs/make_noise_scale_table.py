@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from _measured import run_studies  # docs/_measured.py (run as docs/<script>.py)
 
-from bayesmodal.inference.records import RecordLayout
+from bayesmodal.inference.record_layout import RecordLayout
 from bayesmodal.runs.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]

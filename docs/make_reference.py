@@ -9,7 +9,7 @@ from the code:
 - ``effects.md``: ``bayesmodal.model.effects.EXTENSIONS`` (each effect's
   description, where it acts and its ``ParamSpec`` list, on the three-cart preset);
 - ``noise.md``: the noise-model spellings, resolved by
-  ``bayesmodal.inference.records.resolve_noise`` and checked against the run
+  ``bayesmodal.inference.noise_choice.resolve_noise`` and checked against the run
   configuration's validation;
 - ``cli.md``: the argparse parsers of ``bayesmodal.cli.build_parser``;
 - ``config.md``: the run configuration's key table (``bayesmodal.runs.config._SCHEMA``), the
@@ -144,12 +144,12 @@ def _check_spelling(text: str) -> None:
 
 def noise_page() -> str:
     from bayesmodal.inference.noise import choose_order
-    from bayesmodal.inference.records import AUTO_MAX_ORDER, resolve_noise
+    from bayesmodal.inference.noise_choice import AUTO_MAX_ORDER, resolve_noise
 
     out = [HEADER, "# Noise models\n\n",
            "The residual models `bayesmodal sample --noise`, `bayesmodal crossval --noise` "
            "and `[likelihood] noise` accept, resolved by "
-           "`bayesmodal.inference.records.resolve_noise` (classes in "
+           "`bayesmodal.inference.noise_choice.resolve_noise` (classes in "
            "`bayesmodal.inference.noise`).  Parameter names are shown for "
            f"{N_OUTPUTS} outputs (the three carts); the suffix `_j` is the output.  "
            "`sigma_j` is always the innovation standard deviation.  What each model "

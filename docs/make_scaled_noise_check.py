@@ -35,7 +35,7 @@ from _stamp import stamp  # docs/_stamp.py
 
 from bayesmodal.data import Experiment
 from bayesmodal.inference.crossval import crossval
-from bayesmodal.inference.records import parse_layout
+from bayesmodal.inference.record_layout import parse_layout
 from bayesmodal.runs.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]

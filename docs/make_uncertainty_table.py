@@ -73,7 +73,7 @@ def single_record_baseline(exps, steps: int, seed: int) -> dict:
 
 def run_config(exps, name: str, steps: int, workers: int, seed: int) -> dict:
     from bayesmodal.inference.crossval import CrossvalSpec, crossval
-    from bayesmodal.inference.records import parse_layout
+    from bayesmodal.inference.record_layout import parse_layout
 
     noise, layout, _ = CONFIGS[name]
     spec = CrossvalSpec(noise=noise, layout=parse_layout(layout), n_walkers=48,

@@ -111,7 +111,7 @@ def replicate(seed: int, *, n_samples: int = 2000, steps: int = 3000, walkers: i
 
     from bayesmodal.inference import sample_posterior
     from bayesmodal.inference.propagate import propagate_modes
-    from bayesmodal.inference.records import RecordLayout
+    from bayesmodal.inference.record_layout import RecordLayout
     from bayesmodal.model.system import LinearModel, Rig
 
     rng = np.random.default_rng(seed)

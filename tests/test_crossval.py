@@ -277,7 +277,8 @@ def test_a_new_records_modes_are_drawn_from_the_mass_population():
     from test_inference_records import MODEL, THETA
 
     from bayesmodal.inference.crossval import _estimates
-    from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
+    from bayesmodal.inference.record_layout import RecordLayout
+    from bayesmodal.inference.records import RecordsLikelihood
 
     lik = RecordsLikelihood(MODEL, _records(n=300), "ar1",
                             layout=RecordLayout({"m1": "hierarchical"}))

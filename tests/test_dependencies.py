@@ -226,7 +226,7 @@ def test_checker_reads_the_declarations(tmp_path):
 def test_missing_dynesty_names_the_extra(monkeypatch):
     # a None entry in sys.modules makes `import dynesty` raise ImportError, as if absent
     from bayesmodal import ConfigError
-    from bayesmodal.inference.compare import nested_evidence
+    from bayesmodal.inference.evidence import nested_evidence
     from bayesmodal.inference.priors import PriorSet, Uniform
 
     monkeypatch.setitem(sys.modules, "dynesty", None)

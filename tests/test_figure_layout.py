@@ -64,7 +64,9 @@ def _records(k: int) -> list[Experiment]:
 def _posterior(exps):
     """A few sampler steps from the truth: valid draws for every plot, in well under a
     second of sampling."""
-    from bayesmodal.inference.records import RecordLayout, RecordsLikelihood, record_priors
+    from bayesmodal.inference.record_layout import RecordLayout
+    from bayesmodal.inference.record_priors import record_priors
+    from bayesmodal.inference.records import RecordsLikelihood
 
     model = LinearModel(Rig(), "free")
     layout = None

@@ -18,7 +18,7 @@ from bayesmodal.inference import (
     simulate_noise,
     to_inference_data,
 )
-from bayesmodal.inference.compare import Evidence
+from bayesmodal.inference.evidence import Evidence
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 

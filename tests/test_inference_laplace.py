@@ -172,7 +172,7 @@ def test_laplace_start_recovers_known_truth():
     per walker, which the benchmark (benchmarks/extended_posterior.py) measures.
     """
     from bayesmodal.inference import sample_posterior
-    from bayesmodal.inference.records import RecordLayout
+    from bayesmodal.inference.record_layout import RecordLayout
     from bayesmodal.model.system import LinearModel, Rig
 
     recs, truth = _offset_records(seed=11)
@@ -210,8 +210,10 @@ def test_records_start_finds_each_records_gain():
     records with gains 5.6 and 6.1 N/V and a shared start of 5.85 each lands within half a
     grid spacing (plus its posterior width, far smaller) of its truth.  Negative control:
     the shared start itself is off by more than that for both."""
-    from bayesmodal.inference.records import GAIN_GRID, RecordLayout, RecordsLikelihood
-    from bayesmodal.inference.records import records_start as start
+    from bayesmodal.inference.record_layout import RecordLayout
+    from bayesmodal.inference.record_priors import GAIN_GRID
+    from bayesmodal.inference.record_priors import records_start as start
+    from bayesmodal.inference.records import RecordsLikelihood
     from bayesmodal.model.system import LinearModel, Rig
 
     recs, truth = _offset_records(seed=2)

@@ -9,13 +9,9 @@ from scipy import stats
 from bayesmodal._errors import ConfigError, DataError
 from bayesmodal.data import Experiment
 from bayesmodal.inference.likelihood import Likelihood
-from bayesmodal.inference.records import (
-    DEFAULT_LAYOUT,
-    RecordLayout,
-    RecordsLikelihood,
-    record_priors,
-    records_start,
-)
+from bayesmodal.inference.record_layout import DEFAULT_LAYOUT, RecordLayout
+from bayesmodal.inference.record_priors import record_priors, records_start
+from bayesmodal.inference.records import RecordsLikelihood
 from bayesmodal.inference.sampling import LogPosterior
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
@@ -162,7 +158,7 @@ def test_ar_p_noise_with_order_one_is_the_ar1_likelihood(records):
 
 
 def test_noise_model_names_are_checked():
-    from bayesmodal.inference.records import resolve_noise
+    from bayesmodal.inference.noise_choice import resolve_noise
 
     assert resolve_noise("ar(2,3,1)", 3).orders == (2, 3, 1)
     with pytest.raises(ConfigError, match="ar:auto"):

@@ -12,7 +12,8 @@ import pytest
 
 from bayesmodal.data import Experiment
 from bayesmodal.inference.likelihood import Likelihood, loglik_from_sums
-from bayesmodal.inference.records import DEFAULT_LAYOUT, RecordLayout, RecordsLikelihood
+from bayesmodal.inference.record_layout import DEFAULT_LAYOUT, RecordLayout
+from bayesmodal.inference.records import RecordsLikelihood
 from bayesmodal.model._resid_kernels import ar1_sums, ar1_sums_affine, ar1_sums_lanes
 from bayesmodal.model.simulate import LinearSimulator, simulate_linear
 from bayesmodal.model.system import LinearModel, Rig

@@ -8,7 +8,9 @@ from scipy import stats
 
 from bayesmodal.data import Experiment
 from bayesmodal.inference.noise import AR1Noise, IntegratedAR1Noise
-from bayesmodal.inference.records import RecordLayout, RecordsLikelihood, resolve_noise
+from bayesmodal.inference.noise_choice import resolve_noise
+from bayesmodal.inference.record_layout import RecordLayout
+from bayesmodal.inference.records import RecordsLikelihood
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
 

@@ -13,10 +13,12 @@ from bayesmodal._errors import ConfigError, DataError
 from bayesmodal.inference.likelihood import white_terms
 from bayesmodal.inference.noise.kalman import (
     ProcessNoise,
-    discretize_process_noise,
     kalman_loglik,
     kalman_pointwise,
     simulate_process_noise,
+)
+from bayesmodal.inference.noise.steady_filter import (
+    discretize_process_noise,
     solve_filter_dare,
     steady_state_filter,
 )

@@ -219,7 +219,8 @@ def _records_with_motion_noise(rest, n=1200, seed=0):
 
 
 def test_each_record_is_evaluated_with_its_own_speed():
-    from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
+    from bayesmodal.inference.record_layout import RecordLayout
+    from bayesmodal.inference.records import RecordsLikelihood
     from bayesmodal.model.simulate import simulate_linear
 
     model, theta, noise, recs = _records_with_motion_noise(0.25)
@@ -237,7 +238,8 @@ def test_each_record_is_evaluated_with_its_own_speed():
 
 def test_a_held_out_record_is_predicted_with_its_own_speed():
     from bayesmodal.inference.predictive import predict_new_record
-    from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
+    from bayesmodal.inference.record_layout import RecordLayout
+    from bayesmodal.inference.records import RecordsLikelihood
 
     model, theta, noise, recs = _records_with_motion_noise(0.25)
     lik = RecordsLikelihood(model, recs[:1], "ar1:motion", layout=RecordLayout({}))

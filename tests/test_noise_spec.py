@@ -18,13 +18,13 @@ from bayesmodal.inference.noise import (
     ProcessNoise,
     WhiteNoise,
 )
+from bayesmodal.inference.noise_choice import resolve_noise
 from bayesmodal.inference.noise_spec import (
     NOISE_KINDS,
     NOISE_MODELS,
     NoiseSpec,
     parse_noise,
 )
-from bayesmodal.inference.records import resolve_noise
 
 PACKAGE = Path(__file__).resolve().parents[1] / "bayesmodal"
 
@@ -127,7 +127,7 @@ def test_run_configuration_uses_the_parser(tmp_path):
 
     assert cfg("ar1").layout is None                  # the single-record likelihood
     assert cfg("ar(2,3,1)").layout is not None        # the several-record likelihood
-    assert cfg("ar:auto").likelihood.noise == "ar:auto"          # stored as written: hashes unchanged
+    assert cfg("ar:auto").likelihood.noise == "ar:auto"  # stored as written: hashes unchanged
     with pytest.raises(ConfigError, match=r"\[likelihood.noise\] must be one of \('ar1', "
                                           r"'white'\), 'arP'"):
         cfg("arma")

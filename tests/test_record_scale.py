@@ -11,7 +11,8 @@ from bayesmodal._errors import ConfigError
 from bayesmodal.data import Experiment
 from bayesmodal.inference.idata import likelihood_from_idata, to_inference_data
 from bayesmodal.inference.predictive import predict_new_record
-from bayesmodal.inference.records import RecordLayout, RecordsLikelihood
+from bayesmodal.inference.record_layout import RecordLayout
+from bayesmodal.inference.records import RecordsLikelihood
 from bayesmodal.inference.sampling import sample_posterior
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel, Rig
@@ -224,7 +225,7 @@ def test_a_sampled_power_interpolates_between_one_level_and_the_response_scale(n
     exps = _records(0.05, seed=11)
     lik = RecordsLikelihood(MODEL, exps, noise, layout=POWER, scale_at=THETA)
     assert lik.names[-1] == "scale_power"
-    from bayesmodal.inference.records import record_priors
+    from bayesmodal.inference.record_priors import record_priors
 
     pri = record_priors(lik)
     assert pri.priors[-1].support == (0.0, 1.0)

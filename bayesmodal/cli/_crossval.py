@@ -8,8 +8,8 @@ from pathlib import Path
 from .._errors import ConfigError
 from ..inference.crossval import CrossvalSpec, crossval
 from ..inference.noise_spec import accepted_noise
+from ..inference.record_layout import parse_layout
 from ..inference.record_scale import NOISE_SCALES
-from ..inference.records import parse_layout
 from ..inference.temperature import calibrate_loro
 from ..model.system import Rig
 from ..runs.config import load_config

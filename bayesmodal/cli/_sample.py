@@ -11,8 +11,8 @@ from .._errors import DataError
 from .._format import param_unit, sig
 from ..inference import LikelihoodSpec, SamplerSpec, sample_posterior, to_inference_data
 from ..inference.noise_spec import accepted_noise
+from ..inference.record_layout import parse_layout
 from ..inference.record_scale import NOISE_SCALES
-from ..inference.records import parse_layout
 from ..model.system import LinearModel
 from ..runs import checkpoint_iteration
 from ..runs.outputs import write_run

@@ -1,7 +1,8 @@
 """Bayesian inference for the rig: priors, likelihood, sampling, propagation, comparison.
 
 Layers: :mod:`.priors` and :mod:`.likelihood` are NumPy only; :mod:`.sampling` adds emcee;
-:mod:`.idata`, :mod:`.summary` and :mod:`.compare` build on ArviZ (0.x InferenceData API).
+:mod:`.idata`, :mod:`.summary`, :mod:`.loo` and :mod:`.compare` build on ArviZ (0.x
+InferenceData API).
 
 Typical use::
 
@@ -11,22 +12,8 @@ Typical use::
     summary = summary_dict(idata)   # bayesmodal.runs.write_run writes a run folder
 """
 
-from .compare import (
-    BayesFactor,
-    ElpdChange,
-    Evidence,
-    InformationCriteria,
-    ModelChoice,
-    PredictiveScore,
-    bayes_factor,
-    choose_model,
-    elpd_change,
-    information_criteria,
-    kass_raftery,
-    model_choice,
-    nested_evidence,
-    predictive_check,
-)
+from .compare import ModelChoice, PredictiveScore, choose_model, model_choice, predictive_check
+from .evidence import BayesFactor, Evidence, bayes_factor, kass_raftery, nested_evidence
 from .idata import (
     experiments_from_idata,
     extension_from_idata,
@@ -40,6 +27,7 @@ from .idata import (
     with_pointwise_loglik,
 )
 from .likelihood import Likelihood, ar1_terms, simulate_noise, white_terms
+from .loo import ElpdChange, InformationCriteria, elpd_change, information_criteria
 from .noise_spec import NOISE_MODELS, NoiseSpec, parse_noise
 from .priors import LogUniform, Normal, PriorSet, Uniform, default_priors, noise_names
 from .propagate import (

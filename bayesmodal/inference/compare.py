@@ -2,28 +2,29 @@
 
 Four views of "which damping model do the data prefer":
 
-1. **PSIS-LOO and WAIC** (ArviZ) from the pointwise log-likelihood of the fitted data.
+1. **PSIS-LOO and WAIC** (ArviZ) from the pointwise log-likelihood of the fitted data
+   (:mod:`.loo`, which also gives the ELPD change between two runs).
    The rig records are autocorrelated time series; leaving one sample out is then only an
    approximation of predictive performance (neighbouring samples carry most of the left-out
    information).  With the AR(1) likelihood the pointwise terms are the conditional
    innovation densities ``p(r_k | r_{k-1})``, which are the natural one-step-ahead units.
 2. **Evidence** ``Z = int L(theta) p(theta) dtheta`` by nested sampling (dynesty), with its
-   error.  It depends on the prior ranges (a wider prior on an unneeded parameter costs
-   ``log(width ratio)``), which the report states next to it.
+   error (:mod:`.evidence`).  It depends on the prior ranges (a wider prior on an unneeded
+   parameter costs ``log(width ratio)``), which the report states next to it.
 3. **Bayes factor** ``B = Z_a / Z_b``, read on the Kass and Raftery (1995) scale of
    ``2 ln B``: 0-2 not worth more than a bare mention, 2-6 positive, 6-10 strong, > 10 very
-   strong.
-4. **Cross-experiment predictive check**: the posterior fitted on one experiment scores
-   another (e.g. the steps record) by the log predictive density
+   strong (:mod:`.evidence`).
+4. **Cross-experiment predictive check** (here): the posterior fitted on one experiment
+   scores another (e.g. the steps record) by the log predictive density
    ``log (1/S) sum_s p(y_test | theta_s)`` and by the fit percentage of the predictions.
+
+This module combines them into one verdict (:func:`model_choice`, :func:`choose_model`);
+the names of :mod:`.loo` and :mod:`.evidence` stay importable from it.
 """
 
 from __future__ import annotations
 
-import math
-import time
-import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,16 +32,10 @@ from scipy.special import logsumexp
 
 from .._errors import ConfigError
 from ..metrics import fit_percent
-from .idata import (
-    arviz,
-    likelihood_from_idata,
-    posterior_matrix,
-    priors_from_idata,
-    to_inference_data,
-    with_pointwise_loglik,
-)
+from .evidence import BayesFactor, Evidence, bayes_factor, kass_raftery, nested_evidence
+from .idata import arviz, likelihood_from_idata, posterior_matrix, priors_from_idata
 from .likelihood import Likelihood, as_experiments
-from .priors import PriorSet
+from .loo import ElpdChange, InformationCriteria, _recorded, elpd_change, information_criteria
 
 __all__ = [
     "InformationCriteria",
@@ -58,236 +53,6 @@ __all__ = [
     "ElpdChange",
     "elpd_change",
 ]
-
-
-# ----------------------------------------------------------------------------- LOO / WAIC
-@dataclass(frozen=True)
-class InformationCriteria:
-    """PSIS-LOO and WAIC of one fitted model (log scale: larger is better).
-
-    Attributes
-    ----------
-    elpd_loo, se_loo, p_loo : float
-        Expected log pointwise predictive density, its standard error, and the effective
-        number of parameters.
-    elpd_waic, se_waic, p_waic : float
-    max_pareto_k : float
-        Largest Pareto shape of the PSIS weights.
-    n_bad_k : int
-        Observations with ``k > 0.7`` (PSIS unreliable for them).
-    n_obs : int
-    notes : tuple of str
-        Warnings issued by ArviZ while computing (kept, not shown as warnings).
-    """
-
-    elpd_loo: float
-    se_loo: float
-    p_loo: float
-    elpd_waic: float
-    se_waic: float
-    p_waic: float
-    max_pareto_k: float
-    n_bad_k: int
-    n_obs: int
-    notes: tuple[str, ...] = ()
-
-
-def _recorded(fn, *args, **kwargs):
-    """Call ``fn`` and return (result, tuple of warning messages it raised)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        out = fn(*args, **kwargs)
-    return out, tuple(dict.fromkeys(str(w.message).strip() for w in caught))
-
-
-def information_criteria(idata) -> InformationCriteria:
-    """PSIS-LOO and WAIC from the ``log_likelihood`` group (variable ``y``).
-
-    ArviZ's warnings (large Pareto k, WAIC variance) are recorded in ``notes`` and
-    summarised by ``max_pareto_k`` / ``n_bad_k`` rather than raised.  A run saved without
-    the group (``pointwise=False``) has it rebuilt from its draws
-    (:func:`~.idata.with_pointwise_loglik`).
-    """
-    az = arviz()
-    idata = _as_idata(idata)
-    loo, n1 = _recorded(az.loo, idata, pointwise=True, var_name="y")
-    waic, n2 = _recorded(az.waic, idata, var_name="y")
-    k = np.asarray(loo.pareto_k).ravel()
-    return InformationCriteria(
-        elpd_loo=float(loo.elpd_loo),
-        se_loo=float(loo.se),
-        p_loo=float(loo.p_loo),
-        elpd_waic=float(waic.elpd_waic),
-        se_waic=float(waic.se),
-        p_waic=float(waic.p_waic),
-        max_pareto_k=float(np.max(k)),
-        n_bad_k=int(np.sum(k > 0.7)),
-        n_obs=int(k.size),
-        notes=n1 + n2,
-    )
-
-
-# ----------------------------------------------------------------------------- evidence
-@dataclass(frozen=True)
-class Evidence:
-    """Marginal likelihood of a model.
-
-    Attributes
-    ----------
-    log_z : float
-        Natural log of the evidence.
-    log_z_err : float
-        Its standard error (dynesty's estimate from the prior-volume statistics).
-    information_nats : float
-        Kullback-Leibler divergence from prior to posterior (nats).
-    n_calls : int
-        Likelihood evaluations.
-    n_iterations : int
-    elapsed_s : float
-    method : str
-    """
-
-    log_z: float
-    log_z_err: float
-    information_nats: float
-    n_calls: int
-    n_iterations: int
-    elapsed_s: float
-    method: str = "dynesty"
-
-
-def nested_evidence(
-    log_likelihood: Callable[[np.ndarray], np.ndarray],
-    priors: PriorSet,
-    *,
-    nlive: int = 300,
-    dlogz: float = 0.5,
-    sample: str = "rwalk",
-    rng=None,
-    maxcall: int | None = None,
-) -> Evidence:
-    """Evidence by static nested sampling with dynesty.
-
-    Parameters
-    ----------
-    log_likelihood : callable
-        Batched log-likelihood, ``f(theta of shape (nb, P)) -> (nb,)`` in ``priors.names``
-        order (a :class:`~.likelihood.Likelihood` qualifies).
-    priors : PriorSet
-        Supplies the prior transform from the unit cube.
-    nlive : int
-        Live points.
-    dlogz : float
-        Stopping criterion on the remaining evidence, nats.
-    sample : str
-        dynesty sampling method.
-    rng : numpy.random.Generator or int, optional
-    maxcall : int, optional
-        Hard limit on likelihood calls; a run stopped by it warns.
-
-    Returns
-    -------
-    Evidence
-
-    Examples
-    --------
-    A Gaussian likelihood with unit width under a Uniform(-10, 10) prior has
-    ``Z = 1/20``:
-
-    >>> from bayesmodal.inference.priors import PriorSet, Uniform
-    >>> ps = PriorSet(("x",), (Uniform(-10.0, 10.0),), ("identity",))
-    >>> f = lambda th: -0.5 * th[:, 0] ** 2 - 0.5 * np.log(2 * np.pi)
-    >>> ev = nested_evidence(f, ps, nlive=100, rng=1)
-    >>> bool(abs(ev.log_z - np.log(1 / 20)) < 4 * ev.log_z_err)
-    True
-    """
-    try:
-        import dynesty
-    except ImportError:
-        raise ConfigError("nested sampling of the evidence needs the optional library "
-                          "dynesty: pip install 'bayesmodal[evidence]'") from None
-
-    gen = np.random.default_rng(rng)
-    calls = [0]
-
-    def loglike(x):
-        calls[0] += 1
-        v = float(np.asarray(log_likelihood(np.asarray(x)[None]))[0])
-        # dynesty needs finite values; impossible points are simply very unlikely
-        return v if np.isfinite(v) else -1e300
-
-    t0 = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        sampler = dynesty.NestedSampler(loglike, priors.prior_transform, priors.n_params,
-                                        nlive=int(nlive), sample=sample, rstate=gen)
-        sampler.run_nested(dlogz=dlogz, print_progress=False, maxcall=maxcall)
-    for w in caught:
-        if "stopped short" in str(w.message):
-            warnings.warn(f"nested sampling stopped at maxcall={maxcall} before dlogz={dlogz}; "
-                          "the evidence is a lower bound", RuntimeWarning, stacklevel=2)
-    res = sampler.results
-    return Evidence(
-        log_z=float(res.logz[-1]),
-        log_z_err=float(res.logzerr[-1]),
-        information_nats=float(res.information[-1]),
-        n_calls=int(calls[0]),
-        n_iterations=int(res.niter),
-        elapsed_s=time.perf_counter() - t0,
-    )
-
-
-# ----------------------------------------------------------------------------- Bayes factor
-def kass_raftery(two_ln_b: float) -> str:
-    """Kass and Raftery (1995) reading of ``2 ln B`` (B in favour of the better model)."""
-    x = abs(float(two_ln_b))
-    if x < 2:
-        return "not worth more than a bare mention"
-    if x < 6:
-        return "positive"
-    if x < 10:
-        return "strong"
-    return "very strong"
-
-
-@dataclass(frozen=True)
-class BayesFactor:
-    """Bayes factor of model ``a`` over model ``b``.
-
-    Attributes
-    ----------
-    a, b : str
-    log_bf : float
-        ``ln Z_a - ln Z_b``.
-    log_bf_err : float
-        ``sqrt(err_a^2 + err_b^2)``.
-    two_ln_b : float
-        ``2 |ln B|`` for the favoured model.
-    favoured : str
-    reading : str
-        Kass-Raftery category of ``two_ln_b``.
-    """
-
-    a: str
-    b: str
-    log_bf: float
-    log_bf_err: float
-    two_ln_b: float
-    favoured: str
-    reading: str
-
-
-def bayes_factor(evidences: Mapping[str, Evidence], a: str, b: str) -> BayesFactor:
-    """Bayes factor ``Z_a / Z_b`` with its error and Kass-Raftery reading."""
-    ea, eb = evidences[a], evidences[b]
-    lbf = ea.log_z - eb.log_z
-    return BayesFactor(
-        a=a, b=b, log_bf=lbf,
-        log_bf_err=math.hypot(ea.log_z_err, eb.log_z_err),
-        two_ln_b=2 * abs(lbf),
-        favoured=a if lbf >= 0 else b,
-        reading=kass_raftery(2 * lbf),
-    )
 
 
 # ----------------------------------------------------------------------------- predictive
@@ -597,152 +362,3 @@ def choose_model(
     return model_choice(idatas, evidences=evs, predictive=pred)
 
 
-# ----------------------------------------------------------------------------- ELPD change
-@dataclass(frozen=True)
-class ElpdChange:
-    """Change in PSIS-LOO ELPD from a base model to another model on the same data.
-
-    Attributes
-    ----------
-    base, other : str
-        Labels of the two models (e.g. ``"linear"``, ``"coulomb_friction"``).
-    elpd_base, elpd_other : float
-        PSIS-LOO expected log pointwise predictive densities, nats.
-    se_base, se_other : float
-        Their standard errors, nats.
-    delta : float
-        ``elpd_other - elpd_base``, nats (positive: the other model predicts better).
-    se : float
-        Standard error of ``delta`` from the paired pointwise differences,
-        ``sqrt(n var_i(elpd_other_i - elpd_base_i))`` (as ``arviz.compare``'s ``dse``).
-    z : float
-        ``delta / se``.
-    decisive : bool
-        ``|delta| >= min_delta`` and ``|z| >= min_z``: the difference is both larger than
-        what Monte Carlo and model-size effects produce and several standard errors.
-    preferred : str
-        The model with the higher ELPD when ``decisive``, else ``"neither"``.
-    reading : str
-        The result in plain words.
-    max_pareto_k : float
-        Largest Pareto shape over both runs (PSIS is unreliable above 0.7).
-    n_bad_k : int
-        Pointwise terms with Pareto shape above 0.7 in either run.
-    n_obs : int
-        Pointwise terms (samples times outputs).
-    """
-
-    base: str
-    other: str
-    elpd_base: float
-    elpd_other: float
-    se_base: float
-    se_other: float
-    delta: float
-    se: float
-    z: float
-    decisive: bool
-    preferred: str
-    reading: str
-    max_pareto_k: float
-    n_bad_k: int
-    n_obs: int
-
-    def as_dict(self) -> dict:
-        """JSON-ready dictionary."""
-        return {k: (float(v) if isinstance(v, (float, np.floating)) else v)
-                for k, v in self.__dict__.items()}
-
-
-def _as_idata(run_or_idata):
-    if hasattr(run_or_idata, "groups"):
-        return with_pointwise_loglik(run_or_idata)
-
-    return to_inference_data(run_or_idata, n_predictive=0)
-
-
-def elpd_change(
-    base,
-    other,
-    *,
-    labels: tuple[str, str] | None = None,
-    min_delta: float = 4.0,
-    min_z: float = 2.0,
-) -> ElpdChange:
-    """Change in a Bayesian criterion (PSIS-LOO ELPD) between two runs on the same data.
-
-    Parameters
-    ----------
-    base, other : InferenceData or PosteriorRun
-        Two posterior runs on the same experiments (e.g. the linear model and an
-        extended one).  InferenceData needs the ``log_likelihood`` group; a
-        ``PosteriorRun`` is converted with ``to_inference_data(run, n_predictive=0)``.
-    labels : tuple of str, optional
-        Names of the two models; default from the runs' ``extension`` attribute
-        (``"linear"`` for none).
-    min_delta : float
-        Smallest ``|delta|`` (nats) called decisive; below about 4 nats PSIS-LOO
-        differences are within what noise and the number of parameters produce.
-    min_z : float
-        Smallest ``|delta| / se`` called decisive.
-
-    Returns
-    -------
-    ElpdChange
-
-    Raises
-    ------
-    ConfigError
-        When the runs were not fitted to the same observations.
-
-    Notes
-    -----
-    With the AR(1) likelihood each pointwise term is a one-step-ahead innovation density,
-    so the ELPD scores one-step predictions of the records; the standard error treats the
-    terms as exchangeable, which the residual autocorrelation makes optimistic when the
-    noise model is white (see ``docs/inference.md``).
-    """
-    az = arviz()
-    ia, ib = _as_idata(base), _as_idata(other)
-    ya, yb = ia.observed_data["y"].values, ib.observed_data["y"].values
-    if ya.shape != yb.shape or not np.array_equal(ya, yb):
-        raise ConfigError("the two runs were not fitted to the same observations "
-                          f"(shapes {ya.shape} and {yb.shape}); ELPD differences need one "
-                          "data set")
-    if labels is None:
-        labels = tuple(str(i.posterior.attrs.get("extension", "")) or "linear"
-                       for i in (ia, ib))
-        if labels[0] == labels[1]:
-            labels = (labels[0] + " (base)", labels[1] + " (other)")
-    la, lb = labels
-    (loo_a, na), (loo_b, nb) = (_recorded(az.loo, i, pointwise=True, var_name="y")
-                                for i in (ia, ib))
-    pa = np.asarray(loo_a.loo_i).ravel()
-    pb = np.asarray(loo_b.loo_i).ravel()
-    d = pb - pa
-    delta = float(np.sum(d))
-    se = float(np.sqrt(d.size * np.var(d)))
-    z = delta / se if se > 0 else math.copysign(math.inf, delta) if delta else 0.0
-    decisive = bool(abs(delta) >= min_delta and abs(z) >= min_z)
-    preferred = (lb if delta > 0 else la) if decisive else "neither"
-    ka, kb = np.asarray(loo_a.pareto_k).ravel(), np.asarray(loo_b.pareto_k).ravel()
-    k = max(float(np.max(ka)), float(np.max(kb)))
-    n_bad = int(np.sum((ka > 0.7) | (kb > 0.7)))
-    if decisive:
-        words = (f"The {preferred} model predicts the data decisively better: ELPD "
-                 f"{'higher' if delta > 0 else 'lower'} by {abs(delta):.1f} nats for "
-                 f"{lb} than for {la}, {abs(z):.1f} standard errors ({se:.1f} nats).")
-    else:
-        words = (f"No decisive difference: the ELPD of {lb} minus that of {la} is "
-                 f"{delta:+.1f} +- {se:.1f} nats ({z:+.1f} standard errors; decisive needs "
-                 f"at least {min_delta:g} nats and {min_z:g} standard errors).")
-    if k > 0.7:
-        words += (f" {n_bad} of {d.size} Pareto k exceed 0.7 (max {k:.2f}): PSIS-LOO is "
-                  "unreliable for those samples.")
-    return ElpdChange(
-        base=la, other=lb,
-        elpd_base=float(loo_a.elpd_loo), elpd_other=float(loo_b.elpd_loo),
-        se_base=float(loo_a.se), se_other=float(loo_b.se),
-        delta=delta, se=se, z=float(z), decisive=decisive, preferred=preferred,
-        reading=words, max_pareto_k=k, n_bad_k=n_bad, n_obs=int(d.size),
-    )

@@ -34,10 +34,13 @@ from ..model.rigs import rig_to_dict
 from ..model.system import LinearModel, Rig
 from .coverage_reference import calibration_summary
 from .moves import parse_moves
+from .noise_choice import choose_noise
 from .noise_spec import parse_noise
 from .predictive import PredictiveScores, new_record_parameters, predict_new_record, score_samples
 from .propagate import propagate_modes
-from .records import DEFAULT_LAYOUT, RecordLayout, RecordsLikelihood, choose_noise, record_priors
+from .record_layout import DEFAULT_LAYOUT, RecordLayout
+from .record_priors import record_priors
+from .records import RecordsLikelihood
 from .sampling import sample_posterior
 from .spec import LikelihoodSpec, SamplerSpec, burn_in_steps
 

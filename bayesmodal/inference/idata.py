@@ -51,8 +51,9 @@ from ..model.rigs import rig_from_toml, rig_to_toml
 from ..model.system import LinearModel, Rig
 from .likelihood import Likelihood, simulate_noise
 from .priors import PriorSet
+from .record_layout import RecordLayout
 from .record_scale import RecordScales
-from .records import RecordLayout, RecordsLikelihood
+from .records import RecordsLikelihood
 
 __all__ = [
     "arviz",

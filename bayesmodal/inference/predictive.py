@@ -53,7 +53,7 @@ from .coverage_reference import (
 )
 from .likelihood import Likelihood, residual_loglik, simulate_noise
 from .noise import kalman_loglik, simulate_process_noise
-from .records import SIGNED
+from .record_layout import SIGNED
 
 __all__ = ["PredictiveScores", "band_factor", "new_record_parameters", "predict_new_record",
            "score_samples", "crps_ensemble"]

@@ -4,23 +4,11 @@ The records of one rig share its physics (masses, dampers, springs, extension
 parameters) but not everything: the drive gain ``g_v`` differs from record to record on
 the ECP 210 (about 6.1 N/V on the steps, 5.5 on the impulses, 4.5-5.2 on the sweeps), and
 the amplifier has an input offset ``v0`` (V).  A :class:`RecordLayout` says which
-parameters are per record and how:
-
-``"shared"``
-    One value for all records: meant for the input offset ``v0``, which is not a
-    parameter of the single-record model (a model parameter is shared anyway when it is
-    not listed).  When the records agree on their offset, a hierarchy of it has a
-    population spread near zero, a funnel the ensemble sampler crosses slowly.
-``"independent"``
-    Each record ``r`` has its own value ``p[r]`` with the parameter's default prior.
-``"hierarchical"``
-    The values are drawn from a population, which is sampled too.  For a positive
-    parameter (sampled in log, e.g. ``g_v``) the population is log-normal,
-    ``log p[r] ~ N(log mu_p, tau_p^2)`` with ``tau_p`` the relative spread; for a signed
-    one (``v0``) normal, ``p[r] ~ N(mu_p, tau_p^2)`` with ``tau_p`` in the parameter's
-    unit.  ``mu_p`` gets the parameter's default prior and ``tau_p`` a half-normal prior
-    (scale :data:`TAU_SCALE`).  This is the standard remedy when records disagree: a new
-    record is predicted with a value drawn from the population, not with one record's.
+parameters are per record and how (``"shared"``, ``"independent"`` or
+``"hierarchical"``, drawn from a population), and where each sits in the parameter
+vector (:mod:`.record_layout`, whose names stay importable from here).  The priors and
+a starting point are in :mod:`.record_priors`, the choice of the noise model in
+:mod:`.noise_choice`.
 
 The input offset ``v0`` is not a parameter of the single-record model; declaring it adds
 ``v0[r]`` to every record (``v = v_measured + v0``).  For the linear model the output is
@@ -30,24 +18,18 @@ linear in ``g_v`` and in the input, so with unit-gain simulations ``a = S(v)`` a
 Noise parameters (``sigma_j``, ``phi_j``) are shared by the records unless
 ``noise_per_record``; a new record is then predicted with the shared noise model (or, per
 record, with a training record's noise parameters drawn at random).
-
-Parameter vector: the shared model parameters in the model's order, then for every
-per-record parameter (in layout order) ``mu_p, tau_p`` if hierarchical and ``p[r]`` for
-every record, then the noise parameters (``sigma_j[r]``... when per record).
 """
 
 from __future__ import annotations
 
-import re
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 from ..model._resid_kernels import ar1_sums, ar1_sums_affine
-from ..model.effects import resolve_extension
 from ..model.simulate import simulate_linear
 from ..model.system import LinearModel
 from .likelihood import (
@@ -56,32 +38,27 @@ from .likelihood import (
     ar1_terms,
     fast_path,
     loglik_from_sums,
-    noise_moments,
     prepare_linear,
     residual_loglik,
     simulate_noise,
     white_terms,
 )
-from .noise import (
-    ARpNoise,
-    NoiseModel,
-    choose_order,
-    kalman_loglik,
-    kalman_pointwise,
-    simulate_process_noise,
+from .noise import NoiseModel, kalman_loglik, kalman_pointwise, simulate_process_noise
+from .noise_choice import choose_noise, resolve_noise
+from .noise_spec import NOISE_MODELS
+from .record_layout import (
+    DEFAULT_LAYOUT,
+    PER_RECORD_KINDS,
+    RecordLayout,
+    model_layout,
+    parameter_index,
+    parse_layout,
+    population_log_density,
+    record_key,
+    record_values,
 )
-from .noise_spec import NOISE_MODELS, parse_noise
-from .priors import Normal, PriorSet, Uniform, default_priors
-from .record_scale import (
-    NOISE_SCALES,
-    POWER_BOUNDS,
-    POWER_NAME,
-    POWER_START,
-    RecordScales,
-    powered,
-    record_scales,
-    response_rms,
-)
+from .record_priors import TAU_SCALE, noise_start, record_priors, records_start
+from .record_scale import RecordScales, powered, record_scales, response_rms
 
 __all__ = [
     "RecordLayout",
@@ -95,150 +72,6 @@ __all__ = [
     "TAU_SCALE",
     "DEFAULT_LAYOUT",
 ]
-
-PER_RECORD_KINDS = ("independent", "hierarchical", "shared")
-
-#: Scale of the half-normal prior of a population spread ``tau_p``: relative for a
-#: log-sampled parameter (0.1 = 10 %), V for the input offset.
-TAU_SCALE = {"log": 0.1, "v0": 0.05}
-
-#: Prior of an independent input offset, and of a hierarchical offset's mean, V.
-V0_PRIOR = Normal(0.0, 0.1, lo=-1.0, hi=1.0)
-
-
-def resolve_noise(noise, n_outputs: int):
-    """A ``NoiseModel`` for ``"white"``, ``"ar1"``, ``"iar1"``, ``"arP"`` /
-    ``"ar(p1,...,pn)"``, ``"process"``, a ``NoiseSpec`` (``noise_spec.parse_noise``) or an
-    instance (``bayesmodal.inference.noise``).
-
-    Parameters
-    ----------
-    noise : str, NoiseSpec or NoiseModel
-        The noise model, by name (``noise_spec.parse_noise`` reads it) or built.
-    n_outputs : int
-        Outputs of the records: AR orders given per output must match, and an instance
-        must accept it.
-
-    Returns
-    -------
-    NoiseModel
-
-    Examples
-    --------
-    >>> resolve_noise("ar3", 2).name
-    'ar(3,3)'
-    """
-    if isinstance(noise, NoiseModel):
-        noise.names(n_outputs)  # checks the number of outputs
-        return noise
-    return parse_noise(noise).model(n_outputs)
-
-
-#: Largest AR order ``"ar:auto"`` considers.  On the measured ECP 210 residuals BIC keeps
-#: choosing the largest order offered (docs/noise_models.md): the cap is a modelling
-#: decision, not a property of the data.
-AUTO_MAX_ORDER = 8
-
-
-def choose_noise(experiments, model, start, *, extension=None, max_p: int = AUTO_MAX_ORDER):
-    """AR orders per output chosen by BIC on the residuals of a least-squares fit.
-
-    Parameters
-    ----------
-    experiments : sequence of Experiment
-    model : LinearModel
-    start : LSQResult, ExtensionFit or ndarray
-        The fit (its ``theta``) whose residuals are used; records are pooled by taking,
-        per output, the largest order any record asks for.
-    extension : Extension, optional
-
-    Returns
-    -------
-    ARpNoise
-    """
-    theta = np.asarray(getattr(start, "theta", start), dtype=float)
-    orders = np.ones(model.n_outputs, int)
-    for e in experiments:
-        if extension is None:
-            yh = simulate_linear(model, theta, e.v_volt, e.dt)
-        else:
-            yh = resolve_extension(extension, model).simulate(model.rig, theta[None],
-                                                              e.v_volt, e.dt)[0]
-        choice = choose_order(e.y_m - yh, max_p=max_p)
-        orders = np.maximum(orders, np.asarray(choice.orders, int))
-    return ARpNoise(tuple(int(p) for p in orders))
-
-
-def _record_key(name: str) -> str:
-    """A record name usable inside parameter names (letters, digits, ``_ - .``)."""
-    key = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_")
-    return key or "record"
-
-
-@dataclass(frozen=True)
-class RecordLayout:
-    """Which parameters are per record, and how.
-
-    Parameters
-    ----------
-    per_record : mapping of str to {"independent", "hierarchical", "shared"}
-        Model parameter names (``g_v``, a mass, a damper, an extension parameter) or
-        ``"v0"`` (the input offset, V), e.g. ``{"g_v": "hierarchical", "v0":
-        "hierarchical"}``.  Empty: every parameter is shared, as in a single-record run.
-    noise_per_record : bool
-        Each record has its own noise parameters (default: shared).
-    noise_scale : {"none", "response", "power"}
-        ``"response"``: each record's noise level is the shared one times the relative
-        size ``s_r`` of the model's response to its input
-        (``bayesmodal.inference.record_scale``); ``"power"``: times ``s_r ** scale_power``
-        with the exponent sampled in [0, 1]; ``"none"`` (default): one level in metres for
-        every record.
-
-    Examples
-    --------
-    >>> RecordLayout({"g_v": "hierarchical"}).kinds
-    (('g_v', 'hierarchical'),)
-    """
-
-    per_record: Mapping[str, str] = field(default_factory=dict)
-    noise_per_record: bool = False
-    noise_scale: str = "none"
-
-    def __post_init__(self) -> None:
-        items = tuple((str(k), str(v)) for k, v in dict(self.per_record).items())
-        for name, kind in items:
-            if kind not in PER_RECORD_KINDS:
-                raise ConfigError(
-                    f"per-record parameter {name}: kind must be one of {PER_RECORD_KINDS}, "
-                    f"got {kind!r}")
-        object.__setattr__(self, "per_record", dict(items))
-        object.__setattr__(self, "noise_per_record", bool(self.noise_per_record))
-        if self.noise_scale not in NOISE_SCALES:
-            raise ConfigError(f"noise_scale must be one of {NOISE_SCALES}, got "
-                              f"{self.noise_scale!r}")
-
-    @property
-    def kinds(self) -> tuple[tuple[str, str], ...]:
-        return tuple(self.per_record.items())
-
-    def to_dict(self) -> dict:
-        d = {"per_record": dict(self.per_record), "noise_per_record": self.noise_per_record}
-        if self.noise_scale != "none":  # (absent at the default: earlier hashes stay valid)
-            d["noise_scale"] = self.noise_scale
-        return d
-
-    @classmethod
-    def from_dict(cls, d: Mapping) -> RecordLayout:
-        return cls(dict(d.get("per_record", {})), bool(d.get("noise_per_record", False)),
-                   str(d.get("noise_scale", "none")))
-
-
-#: The package's default for several records: a drive gain per record drawn from a
-#: population, and one input offset for all records (docs/uncertainty.md shows the
-#: measurements behind it: the four ECP records agree on their offset, and a population of
-#: offsets with a spread near zero made the sampler's autocorrelation time 1044 steps
-#: against 52 with one shared offset).
-DEFAULT_LAYOUT = RecordLayout({"g_v": "hierarchical", "v0": "shared"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,7 +99,7 @@ class RecordsLikelihood:
     Attributes
     ----------
     names : tuple of str
-        The parameter vector's names (see the module docstring).
+        The parameter vector's names (see :mod:`.record_layout`).
     record_keys : tuple of str
         Record names as they appear in parameter names, ``p[key]``.
 
@@ -299,28 +132,14 @@ class RecordsLikelihood:
         singles = tuple(Likelihood(self.model, (e,), basic, self.extension) for e in exps)
         if not exps:
             raise DataError("no experiments given")
-        keys = tuple(_record_key(e.name) for e in exps)
+        keys = tuple(record_key(e.name) for e in exps)
         if len(set(keys)) != len(keys):
             raise DataError(
                 f"record names must be distinct to name per-record parameters, got "
                 f"{[e.name for e in exps]}; give each Experiment its own name")
-        layout = self.layout if isinstance(self.layout, RecordLayout) else RecordLayout(
-            **dict(self.layout))
         mech = singles[0].mech_names
-        for name, _ in layout.kinds:
-            if name != "v0" and name not in mech:
-                raise ConfigError(
-                    f"per-record parameter {name!r} is not a model parameter; choose from "
-                    f"{list(mech) + ['v0']}")
         ext = singles[0].extension
-        if "v0" in layout.per_record and ext is not None:
-            if "v_offset" not in mech:
-                raise ConfigError(
-                    "an input offset per record (v0) with a model extension needs the "
-                    "input_offset effect: extensions = [..., 'input_offset']")
-            # the effect's offset is the record's v0: one parameter, not two
-            per = {("v_offset" if k == "v0" else k): v for k, v in layout.per_record.items()}
-            layout = RecordLayout(per, layout.noise_per_record, layout.noise_scale)
+        layout = model_layout(self.layout, mech, ext)
         if noise_model.name == "process":
             if ext is not None:
                 raise ConfigError(
@@ -343,7 +162,8 @@ class RecordsLikelihood:
         object.__setattr__(self, "noise", self.noise if isinstance(self.noise, str) and
                            self.noise in NOISE_MODELS else noise_model.name)
         object.__setattr__(self, "record_keys", keys)
-        object.__setattr__(self, "_index", self._build_index(mech))
+        object.__setattr__(self, "_index", parameter_index(
+            layout, mech, keys, noise_model.names(self.model.n_outputs)))
         object.__setattr__(self, "_sims", SimulatorCache())
         scales = None
         if layout.noise_scale != "none" and self.scale_at is not None:
@@ -394,44 +214,6 @@ class RecordsLikelihood:
                        self._power(theta))
 
     # ---------------------------------------------------------------- layout
-    def _build_index(self, mech: tuple[str, ...]) -> dict:
-        names: list[str] = []
-        per = self.layout.per_record
-        shared = [nm for nm in mech if nm not in per]
-        names += shared
-        groups = {}
-        for p, kind in self.layout.kinds:
-            g = {"kind": kind}
-            if kind == "hierarchical":
-                g["mu"] = len(names)
-                g["tau"] = len(names) + 1
-                names += [f"mu_{p}", f"tau_{p}"]
-            if kind == "shared":  # one value for every record (the input offset)
-                g["records"] = [len(names)] * len(self.record_keys)
-                names.append(p)
-                groups[p] = g
-                continue
-            g["records"] = list(range(len(names), len(names) + len(self.record_keys)))
-            names += [f"{p}[{k}]" for k in self.record_keys]
-            groups[p] = g
-        n_out = self.n_outputs
-        base_noise = self.noise_model.names(n_out)
-        if self.layout.noise_per_record:
-            noise = [[len(names) + r * len(base_noise) + j for j in range(len(base_noise))]
-                     for r in range(len(self.record_keys))]
-            names += [f"{nm}[{k}]" for k in self.record_keys for nm in base_noise]
-        else:
-            noise = [list(range(len(names), len(names) + len(base_noise)))] * len(
-                self.record_keys)
-            names += list(base_noise)
-        power = None
-        if self.layout.noise_scale == "power":
-            power = len(names)
-            names.append(POWER_NAME)
-        return {"names": tuple(names), "mech": mech, "power": power,
-                "shared": [mech.index(nm) for nm in shared],
-                "shared_pos": list(range(len(shared))), "groups": groups, "noise": noise}
-
     @property
     def names(self) -> tuple[str, ...]:
         return self._index["names"]
@@ -489,19 +271,7 @@ class RecordsLikelihood:
         v0 : ndarray, shape (nb,)
             Input offset, V (zero when not per record).
         """
-        theta = np.atleast_2d(np.asarray(theta, dtype=float))
-        ix = self._index
-        nb = theta.shape[0]
-        mech = np.empty((nb, len(ix["mech"])))
-        mech[:, ix["shared"]] = theta[:, ix["shared_pos"]]
-        v0 = np.zeros(nb)
-        for p, g in ix["groups"].items():
-            val = theta[:, g["records"][r]]
-            if p == "v0":
-                v0 = val
-            else:
-                mech[:, ix["mech"].index(p)] = val
-        return np.concatenate([mech, theta[:, ix["noise"][r]]], axis=1), v0
+        return record_values(self._index, theta, r)
 
     def population(self, theta: np.ndarray, p: str) -> tuple[np.ndarray, np.ndarray] | None:
         """``(mu_p, tau_p)`` of a hierarchical parameter, each shape (nb,), else None."""
@@ -519,22 +289,7 @@ class RecordsLikelihood:
         per-record values' own entries in the :class:`PriorSet` are uniform over the
         parameter's support and only truncate the population.
         """
-        theta = np.atleast_2d(np.asarray(theta, dtype=float))
-        out = np.zeros(theta.shape[0])
-        with np.errstate(all="ignore"):
-            for p, g in self._index["groups"].items():
-                if g["kind"] != "hierarchical":
-                    continue
-                mu, tau = theta[:, g["mu"]], theta[:, g["tau"]]
-                x = theta[:, g["records"]]
-                if _positive(p):
-                    z = (np.log(x) - np.log(mu)[:, None]) / tau[:, None]
-                    dens = -0.5 * z**2 - np.log(tau)[:, None] - np.log(x)
-                else:
-                    z = (x - mu[:, None]) / tau[:, None]
-                    dens = -0.5 * z**2 - np.log(tau)[:, None]
-                out += np.sum(dens, axis=1) - 0.5 * x.shape[1] * np.log(2 * np.pi)
-        return np.where(np.isfinite(out), out, -np.inf)
+        return population_log_density(self._index, theta)
 
     def admissible(self, theta: np.ndarray) -> np.ndarray:
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
@@ -807,203 +562,12 @@ class RecordsLikelihood:
 
     def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
         """Moment estimates of the noise parameters (in ``names`` order of the noise)."""
-        starts = []
-        # (with a sampled power the residuals are scaled at its start value)
-        power = POWER_START if self._index["power"] is not None else 1.0
-        for r in range(self.n_records):
-            full, v0 = self.record_theta(theta[None], r)
-            mech = full[0, : len(self.mech_names)]
-            e = self.experiments[r]
-            res = (e.y_m - self.predict_mech(mech[None], v0, e)[0]) / self.scale(r) ** power
-            if self.noise in NOISE_MODELS:
-                starts.append(noise_moments(res, self.noise))
-            elif self.noise == "process":
-                # a small random force (N^2 s) and the residual RMS as measurement noise:
-                # the posterior-mode refinement moves both
-                starts.append(np.r_[np.full(self.n_outputs, 1e-6),
-                                    np.sqrt(np.mean(res**2, axis=0))])
-            else:
-                starts.append(self.record_noise[r].start(res))
-        if self.layout.noise_per_record:
-            return np.concatenate(starts)
-        # shared: pool the per-record moments (RMS of sigma, mean of the coefficients)
-        s = np.array(starts)
-        n = self.n_outputs
-        sig = np.sqrt(np.mean(s[:, :n] ** 2, axis=0))
-        return np.r_[sig, np.mean(s[:, n:], axis=0)]
+        return noise_start(self, theta)
 
 
 def _col(scale):
     """A noise-level factor as a column: shape (1, 1) for a number, (nb, 1) per row."""
     return np.reshape(np.asarray(scale, dtype=float), (-1, 1))
-
-
-#: Signed per-record parameters (normal populations): the input offsets, V.
-SIGNED = ("v0", "v_offset")
-
-
-def _positive(name: str) -> bool:
-    """Parameters sampled on a log scale when per record: the gain, masses, dampers and
-    positive extension levels (everything but the input offsets)."""
-    return name not in SIGNED
-
-
-def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None = None
-                  ) -> PriorSet:
-    """Default priors of a :class:`RecordsLikelihood`'s parameters.
-
-    Shared parameters and per-record values get the single-record defaults
-    (``default_priors``); a population mean ``mu_p`` the default of ``p``; a spread
-    ``tau_p`` a half-normal prior of scale :data:`TAU_SCALE`, truncated at 1 (relative) or
-    1 V; the input offset :data:`V0_PRIOR`.  Noise parameters per record copy the shared
-    defaults.
-
-    Parameters
-    ----------
-    lik : RecordsLikelihood
-    overrides : mapping of str to prior, optional
-        Replacements by name in ``lik.names``.
-
-    Returns
-    -------
-    PriorSet
-    """
-    base = default_priors(lik.model, noise="white", n_outputs=lik.n_outputs,
-                          extension=lik.extension)
-    table = dict(zip(base.names, zip(base.priors, base.transforms, strict=True), strict=True))
-    noise = lik.noise_model.priors(lik.n_outputs)
-    table.update(zip(noise.names, zip(noise.priors, noise.transforms, strict=True),
-                     strict=True))
-    table["v0"] = (V0_PRIOR, "identity")
-    table[POWER_NAME] = (Uniform(*POWER_BOUNDS), "identity")
-    priors, trs = [], []
-    for nm in lik.names:
-        m = re.fullmatch(r"(mu|tau)_(.+)", nm)
-        base_name = nm.split("[", 1)[0]
-        if m and m.group(2) in lik.layout.per_record and base_name == nm:
-            p = m.group(2)
-            if m.group(1) == "mu":
-                pr, tr = table[p]
-            else:
-                scale = TAU_SCALE["v0"] if p in SIGNED else TAU_SCALE["log"]
-                if p not in SIGNED and table[p][1] != "log":
-                    raise ConfigError(
-                        f"hierarchical {p}: a population needs a parameter sampled on a log "
-                        f"scale (positive); declare {p} independent instead")
-                pr, tr = Normal(0.0, scale, lo=0.0, hi=1.0), "log"
-        else:
-            pr, tr = table[base_name]
-        priors.append(pr)
-        trs.append(tr)
-    ps = PriorSet(lik.names, tuple(priors), tuple(trs))
-    return ps.replace(overrides) if overrides else ps
-
-
-def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
-    """A starting point of the full parameter vector from a joint single-record estimate.
-
-    Shared parameters come from ``theta_mech`` (e.g. a least-squares fit of all records
-    with shared parameters).  For the linear model each record's ``g_v`` and ``v0`` are
-    then the least-squares solution of ``y = g a + h b`` with the unit-gain simulations
-    ``a = S(v)``, ``b = S(1)`` and ``h = g v0`` (closed form, all outputs pooled); other
-    per-record values start at the shared estimate.  Population means and spreads start
-    at the mean and spread of the per-record values (spreads at least 1 % or 5 mV).  For
-    an extended model each record's ``g_v`` is the best of a grid of :data:`GAIN_GRID`
-    values (one batched likelihood call): a shared least-squares gain left the start
-    thousands of nats below the posterior's typical set on the four ECP records.
-    Noise parameters are moment estimates of the residuals.
-
-    Parameters
-    ----------
-    lik : RecordsLikelihood
-    theta_mech : ndarray, shape (n_mech,)
-
-    Returns
-    -------
-    ndarray, shape (P,)
-    """
-    theta_mech = np.asarray(theta_mech, dtype=float)
-    ix = lik._index
-    R = lik.n_records
-    values = {p: np.full(R, theta_mech[lik.mech_names.index(p)]) if p != "v0" else np.zeros(R)
-              for p in lik.layout.per_record}
-    if lik.extension is None and ("g_v" in values or "v0" in values):
-        unit = theta_mech.copy()
-        unit[0] = 1.0
-        for r, e in enumerate(lik.experiments):
-            a = simulate_linear(lik.model, unit, e.v_volt, e.dt).ravel()
-            cols = [a]
-            if "v0" in values:
-                cols.append(simulate_linear(lik.model, unit, np.ones(e.n_samples), e.dt).ravel())
-            coef = np.linalg.lstsq(np.column_stack(cols), e.y_m.ravel(), rcond=None)[0]
-            g = coef[0] if coef[0] > 0 else theta_mech[0]
-            if "g_v" in values:
-                values["g_v"][r] = g
-            if "v0" in values:
-                values["v0"][r] = float(np.clip(coef[1] / g, -0.5, 0.5))
-    out = _assemble_start(lik, values, theta_mech)
-    if lik.extension is not None and "g_v" in values:
-        # an extended model is not linear in g_v: each record's gain is the best of a grid
-        # around the shared estimate, all records in one batched call (a record's
-        # likelihood depends on its own gain only); the population then starts at them
-        grid = theta_mech[0] * np.exp(np.linspace(np.log(0.6), np.log(1.5), GAIN_GRID))
-        batch = np.repeat(out[None], grid.size, axis=0)
-        batch[:, ix["groups"]["g_v"]["records"]] = grid[:, None]
-        ll = lik.record_loglik(batch)
-        ok = np.isfinite(ll)
-        best = np.argmax(np.where(ok, ll, -np.inf), axis=0)
-        values["g_v"] = np.where(ok.any(axis=0), grid[best], theta_mech[0])
-        out = _assemble_start(lik, values, theta_mech)
-    return out
-
-
-#: Gain values tried per record by ``records_start`` for an extended model (0.6-1.5 times
-#: the shared estimate: the ECP records' gains span 4.5-6.1 N/V).
-GAIN_GRID = 46
-
-
-def _assemble_start(lik: RecordsLikelihood, values: dict, theta_mech: np.ndarray
-                    ) -> np.ndarray:
-    ix = lik._index
-    out = np.empty(lik.n_params)
-    out[ix["shared_pos"]] = theta_mech[ix["shared"]]
-    for p, g in ix["groups"].items():
-        x = values[p]
-        out[g["records"]] = np.mean(x) if g["kind"] == "shared" else x
-        if g["kind"] == "hierarchical":
-            if p in SIGNED:
-                out[g["mu"]], out[g["tau"]] = np.mean(x), max(np.std(x), 0.005)
-            else:
-                out[g["mu"]] = np.exp(np.mean(np.log(x)))
-                out[g["tau"]] = max(np.std(np.log(x)), 0.01)
-    first = ix["noise"][0][0]
-    end = len(out) if ix["power"] is None else ix["power"]
-    if ix["power"] is not None:
-        out[ix["power"]] = POWER_START
-    out[first:end] = lik.residual_noise_start(out)
-    return out
-
-
-def parse_layout(text: str, *, noise_per_record: bool = False, noise_scale: str = "none"
-                 ) -> RecordLayout:
-    """A :class:`RecordLayout` from ``"g_v=hierarchical,v0=independent"`` (or ``"none"``).
-
-    Examples
-    --------
-    >>> parse_layout("g_v=hierarchical").per_record
-    {'g_v': 'hierarchical'}
-    """
-    text = str(text).strip()
-    if text in ("", "none", "shared"):
-        return RecordLayout({}, noise_per_record, noise_scale)
-    per = {}
-    for item in text.split(","):
-        name, sep, kind = item.partition("=")
-        if not sep or not name.strip():
-            raise ConfigError(
-                f"per-record item {item!r}: write NAME=KIND, e.g. g_v=hierarchical,v0=independent")
-        per[name.strip()] = kind.strip()
-    return RecordLayout(per, noise_per_record, noise_scale)
 
 
 def as_records(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:

@@ -42,9 +42,12 @@ from .ensemble import check_backend_folder, run_ensemble
 from .likelihood import Likelihood, as_experiments
 from .mode import posterior_mode
 from .moves import default_moves
+from .noise_choice import choose_noise
 from .noise_spec import NoiseSpec, parse_noise
 from .priors import PriorSet, default_priors
-from .records import RecordLayout, RecordsLikelihood, choose_noise, record_priors, records_start
+from .record_layout import RecordLayout
+from .record_priors import record_priors, records_start
+from .records import RecordsLikelihood
 from .spec import LikelihoodSpec, SamplerSpec, with_settings
 from .threads import resolve_threads
 

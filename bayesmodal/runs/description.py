@@ -26,7 +26,7 @@ from ..data import ECP_M_PER_COUNT
 from ..inference.crossval import CrossvalSpec
 from ..inference.moves import MOVE_REVISIONS
 from ..inference.noise_spec import parse_noise
-from ..inference.records import RecordLayout
+from ..inference.record_layout import RecordLayout
 from ..inference.spec import SamplerSpec
 from ..model.effects import extension_revisions
 from ..model.rigs import rig_from_dict

@@ -19,8 +19,10 @@ from ..data import Experiment, check_identifiable, load_experiment, options_for_
 from ..fit.linear import fit_lsq
 from ..inference import LogUniform, Uniform, default_priors
 from ..inference.moves import parse_moves
+from ..inference.noise_choice import choose_noise
 from ..inference.noise_spec import parse_noise
-from ..inference.records import RecordsLikelihood, choose_noise, record_priors
+from ..inference.record_priors import record_priors
+from ..inference.records import RecordsLikelihood
 from ..model.effects import get_extension
 from ..model.system import LinearModel
 from .config import RunConfig

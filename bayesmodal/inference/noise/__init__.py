@@ -5,7 +5,8 @@
 - :mod:`.integrated`: integrated AR(1) (ARIMA(1, 1, 0)), a wandering discrepancy that
   starts at rest;
 - :mod:`.kalman`: process noise (a random force on each cart) through the steady-state
-  Kalman filter of the linear model.
+  Kalman filter of the linear model;
+- :mod:`.steady_filter`: that model discretised, and its steady-state filter (the DARE).
 
 See docs/noise_models.md.
 """
@@ -18,8 +19,8 @@ from .kalman import (
     kalman_loglik,
     kalman_pointwise,
     simulate_process_noise,
-    steady_state_filter,
 )
+from .steady_filter import steady_state_filter
 
 __all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "IntegratedAR1Noise", "ARpNoise",
            "OrderChoice", "burg", "choose_order", "levinson_table", "pacf_to_ar",
