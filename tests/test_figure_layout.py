@@ -83,9 +83,9 @@ def _posterior(exps):
 def _report_figures(exps, tmp_path, monkeypatch) -> dict:
     """Every figure of a run's report, by file name, drawn by the code the run uses."""
     import bayesmodal.runs.outputs as outputs
+    from bayesmodal.plots.runs import plot_residual_acf, plot_residuals
     from bayesmodal.runs.crosscheck import residual_check
     from bayesmodal.runs.outputs import write_modal_plot, write_run
-    from bayesmodal.plots.runs import plot_residual_acf, plot_residuals
     from bayesmodal.runs.report import REPORT_IMAGES
 
     figs = {}

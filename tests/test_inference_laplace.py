@@ -249,8 +249,8 @@ def test_laplace_start_shrinks_a_too_wide_approximation(monkeypatch):
     draw falls outside the support.  The start then shrinks the covariance (warning with
     the factor) instead of failing after the burn-in; a box too small even for the
     smallest factor still fails with the one-line fix."""
-    from bayesmodal.inference import laplace as lap
     from bayesmodal.inference import ensemble
+    from bayesmodal.inference import laplace as lap
 
     d = 5
     monkeypatch.setattr(ensemble, "laplace_approximation", lambda f, z: lap.Laplace(
