@@ -19,7 +19,6 @@ MAX_FUNCTION_LINES = 150
 #: Modules over the limit today, with their line counts (may only fall).
 LARGE_MODULES = {
     "bayesmodal/data.py": 754,
-    "bayesmodal/discrepancy/diagnosis/forward.py": 767,
     "bayesmodal/ema/frf.py": 826,
     "bayesmodal/inference/compare.py": 750,
     "bayesmodal/inference/noise/kalman.py": 665,
@@ -32,7 +31,6 @@ LARGE_MODULES = {
 #: Functions over the limit today (``path:name``), with their line counts.
 LARGE_FUNCTIONS = {
     "bayesmodal/discrepancy/checks/amplitude.py:amplitude_dependence": 199,
-    "bayesmodal/discrepancy/diagnosis/forward.py:forward_select": 167,
     "bayesmodal/ema/analyze.py:identify": 153,
     "bayesmodal/ema/lsce.py:lsce": 162,
     "bayesmodal/fit/effects.py:fit_extension_lsq": 164,
