@@ -32,8 +32,6 @@ LARGE_MODULES = {
 LARGE_FUNCTIONS = {
     "bayesmodal/ema/analyze.py:identify": 153,
     "bayesmodal/ema/lsce.py:lsce": 162,
-    "bayesmodal/fit/effects.py:fit_extension_lsq": 164,
-    "bayesmodal/fit/records.py:fit_records_lsq": 165,
     "bayesmodal/model/system.py:__post_init__": 181,
 }
 
