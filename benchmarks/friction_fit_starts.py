@@ -48,7 +48,7 @@ def main(argv=None) -> int:
 
     from hidden_pairs import make_case
 
-    from bayesmodal.discrepancy.diagnosis.forward import _lpd
+    from bayesmodal.discrepancy.diagnosis.gains import _lpd
     from bayesmodal.discrepancy.diagnosis.starts import best_starts, extra_starts
     from bayesmodal.fit import fit_extension_lsq, fit_lsq
     from bayesmodal.fit.effects import extension_residuals

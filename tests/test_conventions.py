@@ -83,7 +83,7 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "discrepancy.checks.residuals.smooth_derivative": ('polyorder',),
     "discrepancy.checks.spectrum.model_frequencies_hz": ('res',),
     "discrepancy.diagnosis.forward.forward_select": ('first_fit',),
-    "discrepancy.diagnosis.forward.loro_gain": (
+    "discrepancy.diagnosis.gains.loro_gain": (
         'exps', 'rig', 'cur_ext', 'cur_theta', 'new_ext', 'new_theta', 'linear', 'max_nfev',
         'criterion', 'weights'),
     "discrepancy.diagnosis.null.diagnostic_statistics": ('diags',),

@@ -19,7 +19,8 @@ from hidden_pairs import CASES, judge, make_case
 from bayesmodal import ConfigError, ModelError
 from bayesmodal.data import ECP_M_PER_COUNT
 from bayesmodal.discrepancy.diagnosis import diagnose
-from bayesmodal.discrepancy.diagnosis.forward import REFINES, loro_gain
+from bayesmodal.discrepancy.diagnosis.candidates import REFINES
+from bayesmodal.discrepancy.diagnosis.gains import loro_gain
 from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.effects import extension_fit_at
 from bayesmodal.model.effects import EXTENSIONS, get_extension
@@ -291,7 +292,7 @@ def test_pairs_benchmark_several_records_are_quantised_copies_with_more_noise():
 def test_forward_steps_offer_exchanges_of_the_plant_side_effect():
     """Besides every effect that combines with the model, a step offers the model's
     plant-side effect exchanged for another one together with one input-side effect."""
-    from bayesmodal.discrepancy.diagnosis.forward import _options
+    from bayesmodal.discrepancy.diagnosis.candidates import _options
     from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES
 
     def side(n):
@@ -511,7 +512,7 @@ def test_an_addition_is_tested_against_the_current_model_at_its_own_optimum():
     motor lag at ``tau`` = 1e-14 s (no lag) on top of a better offset than the current
     (unconverged) fit gains nothing then, where the plain difference credits it with the
     refit's gain; on data with a hidden lag the lag keeps its gain (negative control)."""
-    from bayesmodal.discrepancy.diagnosis.forward import (
+    from bayesmodal.discrepancy.diagnosis.gains import (
         _in_sample,
         _lpd,
         _reference,
@@ -542,7 +543,7 @@ def test_the_backward_check_removes_an_effect_at_its_no_effect_value():
     """An effect whose fitted parameters sit at its no-effect value (a lag of 1e-14 s) is
     removed by the backward check, at the point where the two models coincide; a fitted
     hidden lag is kept (negative control)."""
-    from bayesmodal.discrepancy.diagnosis.forward import _simplify
+    from bayesmodal.discrepancy.diagnosis.backward import _simplify
 
     rig, exps, lin, off, both, f_off, _ = _lag_setup("input_offset")
     null_lag = extension_fit_at(exps, both, rig, np.r_[f_off.theta, 1e-14], linear=lin)

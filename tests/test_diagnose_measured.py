@@ -14,7 +14,7 @@ from conftest import measured
 from hidden_effects import make
 
 from bayesmodal.discrepancy.diagnosis import DEFAULT_CANDIDATES, diagnose
-from bayesmodal.discrepancy.diagnosis.forward import REFINES
+from bayesmodal.discrepancy.diagnosis.candidates import REFINES
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from hidden_pairs import BASE, make_case
 from scipy import stats
 
 from bayesmodal import ConfigError
-from bayesmodal.discrepancy.diagnosis.forward import _lpd
+from bayesmodal.discrepancy.diagnosis.gains import _lpd
 from bayesmodal.fit import fit_extension_lsq, fit_lsq
 from bayesmodal.fit.global_search import (
     DAMPER_BOX,

@@ -29,13 +29,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
 from ..metrics import fit_percent
 from ..model.effects._base import Extension
-from ..model.system import LinearModel, Rig, damper_mask, log_scale_mask
+from ..model.system import LinearModel, Rig, damper_mask
+from ._lsq_common import check_outputs, coordinates, fd_jacobian, solve
 from .linear import LSQResult, barrier_residuals, fit_lsq
 
 __all__ = ["ExtensionFit", "fit_extension_lsq", "extension_fit_at", "extension_residuals",
@@ -335,9 +335,7 @@ def fit_extension_lsq(
     experiments = _as_list(experiments)
     rig = Rig() if rig is None else rig
     model = ext.linear_model(rig)
-    for e in experiments:
-        if e.n_outputs != rig.n_carts:
-            raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} carts")
+    check_outputs(experiments, rig)
     w_exp = experiment_weights(weights, experiments)
     # the weights once (a named weighting reads every record), as numbers from here on
     root_w = root_weights(None if weights is None else w_exp, experiments)
@@ -345,80 +343,41 @@ def fit_extension_lsq(
         linear = fit_lsq(experiments, model)
     elif linear.model.damping != "free" or linear.model.n_carts != rig.n_carts:
         raise ModelError("the linear start must be a free-damping fit of the same rig")
-    p_lin = model.n_params
-    specs = ext.specs(rig)
 
     def residuals(theta):
         r = admissible_residuals(ext, rig, theta, experiments)
         return r if root_w is None else r * root_w
 
-    dampers = damper_mask(LinearModel(rig, "free"))
     if theta0 is None:
-        grid = ext.start_grid(rig)
-        lin_starts = []
-        for f in damper_scales:
-            th = np.array(linear.theta, dtype=float)
-            th[dampers] *= float(f)
-            lin_starts.append(th)
-        lin_starts = np.array(lin_starts)
-        cands = np.concatenate([np.repeat(lin_starts, len(grid), axis=0),
-                                np.tile(grid, (len(lin_starts), 1))], axis=1)
-        cands = cands[ext.valid(rig, cands)]
-        r = residuals(cands)
-        order = np.argsort(np.sum(r**2, axis=1))
-        starts = [cands[i] for i in order[: max(1, int(n_starts))]]
+        starts = _grid_starts(ext, rig, linear, damper_scales, n_starts, residuals)
     else:
         starts = [ext.check(rig, np.asarray(theta0, dtype=float))]
 
     # optimiser coordinates: log for positive linear parameters, scaled linear otherwise
-    log_mask = log_scale_mask(LinearModel(rig, "free"))
-    lin_scale = np.where(log_mask, 1.0, np.maximum(np.abs(linear.theta), 1e-3))
-    ext_scale = np.array([sp.scale for sp in specs])
-    lo_e, hi_e = ext.opt_bounds(rig)
-    lower = np.r_[np.where(log_mask, -np.inf, 0.0), lo_e / ext_scale]
-    upper = np.r_[np.full(p_lin, np.inf), hi_e / ext_scale]
-
-    def to_w(theta):
-        lin = np.array(theta[..., :p_lin], dtype=float)
-        lin[..., log_mask] = np.log(lin[..., log_mask])
-        return np.concatenate([lin / lin_scale, ext.to_opt(rig, theta[..., p_lin:]) / ext_scale],
-                              axis=-1)
+    coords = coordinates(ext, rig, linear.theta)
+    lower, upper = coords.lower, coords.upper
+    steps = coords.fd_steps(fd_step)
 
     def to_theta(w):
-        lin = w[..., :p_lin] * lin_scale
         # a long trial step can overflow a log parameter to inf (or a mass to 0): such
         # points are not a model and get admissible_residuals' barrier, as in fit_lsq
-        with np.errstate(over="ignore", under="ignore"):
-            lin[..., log_mask] = np.exp(lin[..., log_mask])
-        return np.concatenate([lin, ext.from_opt(rig, w[..., p_lin:] * ext_scale)], axis=-1)
+        return coords.to_theta(w, quiet=True)
 
     def fun(w):
         return residuals(to_theta(w[None]))[0]
 
-    def jac(w):
-        n = w.size
-        h = np.full(n, fd_step)
-        h[:p_lin] = np.where(log_mask, 1e-6, 1e-4)
-        ws = np.repeat(w[None], n + 1, axis=0)
-        for i in range(n):
-            # step away from an upper bound
-            step = h[i] if w[i] + h[i] <= upper[i] else -h[i]
-            ws[i + 1, i] += step
-            h[i] = step
-        r = residuals(to_theta(ws))
-        return ((r[1:] - r[0]) / h[:, None]).T
+    def jac(w):  # forward differences, each step away from an upper bound
+        return fd_jacobian(lambda ws: residuals(to_theta(ws)), w, range(w.size), steps, upper)
 
     best = None
     n_eval = 0
     for start in starts:
-        w0 = to_w(start)
+        w0 = coords.to_opt(start)
         # keep the start strictly inside finite bounds and replace infinite values (e.g.
         # "no saturation") by the largest finite grid value
         w0 = np.where(np.isfinite(w0), w0, np.where(np.isfinite(upper), upper, 1e3))
         w0 = np.clip(w0, lower, upper)
-        sol = least_squares(fun, w0, jac=jac, bounds=(lower, upper), method="trf",
-                            x_scale=1.0, max_nfev=max_nfev, xtol=1e-10, ftol=1e-10,
-                            gtol=1e-10)
+        sol = solve(fun, w0, jac, lower, upper, max_nfev, x_scale=1.0)
         n_eval += int(sol.nfev)
         cost_end, cost_start = np.sum(fun(sol.x) ** 2), np.sum(fun(w0) ** 2)
         theta = ext.check(rig, to_theta(sol.x))
@@ -429,6 +388,26 @@ def fit_extension_lsq(
     _, theta, theta_start, sol = best
     return _summary(experiments, ext, rig, theta, w_exp, linear, theta_start,
                     bool(sol.success), str(sol.message), n_eval)
+
+
+def _grid_starts(ext, rig, linear, damper_scales, n_starts, residuals) -> list[np.ndarray]:
+    """The ``n_starts`` best start vectors of ``fit_extension_lsq``: the linear fit with its
+    dampers scaled by each of ``damper_scales``, crossed with ``ext.start_grid(rig)``,
+    ranked by the cost of ``residuals`` (one batched evaluation)."""
+    dampers = damper_mask(LinearModel(rig, "free"))
+    grid = ext.start_grid(rig)
+    lin_starts = []
+    for f in damper_scales:
+        th = np.array(linear.theta, dtype=float)
+        th[dampers] *= float(f)
+        lin_starts.append(th)
+    lin_starts = np.array(lin_starts)
+    cands = np.concatenate([np.repeat(lin_starts, len(grid), axis=0),
+                            np.tile(grid, (len(lin_starts), 1))], axis=1)
+    cands = cands[ext.valid(rig, cands)]
+    r = residuals(cands)
+    order = np.argsort(np.sum(r**2, axis=1))
+    return [cands[i] for i in order[: max(1, int(n_starts))]]
 
 
 def _summary(experiments, ext, rig, theta, w_exp, linear, theta_start, success, message,

@@ -33,14 +33,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
 from ..metrics import fit_percent
 from ..model.effects._base import Extension
 from ..model.effects._input import linear_lanes_run
-from ..model.system import LinearModel, Rig, log_scale_mask
+from ..model.system import LinearModel, Rig
+from ._lsq_common import check_outputs, coordinates, fd_jacobian, solve
 from .linear import fit_lsq
 
 __all__ = ["RecordsFit", "LOROFit", "fit_records_lsq", "loro_lsq", "new_record_theta",
@@ -224,10 +224,7 @@ def fit_records_lsq(
     if not exps:
         raise DataError("no records given; pass at least one Experiment")
     rig = Rig() if rig is None else rig
-    for e in exps:
-        if e.n_outputs != rig.n_carts:
-            raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_carts} "
-                            "carts; use a rig description with as many carts")
+    check_outputs(exps, rig, "; use a rig description with as many carts")
     names = _names(ext, rig)
     per = _default_per_record(names) if per_record is None else tuple(per_record)
     unknown = [p for p in per if p not in names]
@@ -247,34 +244,9 @@ def fit_records_lsq(
                          "bounds (masses, dampers, friction levels >= 0)")
 
     # optimiser coordinates, per parameter of one record's vector
-    log_mask = np.zeros(P, bool)
-    log_mask[:p_lin] = log_scale_mask(LinearModel(rig, "free"))
-    scale = np.ones(P)
-    lo, hi = np.full(P, -np.inf), np.full(P, np.inf)
-    lin_rel = np.flatnonzero(~log_mask[:p_lin])
-    scale[lin_rel] = np.maximum(np.abs(theta0[0, lin_rel]), 1e-3)
-    lo[lin_rel] = 0.0
-    if ext is not None:
-        specs = ext.specs(rig)
-        scale[p_lin:] = [sp.scale for sp in specs]
-        lo_e, hi_e = ext.opt_bounds(rig)
-        lo[p_lin:], hi[p_lin:] = lo_e / scale[p_lin:], hi_e / scale[p_lin:]
-    lo[log_mask], hi[log_mask] = -np.inf, np.inf
-
-    def to_opt(theta):  # (..., P) -> (..., P)
-        w = np.array(theta, dtype=float)
-        w[..., log_mask] = np.log(w[..., log_mask])
-        if ext is not None:
-            w[..., p_lin:] = ext.to_opt(rig, theta[..., p_lin:])
-        return w / scale
-
-    def from_opt(w):
-        w = np.asarray(w, dtype=float) * scale
-        theta = np.array(w)
-        theta[..., log_mask] = np.exp(w[..., log_mask])
-        if ext is not None:
-            theta[..., p_lin:] = ext.from_opt(rig, w[..., p_lin:])
-        return theta
+    coords = coordinates(ext, rig, theta0[0, :p_lin])
+    lo, hi = coords.lower, coords.upper
+    from_opt = coords.to_theta
 
     shared = [i for i, n in enumerate(names) if n not in per]
     own = [names.index(p) for p in per]
@@ -288,7 +260,7 @@ def fit_records_lsq(
         return w
 
     def pack(theta):  # (R, P) -> (n_z,)
-        w = to_opt(theta)
+        w = coords.to_opt(theta)
         return np.r_[w[0, shared], w[:, own].T.ravel()]
 
     norms = [np.linalg.norm(e.y_m - e.y_m.mean(axis=0), axis=0) for e in exps]
@@ -305,32 +277,22 @@ def fit_records_lsq(
         return np.concatenate([record_resid(r, w[r:r + 1])[0] for r in range(R)])
 
     n_z = n_sh + len(own) * R
-    steps = np.full(n_z, 1e-4)
-    ext_cols = [k for k, i in enumerate(shared) if i >= p_lin]
-    steps[ext_cols] = fd_step
-    steps[[k for k, i in enumerate(shared) if log_mask[i]]] = 1e-6
-    for j, i in enumerate(own):
-        steps[n_sh + j * R: n_sh + (j + 1) * R] = (fd_step if i >= p_lin else
-                                                   (1e-6 if log_mask[i] else 1e-4))
+    step = coords.fd_steps(fd_step)
+    steps = np.r_[step[shared], np.repeat(step[own], R)]
 
-    def jac(z):
+    def jac(z):  # record by record: its residuals depend on the shared and its own columns
         blocks = []
         for r in range(R):
             cols = list(range(n_sh)) + [n_sh + j * R + r for j in range(len(own))]
-            zs = np.repeat(z[None], len(cols) + 1, axis=0)
-            h = np.empty(len(cols))
-            for k, c in enumerate(cols):
-                h[k] = steps[c] if z[c] + steps[c] <= z_hi[c] else -steps[c]
-                zs[k + 1, c] += h[k]
-            res = record_resid(r, unpack(zs)[:, r])
-            J = np.zeros((res.shape[1], n_z))
-            J[:, cols] = ((res[1:] - res[0]) / h[:, None]).T
+            d = fd_jacobian(lambda zs, r=r: record_resid(r, unpack(zs)[:, r]), z, cols, steps,
+                            z_hi)
+            J = np.zeros((d.shape[0], n_z))
+            J[:, cols] = d
             blocks.append(J)
         return np.concatenate(blocks, axis=0)
 
     z0 = np.clip(pack(theta0), z_lo, z_hi)
-    sol = least_squares(fun, z0, jac=jac, bounds=(z_lo, z_hi), method="trf",
-                        max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    sol = solve(fun, z0, jac, z_lo, z_hi, max_nfev)
     z = sol.x if np.sum(sol.fun**2) <= np.sum(fun(z0) ** 2) else z0
     theta = from_opt(unpack(z)[0])
     fits = np.array([fit_percent(e.y_m, simulate_model(ext, rig, theta[r:r + 1], e)[0])

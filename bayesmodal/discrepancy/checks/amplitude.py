@@ -68,6 +68,114 @@ def _damping_growth(e: dict) -> str:
     return ends
 
 
+def _window_basis(wd: np.ndarray, sd: np.ndarray, m: int, win: int, dt: float) -> np.ndarray:
+    """Design matrix of a window for mode ``m`` (module docstring), shape (win, 2 n + 3).
+
+    A constant, ``e^{-sd_k t} cos(wd_k t)`` and ``sin`` for every damped mode ``k``
+    (``wd``, ``sd``: rad/s and 1/s, shape (n,)), and mode ``m``'s first-order terms ``t``
+    times its own; ``t`` (s, step ``dt``) centred in the window of ``win`` samples.
+    """
+    tw = (np.arange(win) - (win - 1) / 2) * dt
+    basis = [np.ones(win)]
+    for k in range(wd.size):
+        env = np.exp(-sd[k] * tw)
+        basis += [env * np.cos(wd[k] * tw), env * np.sin(wd[k] * tw)]
+    env = np.exp(-sd[m] * tw)
+    basis += [tw * env * np.cos(wd[m] * tw), tw * env * np.sin(wd[m] * tw)]
+    return np.column_stack(basis)
+
+
+def _mode_windows(Q, m, segs, X, wd_m, sd_m, floor, max_shift, min_r2, peak):
+    """Local frequency and damping of mode ``m`` in consecutive windows of the stretches
+    ``segs`` of its modal coordinate ``Q[:, m]``, fitted with the design ``X``
+    (:func:`_window_basis`) around the model's ``wd_m`` (rad/s) and ``sd_m`` (1/s).
+
+    Windows whose modal amplitude is below ``floor``, whose relative frequency shift
+    exceeds ``max_shift`` or whose fit explains less than ``min_r2`` are dropped.  Returns
+    arrays over the windows kept: amplitude (the modal one times ``peak``, the mode shape's
+    largest entry: m), frequency (rad/s), damping ratio, and the variances of the
+    frequency and of the damping ratio.
+    """
+    win = X.shape[0]
+    pinv = np.linalg.pinv(X)
+    XtX_inv = np.linalg.pinv(X.T @ X)
+    ia, ib = 1 + 2 * m, 2 + 2 * m
+    amps, om, ze, var_w, var_z = [], [], [], [], []
+    for a0, b0 in segs:
+        for s0 in range(a0, b0 - win + 1, win):
+            qw = Q[s0 : s0 + win, m]
+            coef = pinv @ qw
+            a, bb = coef[ia], coef[ib]
+            c, d = coef[-2], coef[-1]
+            amp2 = a * a + bb * bb
+            if amp2 < floor ** 2:
+                continue
+            dw = (bb * c - a * d) / amp2
+            ds = -(a * c + bb * d) / amp2
+            # keep windows that look like the mode: first-order shifts small and the
+            # local model explaining the window
+            resid = qw - X @ coef
+            r2 = 1.0 - (resid @ resid) / max(np.sum((qw - qw.mean()) ** 2), 1e-300)
+            if abs(dw) > max_shift * wd_m or r2 < min_r2:
+                continue
+            # standard errors of the shifts from the local fit (c and d carry them)
+            s2 = (resid @ resid) / max(win - X.shape[1], 1)
+            vc, vd, cd = s2 * XtX_inv[-2, -2], s2 * XtX_inv[-1, -1], s2 * XtX_inv[-2, -1]
+            var_w.append((bb * bb * vc + a * a * vd - 2 * a * bb * cd) / amp2**2)
+            var_s = (a * a * vc + bb * bb * vd + 2 * a * bb * cd) / amp2**2
+            om.append(wd_m + dw)
+            ze.append((sd_m + ds) / np.hypot(wd_m + dw, sd_m + ds))
+            var_z.append(var_s / (wd_m + dw) ** 2)
+            amps.append(np.sqrt(amp2) * peak)
+    return (np.array(amps), np.array(om), np.array(ze), np.array(var_w), np.array(var_z))
+
+
+def _mode_trends(m, wd_m, amps, om, ze, var_w, var_z, min_windows) -> dict:
+    """The entry of mode ``m`` in ``detail["modes"]`` (:func:`amplitude_dependence`): its
+    windows (:func:`_mode_windows`) and, with at least ``min_windows`` of different
+    amplitudes, the regressions of frequency on the squared amplitude and of damping on
+    its inverse."""
+    entry = {"mode": m + 1, "omega_model": float(wd_m), "amplitude_m": amps,
+             "omega": om, "zeta": ze, "slope": np.nan, "t": 0.0, "p": np.nan,
+             "relative_change": 0.0, "damping_slope": np.nan, "damping_t": 0.0,
+             "damping_p": np.nan, "damping_relative_change": 0.0,
+             "zeta_large_amplitude": np.nan, "zeta_small_amplitude": np.nan}
+    if amps.size >= min_windows and np.ptp(amps) > 0:
+        c0, s, se = _wls_slope(amps**2, om, var_w)
+        entry["slope"] = s
+        entry["t"] = s / se if se > 0 else 0.0
+        entry["p"] = float(2 * stats.t.sf(abs(entry["t"]), amps.size - 2))
+        entry["relative_change"] = float(s * (amps.max() ** 2 - amps.min() ** 2) / c0)
+        dz0, ds_, dse = _wls_slope(1.0 / amps, ze, var_z)
+        entry["damping_slope"] = ds_
+        # fitted damping ratio at the largest and the smallest amplitude
+        entry["zeta_large_amplitude"] = float(dz0 + ds_ / amps.max())
+        entry["zeta_small_amplitude"] = float(dz0 + ds_ / amps.min())
+        entry["damping_t"] = ds_ / dse if dse > 0 else 0.0
+        entry["damping_p"] = float(2 * stats.t.sf(abs(entry["damping_t"]), amps.size - 2))
+        zeta_ref = np.sum(ze / var_z) / np.sum(1 / var_z)
+        entry["damping_relative_change"] = float(
+            ds_ * (1 / amps.min() - 1 / amps.max()) / max(abs(zeta_ref), 1e-12))
+    return entry
+
+
+def _summary(best, f, p_fw, p_damp, stiff, alpha) -> str:
+    """The diagnostic's summary: the frequency trend of mode ``best`` and, when the mode
+    ``f`` (or None) shows dry friction, its damping growth."""
+    kind = "hardening" if best["slope"] > 0 else "softening"
+    summary = (
+        f"mode {best['mode']} frequency changes by {100 * best['relative_change']:+.2f} % over "
+        f"its amplitude range (t = {best['t']:.1f}, p = {p_fw:.2g}"
+        + (f": {kind} stiffness)" if stiff else
+           f", {'significant' if p_fw < alpha else 'not significant'})")
+    )
+    if f is not None:
+        summary += (f"; mode {f['mode']} damping grows towards small amplitude "
+                    + _damping_growth(f)
+                    + f" (p = {p_damp:.2g}): dry friction")
+    return summary
+
+
 def amplitude_dependence(
     res: LinearResiduals,
     *,
@@ -149,68 +257,10 @@ def amplitude_dependence(
     for m in range(n):
         q_noise = np.sqrt(np.sum(proj[m] ** 2 * sigma**2))
         win = max(int(round(periods_per_window * 2 * np.pi / wd[m] / dt)), 8)
-        tw = (np.arange(win) - (win - 1) / 2) * dt
-        basis = [np.ones(win)]
-        for k in range(n):
-            env = np.exp(-sd[k] * tw)
-            basis += [env * np.cos(wd[k] * tw), env * np.sin(wd[k] * tw)]
-        env = np.exp(-sd[m] * tw)
-        basis += [tw * env * np.cos(wd[m] * tw), tw * env * np.sin(wd[m] * tw)]
-        X = np.column_stack(basis)
-        pinv = np.linalg.pinv(X)
-        XtX_inv = np.linalg.pinv(X.T @ X)
-        ia, ib = 1 + 2 * m, 2 + 2 * m
-        amps, om, ze, var_w, var_z = [], [], [], [], []
-        for a0, b0 in segs:
-            for s0 in range(a0, b0 - win + 1, win):
-                qw = Q[s0 : s0 + win, m]
-                coef = pinv @ qw
-                a, bb = coef[ia], coef[ib]
-                c, d = coef[-2], coef[-1]
-                amp2 = a * a + bb * bb
-                if amp2 < (snr * q_noise) ** 2:
-                    continue
-                dw = (bb * c - a * d) / amp2
-                ds = -(a * c + bb * d) / amp2
-                # keep windows that look like the mode: first-order shifts small and the
-                # local model explaining the window
-                resid = qw - X @ coef
-                r2 = 1.0 - (resid @ resid) / max(np.sum((qw - qw.mean()) ** 2), 1e-300)
-                if abs(dw) > max_shift * wd[m] or r2 < min_r2:
-                    continue
-                # standard errors of the shifts from the local fit (c and d carry them)
-                s2 = (resid @ resid) / max(win - X.shape[1], 1)
-                vc, vd, cd = s2 * XtX_inv[-2, -2], s2 * XtX_inv[-1, -1], s2 * XtX_inv[-2, -1]
-                var_w.append((bb * bb * vc + a * a * vd - 2 * a * bb * cd) / amp2**2)
-                var_s = (a * a * vc + bb * bb * vd + 2 * a * bb * cd) / amp2**2
-                om.append(wd[m] + dw)
-                ze.append((sd[m] + ds) / np.hypot(wd[m] + dw, sd[m] + ds))
-                var_z.append(var_s / (wd[m] + dw) ** 2)
-                amps.append(np.sqrt(amp2) * np.max(np.abs(Phi[:, m])))
-        amps, om, ze = np.array(amps), np.array(om), np.array(ze)
-        var_w, var_z = np.array(var_w), np.array(var_z)
-        entry = {"mode": m + 1, "omega_model": float(wd[m]), "amplitude_m": amps,
-                 "omega": om, "zeta": ze, "slope": np.nan, "t": 0.0, "p": np.nan,
-                 "relative_change": 0.0, "damping_slope": np.nan, "damping_t": 0.0,
-                 "damping_p": np.nan, "damping_relative_change": 0.0,
-                 "zeta_large_amplitude": np.nan, "zeta_small_amplitude": np.nan}
-        if amps.size >= min_windows and np.ptp(amps) > 0:
-            c0, s, se = _wls_slope(amps**2, om, var_w)
-            entry["slope"] = s
-            entry["t"] = s / se if se > 0 else 0.0
-            entry["p"] = float(2 * stats.t.sf(abs(entry["t"]), amps.size - 2))
-            entry["relative_change"] = float(s * (amps.max() ** 2 - amps.min() ** 2) / c0)
-            dz0, ds_, dse = _wls_slope(1.0 / amps, ze, var_z)
-            entry["damping_slope"] = ds_
-            # fitted damping ratio at the largest and the smallest amplitude
-            entry["zeta_large_amplitude"] = float(dz0 + ds_ / amps.max())
-            entry["zeta_small_amplitude"] = float(dz0 + ds_ / amps.min())
-            entry["damping_t"] = ds_ / dse if dse > 0 else 0.0
-            entry["damping_p"] = float(2 * stats.t.sf(abs(entry["damping_t"]), amps.size - 2))
-            zeta_ref = np.sum(ze / var_z) / np.sum(1 / var_z)
-            entry["damping_relative_change"] = float(
-                ds_ * (1 / amps.min() - 1 / amps.max()) / max(abs(zeta_ref), 1e-12))
-        modes.append(entry)
+        X = _window_basis(wd, sd, m, win, dt)
+        windows = _mode_windows(Q, m, segs, X, wd[m], sd[m], snr * q_noise, max_shift,
+                                min_r2, np.max(np.abs(Phi[:, m])))
+        modes.append(_mode_trends(m, wd[m], *windows, min_windows))
     tested = [e for e in modes if np.isfinite(e["p"])]
     if not tested:
         return Diagnostic(
@@ -241,19 +291,9 @@ def amplitude_dependence(
     p_report = p_damp if (friction_modes and not stiff) else p_fw
     suggests = (suggested_by("amplitude_frequency") if stiff else ()) + (
         suggested_by("amplitude_damping") if friction_modes else ())
-    kind = "hardening" if best["slope"] > 0 else "softening"
-    summary = (
-        f"mode {best['mode']} frequency changes by {100 * best['relative_change']:+.2f} % over "
-        f"its amplitude range (t = {best['t']:.1f}, p = {p_fw:.2g}"
-        + (f": {kind} stiffness)" if stiff else
-           f", {'significant' if p_fw < alpha else 'not significant'})")
-    )
     f = max(friction_modes, key=lambda e: e["damping_relative_change"]) if friction_modes \
         else None
-    if f is not None:
-        summary += (f"; mode {f['mode']} damping grows towards small amplitude "
-                    + _damping_growth(f)
-                    + f" (p = {p_damp:.2g}): dry friction")
+    summary = _summary(best, f, p_fw, p_damp, stiff, alpha)
     location = f"mode {best['mode']}" if stiff else (
         f"mode {f['mode']}" if f is not None else None)
     return Diagnostic(

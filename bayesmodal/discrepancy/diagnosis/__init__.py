@@ -7,7 +7,8 @@ See ``docs/diagnose.md``.
 from __future__ import annotations
 
 from ._result import CAUSES, CandidateScore, Diagnosis, Interval, TestOutcome
-from .forward import Cause, ForwardResult, forward_select, loro_gain
+from .forward import Cause, ForwardResult, forward_select
+from .gains import loro_gain
 from .null import (
     NoiseModel,
     NullCalibration,

@@ -45,7 +45,9 @@ from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
 from ...structure import check_structure
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
-from .forward import REFINES, RESIDUAL_BASED, Cause, forward_select, loro_gain
+from .candidates import REFINES
+from .forward import RESIDUAL_BASED, Cause, forward_select
+from .gains import loro_gain
 from .location import effect_location, final_causes
 from .null import (
     NullCalibration,
