@@ -35,9 +35,13 @@ def _run_rows(folder: Path, label: str) -> list[tuple]:
              summary.get("diagnostics", {}).get("min_ess"))]
     if cv:
         folds = cv.get("records") or []
-        rates = [f.get("evaluations_per_s") for f in folds if f.get("evaluations_per_s")]
+        # the clock's numbers are in timing.json (in summary.json in older run folders)
+        clock = timing.get("crossval") or {"wall_time_s": cv.get("wall_time_s"),
+                                           "records": folds}
+        rates = [f.get("evaluations_per_s") for f in clock["records"]
+                 if f.get("evaluations_per_s")]
         rows.append((f"{label}: leave-one-record-out ({len(folds)} folds)",
-                     cv.get("wall_time_s"), float(np.median(rates)) if rates else None, None,
+                     clock.get("wall_time_s"), float(np.median(rates)) if rates else None, None,
                      max((f.get("max_rhat") or np.nan for f in folds), default=None),
                      min((f.get("min_ess") or np.nan for f in folds), default=None)))
     other = timing["wall_time_s"] - sum(r[1] or 0.0 for r in rows)

@@ -449,3 +449,25 @@ def test_calibrated_temperature_run_reuses_the_calibrations_check(tmp_path, monk
     (tmp_path / "other.toml").write_text(other)
     t2, _, study2 = _temperature(prepare_run(load_config(tmp_path / "other.toml")), folder)
     assert len(calls) == len(measured) and study2 is not None
+
+
+def test_a_checked_run_keeps_the_clock_out_of_its_summary(tmp_path):
+    """With [crossval] enabled, the folds' times and evaluation rates go to timing.json,
+    so the same configuration on the same data gives the same summary.json byte for byte
+    (what ``bayesmodal rerun`` compares, tests/test_reproducibility.py); the check's
+    results stay in summary.json."""
+    _record(tmp_path / "a.csv", 400, 0.1, 1)
+    _record(tmp_path / "b.csv", 400, 0.2, 2)
+    cfg = tmp_path / "cv.toml"
+    cfg.write_text('[data]\nfiles = ["a.csv", "b.csv"]\n[likelihood]\nnoise = "white"\n'
+                   "[sampler]\nwalkers = 24\nsteps = 30\nburn = 10\nthin = 2\nseed = 3\n"
+                   "[crossval]\nenabled = true\ndraws = 10\nsteps = 20\n"
+                   "[outputs]\nplots = false\nreport = false\nema = false\n")
+    assert main(["run", str(cfg), "--out-root", str(tmp_path / "out"), "--quiet"]) == 0
+    one = tmp_path / "out" / "cv"
+    s = _summary(one)
+    assert [r["name"] for r in s["crossval"]["records"]] == ["a", "b"]
+    assert all("elapsed_s" not in r and "evaluations_per_s" not in r
+               for r in s["crossval"]["records"]) and "wall_time_s" not in s["crossval"]
+    clock = json.loads((one / "timing.json").read_text())["crossval"]
+    assert clock["wall_time_s"] > 0 and all(r["elapsed_s"] > 0 for r in clock["records"])

@@ -20,7 +20,7 @@ import os
 import threading
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -321,9 +321,6 @@ def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
               temperature: float = 1.0, study=None) -> dict:
     """Leave-one-record-out check of the configuration, written to ``crossval/``;
     ``study`` is that check already computed at ``temperature`` (by the calibration)."""
-    from dataclasses import replace
-
-
     def say(line: str) -> None:
         log.info("crossval: %s", line)
 
@@ -334,6 +331,14 @@ def _crossval(prep: PreparedRun, folder: RunFolder, progress: bool,
     d = res.to_dict()
     return {"records": d["records"], "total": d["total"], "own_lsq": d["own_lsq"],
             "spec": d["spec"], "wall_time_s": d["wall_time_s"]}
+
+
+def _pop_clock(cv: dict) -> dict:
+    """The clock's numbers of the leave-one-record-out check (its wall time, each fold's
+    time and evaluation rate), taken out of ``cv`` (summary.json's ``crossval``)."""
+    return {"wall_time_s": cv.pop("wall_time_s", None),
+            "records": [{k: r.pop(k, None) for k in ("elapsed_s", "evaluations_per_s")}
+                        for r in cv.get("records", [])]}
 
 
 def _config_text(cfg: RunConfig) -> str:
@@ -417,6 +422,8 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                   "performance": summary.pop("performance", None)}
         if isinstance(summary.get("evidence"), dict):
             timing["evidence_elapsed_s"] = summary["evidence"].pop("elapsed_s", None)
+        if isinstance(summary.get("crossval"), dict):
+            timing["crossval"] = _pop_clock(summary["crossval"])
         folder.write_json("timing.json", timing)
         folder.write_json("summary.json", summary)
         with stages.stage("report"):
