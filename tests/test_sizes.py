@@ -2,8 +2,9 @@
 
 No module and no function is over its limit; the lists below held those that were, and
 stay empty: a module or function that grows past the limit is split by concept (one
-idea per module, docs/conventions.md), not listed.  The public entry points ``sample_posterior`` and ``diagnose``
-take at most eight parameters (their settings are one object each).
+idea per module, docs/conventions.md), not listed.  The public entry points
+``sample_posterior`` and ``diagnose`` take at most eight parameters (their settings are
+one object each).
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 from .._errors import ConfigError, ModelError
 from ..data import in_data_root
 from ..inference.moves import move_spec
-from ..inference.noise_spec import NOISE_MODELS, parse_noise
+from ..inference.noise_spec import accepted_noise, parse_noise
 from ..inference.record_scale import NOISE_SCALES
 from ..inference.spec import INIT_METHODS
 from ..inference.threads import resolve_threads
@@ -230,8 +230,7 @@ def _parse_likelihood(raw, values, kw, err, files) -> None:
     try:
         parse_noise(noise)
     except ConfigError:
-        err("likelihood.noise", f"must be one of {NOISE_MODELS}, 'arP' (e.g. 'ar4'), "
-            f"'ar(p1,...,pn)', 'ar:auto', 'iar1', 'ar1:motion' or 'process', got {noise!r}")
+        err("likelihood.noise", f"must be one of {accepted_noise()}, got {noise!r}")
     kw["noise"] = noise
 
 
