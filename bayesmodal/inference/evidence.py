@@ -4,7 +4,7 @@
 library), with its error.  It depends on the prior ranges (a wider prior on an unneeded
 parameter costs ``log(width ratio)``), which the report states next to it.  The Bayes
 factor ``B = Z_a / Z_b`` is read on the Kass and Raftery (1995) scale of ``2 ln B``.
-:mod:`.compare` puts it beside the other criteria.
+:mod:`bayesmodal.inference.compare` puts it beside the other criteria.
 """
 
 from __future__ import annotations

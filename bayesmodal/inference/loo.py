@@ -5,8 +5,9 @@ run's InferenceData, ArviZ's ``loo`` and ``waic``).  The rig records are autocor
 time series; leaving one sample out is then only an approximation of predictive
 performance (neighbouring samples carry most of the left-out information).  With the
 AR(1) likelihood the pointwise terms are the conditional innovation densities
-``p(r_k | r_{k-1})``, which are the natural one-step-ahead units.  :mod:`.compare` puts
-these criteria beside the evidence and the predictive check.
+``p(r_k | r_{k-1})``, which are the natural one-step-ahead units.
+:mod:`bayesmodal.inference.compare` puts these criteria beside the evidence and the
+predictive check.
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 A run names its residual model (``"white"``, ``"ar1"``, ``"iar1"``, ``"arP"``,
 ``"process"``...; :mod:`.noise_spec` reads the spelling) or asks for AR orders fitted
 to the residuals of a least-squares estimate (``"ar:auto"``).  The several-record
-likelihood (:mod:`.records`), ``sample_posterior`` and the cross-validation resolve it
-here.
+likelihood (:mod:`bayesmodal.inference.records`), ``sample_posterior`` and the
+cross-validation resolve it here.
 """
 
 from __future__ import annotations

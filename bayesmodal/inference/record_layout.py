@@ -28,7 +28,7 @@ every record, then the noise parameters (``sigma_j[r]``... when per record).
 :func:`parameter_index` places the parameters in that vector, :func:`record_values` reads
 one record's values back, and :func:`population_log_density` is the density of the
 per-record values under their populations.  The several-record likelihood
-(:mod:`.records`) is built on them.
+(:mod:`bayesmodal.inference.records`) is built on them.
 """
 
 from __future__ import annotations
