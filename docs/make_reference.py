@@ -386,8 +386,7 @@ def config_page() -> str:
 
 def _identify_default(key: str) -> str:
     """The default of an ``[identify]`` key: the value its spec field takes."""
-    from bayesmodal.runs.config import IDENTIFY_DIAGNOSIS_KEYS
-    from bayesmodal.runs.identify import DiagnosisSpec, FinalSpec
+    from bayesmodal.runs.identify_spec import IDENTIFY_DIAGNOSIS_KEYS, DiagnosisSpec, FinalSpec
 
     words = {"enabled": "false", "candidates": "the default candidates and the driven "
              "cart's end stop", "thin": "about 1000 retained draws",

@@ -289,6 +289,33 @@ def test_identify_table_errors_are_listed_together(tmp_path):
     assert parse_config(raw, check_files=False).identify is None
 
 
+def test_identify_options_are_checked_in_one_place():
+    """The configuration and the specs the command line builds refuse an option with the
+    same words (``identify_problems``); options in range pass both (negative control)."""
+    from dataclasses import replace
+
+    from bayesmodal import ConfigError
+    from bayesmodal.runs.config import parse_config
+    from bayesmodal.runs.identify_spec import DiagnosisSpec, FinalSpec, identify_problems
+
+    bad = {"null": 5, "weights": "heavy", "burn": 600, "steps": 600, "prune": 700}
+    problems = dict(identify_problems(bad))
+    assert sorted(problems) == ["burn", "null", "prune", "weights"]
+    with pytest.raises(ConfigError) as e:
+        parse_config({"data": {"files": ["x.csv"]}, "identify": {"enabled": True, **bad}},
+                     check_files=False)
+    for key, message in problems.items():
+        assert f"[identify.{key}] {message}" in str(e.value)
+    with pytest.raises(ConfigError, match=r"\[identify\] null must be >= 19, got 5"):
+        replace(DiagnosisSpec(), n_null=5)
+    with pytest.raises(ConfigError, match=r"\[identify\] burn must be < identify.steps"):
+        replace(FinalSpec(), steps=600, burn=600)
+    good = {"null": 19, "weights": "spread", "steps": 600, "burn": 100, "prune": 50}
+    assert identify_problems(good) == []
+    assert parse_config({"data": {"files": ["x.csv"]}, "identify": {"enabled": True, **good}},
+                        check_files=False).identify["null"] == 19
+
+
 IDENTIFY_CHECK_JS = """<script>
 window.addEventListener('load', function () {
   var box = function (sel) { return document.querySelector(sel).getBoundingClientRect(); };

@@ -175,13 +175,6 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
                  "thin": int, "prune": int, "crossval_steps": int, "population": bool},
 }
 
-#: ``[identify]`` keys of the diagnosis stage (``runs.identify.DiagnosisSpec`` fields).
-IDENTIFY_DIAGNOSIS_KEYS = {"null": "n_null", "max_effects": "max_effects", "split": "split",
-                           "weights": "weights", "seed": "seed", "candidates": "candidates",
-                           "starts": "n_starts", "global_search": "global_search"}
-#: ``[identify]`` keys of the found model's sampler (``runs.identify.FinalSpec`` fields).
-IDENTIFY_FINAL_KEYS = ("walkers", "steps", "burn", "thin", "prune", "crossval_steps",
-                       "population")
 
 
 def _type_name(t) -> str:

@@ -23,6 +23,7 @@ from ..model.effects import EXTENSIONS
 from ..model.rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict
 from ..model.system import DAMPING_MODELS, ECP210_SPRINGS_N_M, LinearModel, Rig
 from ..reading import REST_OFFSETS, TIME_BASES, ReadOptions, parse_scale
+from .identify_spec import identify_problems
 
 #: Burn-in steps of a run whose ``[sampler]`` does not give them (``RunConfig.burn``).
 DEFAULT_BURN = 1000
@@ -401,9 +402,6 @@ def _parse_identify(table, err, kw) -> None:
     if not isinstance(table, dict) or not table.get("enabled", False):
         return
     opts = {k: v for k, v in table.items() if k != "enabled"}
-    for key, allowed in (("split", ("auto", "none")), ("weights", ("auto", "none", "spread"))):
-        if key in opts and opts[key] not in allowed:
-            err(f"identify.{key}", f"must be one of {allowed}, got {opts[key]!r}")
     cands = opts.get("candidates")
     if cands is not None:
         unknown = [c for c in cands if c not in EXTENSIONS]
@@ -411,20 +409,8 @@ def _parse_identify(table, err, kw) -> None:
             err("identify.candidates", f"unknown effects {unknown}; known: {list(EXTENSIONS)}"
                 if unknown else "must name at least one effect")
         opts["candidates"] = tuple(cands)
-    for key, lo in (("null", 19), ("max_effects", 1), ("starts", 1), ("walkers", 4),
-                    ("steps", 10),
-                    ("burn", 0), ("thin", 1), ("prune", 1), ("crossval_steps", 10)):
-        if isinstance(opts.get(key), int) and opts[key] < lo:
-            err(f"identify.{key}", f"must be >= {lo}, got {opts[key]}"
-                + (" (19 null data sets are the fewest a 5 % test allows)" if key == "null"
-                   else ""))
-    steps, burn = opts.get("steps", 12000), opts.get("burn", 1000)
-    if isinstance(steps, int) and isinstance(burn, int) and burn >= steps:
-        err("identify.burn", f"must be < identify.steps ({steps}), got {burn}")
-    prune = opts.get("prune")
-    if isinstance(prune, int) and isinstance(burn, int) and prune >= burn:
-        err("identify.prune", f"must be < identify.burn ({burn}), got {prune}: stranded "
-            "walkers are pruned within the burn-in")
+    for key, message in identify_problems(opts):
+        err(f"identify.{key}", message)
     kw["identify"] = opts
 
 

@@ -34,7 +34,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import ConfigError
 from .._json import to_jsonable
 from ..discrepancy.diagnosis import (
     DEFAULT_CANDIDATES,
@@ -46,8 +45,9 @@ from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS, get_extension
 from ..model.system import LinearModel, param_kinds
 from ..segments import split_at_rest, split_records
-from .config import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, RunConfig
+from .config import RunConfig
 from .folder import RunFolder, atomic_write_json, now_iso
+from .identify_spec import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, DiagnosisSpec, FinalSpec
 from .identify_summary import summarize, write_identify_report
 from .runner import execute_run, prepare_run
 
@@ -57,94 +57,6 @@ __all__ = ["DiagnosisSpec", "FinalSpec", "IdentifySpec", "IdentifyOutcome", "ide
 
 #: Stages in order, as named in progress lines and ``identify.json``.
 STAGES = ("linear", "diagnosis", "final", "summary")
-
-
-@dataclass(frozen=True)
-class DiagnosisSpec:
-    """How the diagnosis stage runs ``diagnose`` (its options of the same names).
-
-    Attributes
-    ----------
-    n_null : int
-        Null data sets of the calibration (19 is the least a 5 % test allows).
-    max_effects : int
-        Largest number of effects forward selection puts in the model.
-    candidates : tuple of str or None
-        The effects tried; None: ``DEFAULT_CANDIDATES`` plus the end stop of the driven
-        cart where the rig has exactly one.
-    weights : {"auto", "none", "spread"}
-        ``"auto"``: ``"spread"`` with several training records, else ``"none"``.
-    split : {"auto", "none"}
-        ``"auto"``: cut the record whose driven cart moves furthest at its rests (when it
-        has rests and there are other records), so that its parts predict each other.
-    seed : int
-    n_starts : int
-    global_search : bool
-    """
-
-    n_null: int = 19
-    max_effects: int = 4
-    candidates: tuple[str, ...] | None = None
-    weights: str = "auto"
-    split: str = "auto"
-    seed: int = 0
-    n_starts: int = 3
-    global_search: bool = True
-
-    def __post_init__(self) -> None:
-        if self.weights not in ("auto", "none", "spread"):
-            raise ConfigError(f"diagnosis weights must be auto, none or spread, got "
-                              f"{self.weights!r}")
-        if self.split not in ("auto", "none"):
-            raise ConfigError(f"diagnosis split must be auto or none, got {self.split!r}")
-        if self.n_null < 19:
-            raise ConfigError(f"diagnosis n_null must be >= 19 (a 5 % test), got {self.n_null}")
-        if self.max_effects < 1:
-            raise ConfigError(f"diagnosis max_effects must be >= 1, got {self.max_effects}")
-
-
-@dataclass(frozen=True)
-class FinalSpec:
-    """The sampler of the found model's posterior (``[sampler]`` keys of a run config).
-
-    The defaults are those that converge on the measured ECP records
-    (``runs/records_friction.toml``): walkers started at the posterior mode, a
-    mode-jumping move, stranded walkers pruned after ``prune`` steps.  ``per_record``
-    None keeps the linear configuration's; ``crossval`` None too.  ``population`` adds a
-    population layer on the physical parameters: every mass of the linear core per
-    record, drawn from a log-normal population sampled with them (``[records]
-    per_record`` "hierarchical"; with the springs known, a spring that changes between
-    experiments moves the frequencies as a mass does), so that the modal intervals for a
-    new record hold the spread between experiments.
-    """
-
-    walkers: int = 56  # raised to twice the sampled parameters where needed
-    steps: int = 12000
-    burn: int = 1000
-    thin: int | None = None  # None: about 1000 retained draws over all walkers
-    prune: int | None = 500
-    moves: str = "de:0.8,de-jump:0.2"
-    init: str = "laplace"
-    threads: int | str = "auto"
-    per_record: dict | None = None
-    crossval: bool | None = None
-    crossval_steps: int | None = None
-    population: bool = False
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.burn < self.steps:
-            raise ConfigError(f"final burn must be in [0, steps), got burn {self.burn}, "
-                              f"steps {self.steps}")
-        if self.prune is not None and not 0 < self.prune < self.burn:
-            raise ConfigError(f"final prune must be in (0, burn) = (0, {self.burn}), got "
-                              f"{self.prune}; prune stranded walkers within the burn-in")
-
-    @property
-    def retained_thin(self) -> int:
-        """``thin``, or the thinning that keeps about 1000 draws over all walkers."""
-        if self.thin is not None:
-            return int(self.thin)
-        return max(1, self.walkers * (self.steps - self.burn) // 1000)
 
 
 @dataclass(frozen=True)
