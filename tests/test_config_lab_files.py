@@ -105,7 +105,8 @@ def test_lab_file_keys_leave_the_hash_alone_at_their_defaults():
     auto = parse_config({"data": {**base["data"], "time_base": "auto"}}, check_files=False)
     grid = parse_config({"data": {**base["data"], "time_base": "grid"}}, check_files=False)
     assert auto.hash() == plain.hash() != grid.hash()
-    assert grid.read_options().time_base == "grid" and plain.read_options().time_base == "auto"
+    assert grid.data.read_options().time_base == "grid"
+    assert plain.data.read_options().time_base == "auto"
 
 
 def test_rest_offset_reaches_the_reader_and_the_hash():
@@ -117,8 +118,8 @@ def test_rest_offset_reaches_the_reader_and_the_hash():
                            check_files=False)
     # the default leaves the hash alone; another value is another run
     assert none.hash() == plain.hash() != initial.hash()
-    assert initial.read_options().rest_offset == "initial"
-    assert plain.read_options().rest_offset == "none"
+    assert initial.data.read_options().rest_offset == "initial"
+    assert plain.data.read_options().rest_offset == "none"
     assert initial.to_dict()["rest_offset"] == "initial"   # recorded in config.json
 
 

@@ -124,7 +124,7 @@ def test_the_run_config_reads_the_window(tmp_path):
     path, *_ = _record(tmp_path)
     cfg = tmp_path / "cfg.toml"
     cfg.write_text(f'[data]\nfiles = ["{path}"]\nt_start = 0.5\nt_end = 9\n')
-    opts = load_config(cfg).read_options()
+    opts = load_config(cfg).data.read_options()
     assert (opts.t_start, opts.t_end) == (0.5, 9.0)
     cfg.write_text(f'[data]\nfiles = ["{path}"]\nt_start = 9\nt_end = 0.5\n')
     with pytest.raises(ConfigError, match=r"data.t_start.*t_end \(0.5 s\) must be after "

@@ -264,29 +264,34 @@ class EvidenceSection:
     dlogz: float = 0.5
 
 
-#: Flat name of each field (``config.json`` and the hash) -> (section, key).
+#: Flat name of each field (``config.json`` and the hash) -> (section, key), in the order
+#: ``config.json`` has always listed them (between ``name``, ``source`` and ``identify``).
 FLAT_NAMES: dict[str, tuple[str, str]] = {
-    "data_files": ("data", "files"), "heldout_files": ("data", "heldout"),
-    "m_per_count": ("data", "m_per_count"), "columns": ("data", "columns"),
-    "input_scale": ("data", "input_scale"), "time_scale": ("data", "time_scale"),
-    "time_base": ("data", "time_base"), "t_start": ("data", "t_start"),
-    "t_end": ("data", "t_end"), "rest_offset": ("data", "rest_offset"),
-    "springs_n_m": ("model", "springs_n_m"), "rig": ("model", "rig"),
-    "damping": ("model", "damping"), "extensions": ("model", "extensions"),
-    "priors": ("model", "priors"),
+    "data_files": ("data", "files"), "m_per_count": ("data", "m_per_count"),
+    "springs_n_m": ("model", "springs_n_m"), "damping": ("model", "damping"),
+    "extensions": ("model", "extensions"), "priors": ("model", "priors"),
+    "noise": ("likelihood", "noise"),
+    **{k: ("sampler", k) for k in ("walkers", "steps", "burn", "thin", "seed", "moves",
+                                   "restart", "prune", "init", "threads")},
+    "out_dir": ("outputs", "dir"), "plots": ("outputs", "plots"),
+    "report": ("outputs", "report"), "predictive_draws": ("outputs", "predictive_draws"),
+    "heldout_files": ("data", "heldout"), "ema": ("outputs", "ema"),
+    "checkpoint_every_s": ("outputs", "checkpoint_every_s"),
+    "pointwise_loglik": ("outputs", "pointwise_loglik"),
+    "chain_storage": ("outputs", "chain"),
+    "evidence": ("evidence", "enabled"), "evidence_nlive": ("evidence", "nlive"),
+    "evidence_dlogz": ("evidence", "dlogz"),
+    "rig": ("model", "rig"),
     "per_record": ("records", "per_record"),
     "noise_per_record": ("records", "noise_per_record"),
     "noise_scale": ("records", "noise_scale"),
-    "noise": ("likelihood", "noise"), "temperature": ("likelihood", "temperature"),
-    **{k: ("sampler", k) for k in ("walkers", "steps", "burn", "thin", "seed", "moves",
-                                   "restart", "prune", "init", "threads")},
+    "temperature": ("likelihood", "temperature"),
     "crossval": ("crossval", "enabled"), "crossval_draws": ("crossval", "draws"),
     "crossval_walkers": ("crossval", "walkers"), "crossval_steps": ("crossval", "steps"),
-    "out_dir": ("outputs", "dir"), "chain_storage": ("outputs", "chain"),
-    **{k: ("outputs", k) for k in ("plots", "report", "predictive_draws", "ema",
-                                   "checkpoint_every_s", "pointwise_loglik")},
-    "evidence": ("evidence", "enabled"), "evidence_nlive": ("evidence", "nlive"),
-    "evidence_dlogz": ("evidence", "dlogz"),
+    "columns": ("data", "columns"), "input_scale": ("data", "input_scale"),
+    "time_scale": ("data", "time_scale"), "time_base": ("data", "time_base"),
+    "t_start": ("data", "t_start"), "t_end": ("data", "t_end"),
+    "rest_offset": ("data", "rest_offset"),
 }
 
 #: The section classes, by ``RunConfig`` field.
@@ -309,16 +314,8 @@ _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "noise_scale": "no
 _EXECUTION_ONLY = ("source", "name", "out_dir", "plots", "report", "ema",
                    "checkpoint_every_s", "pointwise_loglik", "chain_storage", "threads")
 
-#: The flat names in the order ``config.json`` has always listed them.
-_FLAT_ORDER = ("name", "source", "data_files", "m_per_count", "springs_n_m", "damping",
-               "extensions", "priors", "noise", "walkers", "steps", "burn", "thin", "seed",
-               "moves", "restart", "prune", "init", "threads", "out_dir", "plots", "report",
-               "predictive_draws", "heldout_files", "ema", "checkpoint_every_s",
-               "pointwise_loglik", "chain_storage", "evidence", "evidence_nlive",
-               "evidence_dlogz", "rig", "per_record", "noise_per_record", "noise_scale",
-               "temperature", "crossval", "crossval_draws", "crossval_walkers",
-               "crossval_steps", "columns", "input_scale", "time_scale", "time_base",
-               "t_start", "t_end", "rest_offset", "identify")
+#: Every name of the flat form, in ``config.json``'s order.
+_FLAT_ORDER = ("name", "source", *FLAT_NAMES, "identify")
 
 
 @dataclass(frozen=True)
@@ -382,10 +379,6 @@ class RunConfig:
     def make_rig(self) -> Rig:
         """The ``Rig``: the description of ``[rig]``, else the chain of springs."""
         return self.model.make_rig(where=f"{self.source}: [rig]")
-
-    def read_options(self) -> ReadOptions:
-        """The ``ReadOptions`` of ``[data]``."""
-        return self.data.read_options()
 
     @property
     def layout(self) -> RecordLayout | None:

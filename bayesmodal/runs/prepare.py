@@ -86,7 +86,7 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
     out = []
     for f in files:
         try:
-            opts = cfg.read_options()
+            opts = cfg.data.read_options()
             if cfg.model.rig is not None:  # the rig's sensors say what each column holds
                 opts = options_for_rig(opts, cfg.make_rig(), f)
             out.append(load_experiment(Path(f), m_per_count=cfg.data.m_per_count, options=opts))
