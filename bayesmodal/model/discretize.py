@@ -114,6 +114,18 @@ def _check_steps(dt, n_samples: int):
 
 
 
+def _batched(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A`` (s, s) or (nb, s, s) and ``B`` (s,) or (nb, s) as float arrays with a leading
+    batch dimension (nb = 1 for an unbatched system)."""
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    if A.ndim == 2:
+        A = A[None]
+    if B.ndim == 1:
+        B = B[None]
+    return A, B
+
+
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
     """Exact ZOH discretisation of ``x' = A x + B u`` for a stack of systems.
 
@@ -136,12 +148,7 @@ def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> Discretized:
     0.9048374180359595
     """
     dt = _check_dt(dt)
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    if A.ndim == 2:
-        A = A[None]
-    if B.ndim == 1:
-        B = B[None]
+    A, B = _batched(A, B)
     nb, s, _ = A.shape
     F = np.zeros((nb, s + 1, s + 1))
     F[:, :s, :s] = A * dt

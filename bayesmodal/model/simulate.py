@@ -61,6 +61,7 @@ from ._modal_form import (
 from ._qep import modal_form_mck
 from .discretize import (
     Discretized,
+    _batched,
     _check_steps,
     discretize_zoh,
     step_groups,  # noqa: F401  (re-exported: defined in discretize)
@@ -383,12 +384,7 @@ def simulate_state_space(
     y : ndarray, shape (nb, N, n_out)
         ``y[:, k]`` is the state at ``t = k dt``.
     """
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    if A.ndim == 2:
-        A = A[None]
-    if B.ndim == 1:
-        B = B[None]
+    A, B = _batched(A, B)
     return LinearSimulator(u, dt, n_out).run(A, B, x0)
 
 
