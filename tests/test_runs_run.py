@@ -83,6 +83,21 @@ def _summary(d):
     return json.loads((d / "summary.json").read_text())
 
 
+def _checked_pair(tmp_path, name, n, likelihood="", outputs=""):
+    """Two simulated records of ``n`` samples and a configuration ``<name>.toml`` that
+    samples them briefly and leaves each out in turn ([crossval]); ``likelihood`` and
+    ``outputs`` are extra lines of those tables."""
+    _record(tmp_path / "a.csv", n, 0.1, 1)
+    _record(tmp_path / "b.csv", n, 0.2, 2)
+    cfg = tmp_path / f"{name}.toml"
+    cfg.write_text('[data]\nfiles = ["a.csv", "b.csv"]\n'
+                   f'[likelihood]\nnoise = "white"\n{likelihood}'
+                   "[sampler]\nwalkers = 24\nsteps = 30\nburn = 10\nthin = 2\nseed = 3\n"
+                   "[crossval]\nenabled = true\ndraws = 10\nsteps = 20\n"
+                   f"[outputs]\nplots = false\nreport = false\n{outputs}")
+    return cfg
+
+
 def test_run_folder_holds_every_output(runs):
     _, out = runs
     d = out["free"][1]
@@ -419,14 +434,7 @@ def test_calibrated_temperature_run_reuses_the_calibrations_check(tmp_path, monk
     # the calibration and the run's own check each call crossval: count both
     monkeypatch.setattr(temperature_module, "crossval", counting)
     monkeypatch.setattr(runner_module, "crossval", counting)
-    _record(tmp_path / "a.csv", 600, 0.1, 1)
-    _record(tmp_path / "b.csv", 600, 0.2, 2)
-    cfg = tmp_path / "loro.toml"
-    cfg.write_text('[data]\nfiles = ["a.csv", "b.csv"]\n'
-                   '[likelihood]\nnoise = "white"\ntemperature = "loro"\n'
-                   "[sampler]\nwalkers = 24\nsteps = 30\nburn = 10\nthin = 2\nseed = 3\n"
-                   "[crossval]\nenabled = true\ndraws = 10\nsteps = 20\n"
-                   "[outputs]\nplots = false\nreport = false\n")
+    cfg = _checked_pair(tmp_path, "loro", 600, likelihood='temperature = "loro"\n')
     assert main(["run", str(cfg), "--out-root", str(tmp_path / "out"), "--quiet"]) == 0
     s = _summary(tmp_path / "out" / "loro")
     measured = [c["temperature"] for c in s["temperature_calibration"]["curve"]]
@@ -456,13 +464,7 @@ def test_a_checked_run_keeps_the_clock_out_of_its_summary(tmp_path):
     so the same configuration on the same data gives the same summary.json byte for byte
     (what ``bayesmodal rerun`` compares, tests/test_reproducibility.py); the check's
     results stay in summary.json."""
-    _record(tmp_path / "a.csv", 400, 0.1, 1)
-    _record(tmp_path / "b.csv", 400, 0.2, 2)
-    cfg = tmp_path / "cv.toml"
-    cfg.write_text('[data]\nfiles = ["a.csv", "b.csv"]\n[likelihood]\nnoise = "white"\n'
-                   "[sampler]\nwalkers = 24\nsteps = 30\nburn = 10\nthin = 2\nseed = 3\n"
-                   "[crossval]\nenabled = true\ndraws = 10\nsteps = 20\n"
-                   "[outputs]\nplots = false\nreport = false\nema = false\n")
+    cfg = _checked_pair(tmp_path, "cv", 400, outputs="ema = false\n")
     assert main(["run", str(cfg), "--out-root", str(tmp_path / "out"), "--quiet"]) == 0
     one = tmp_path / "out" / "cv"
     s = _summary(one)
