@@ -83,10 +83,16 @@ def run(args) -> int:
         return 0
     print(f"{exp.name}: {args.method}, band {res.band[0]:.4g}..{res.band[1]:.4g} rad/s, "
           f"FRF in {res.frf.units} ({res.frf.estimator}, {res.frf.n_averages} average(s))")
-    print(" mode  omega (rad/s)   zeta     shape (cart 1 = 1)")
+    stated = bool(np.any(np.isfinite(est.omega_se[found])))
+    print(" mode  omega (rad/s)   zeta     shape (cart 1 = 1)" if not stated else
+          " mode  omega (rad/s) +- se         zeta +- se            shape (cart 1 = 1)")
     for j, k in enumerate(found):
         shape = " ".join(f"{x:+.3f}" for x in est.mode_shapes[k].real)
-        print(f" {j + 1:4d}  {est.omega_rad_s[k]:12.4f}  {est.zeta[k]:8.4f}  {shape}")
+        if stated:
+            print(f" {j + 1:4d}  {est.omega_rad_s[k]:12.4f} +- {est.omega_se[k]:<8.2g} "
+                  f"{est.zeta[k]:8.4f} +- {est.zeta_se[k]:<8.2g}  {shape}")
+        else:
+            print(f" {j + 1:4d}  {est.omega_rad_s[k]:12.4f}  {est.zeta[k]:8.4f}  {shape}")
     rejected = [k for k in range(est.n_modes) if not est.identified[k]]
     if rejected:
         cells = ", ".join(f"{est.omega_rad_s[k]:.4g} rad/s (zeta {est.zeta[k]:.3g})"

@@ -169,7 +169,8 @@ def check_resonances(
 def _subset(est: ModalEstimate, keep: np.ndarray) -> ModalEstimate:
     return replace(est, omega_rad_s=est.omega_rad_s[keep], zeta=est.zeta[keep],
                    poles=est.poles[keep], residues=est.residues[keep],
-                   mode_shapes=est.mode_shapes[keep], identified=est.identified[keep])
+                   mode_shapes=est.mode_shapes[keep], identified=est.identified[keep],
+                   pole_cov=None if est.pole_cov is None else est.pole_cov[keep])
 
 
 def _fitted_from_poles(frf: FRF, poles: np.ndarray, band) -> np.ndarray:

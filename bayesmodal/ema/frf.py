@@ -107,6 +107,10 @@ class FRF:
     input_power : ndarray, shape (n_freq,), or None
         Input auto-spectrum divided by its maximum; where it is small (near the zeros of
         a pulse's spectrum) the estimate is noise and peak picking ignores it.
+    zoh_divided : bool
+        True when the zero-order hold's factor (:func:`zoh_factor`) was divided out of
+        ``H`` (the estimators' ``zoh=True``); the multi-mode fit's sampled-data basis
+        divides its columns by it too.
     """
 
     omega_rad_s: np.ndarray
@@ -118,6 +122,7 @@ class FRF:
     dt: float | None = None
     derivative_order: int = 0
     input_power: np.ndarray | None = None
+    zoh_divided: bool = False
 
     def __post_init__(self) -> None:
         w = np.asarray(self.omega_rad_s, dtype=float)
@@ -352,7 +357,8 @@ def welch_frf(
         H = H / zoh_factor(w, dt)[:, None]
     H = np.nan_to_num(H)
     power = Suu[keep] / np.max(Suu[keep])
-    return FRF(w, H, coh if n_avg > 1 else None, estimator, units, n_avg, dt, 0, power)
+    return FRF(w, H, coh if n_avg > 1 else None, estimator, units, n_avg, dt, 0, power,
+               zoh_divided=bool(zoh))
 
 
 # --------------------------------------------------------------------------- pulses
@@ -464,7 +470,7 @@ def pulse_frf(
     n_avg = int(seg.shape[0])
     power = Suu[keep] / np.max(Suu[keep])
     return FRF(w, np.nan_to_num(H), coh if n_avg > 1 else None, estimator, units, n_avg, dt, 0,
-               power)
+               power, zoh_divided=bool(zoh))
 
 
 FRF_METHODS = ("auto", "pulse", "step", "welch", "transient")

@@ -236,7 +236,7 @@ def impact_frf(
     n_avg = int(starts.size)
     power = Suu[keep] / np.max(Suu[keep])
     return FRF(w, np.nan_to_num(H), coh if n_avg > 1 else None, estimator, units, n_avg, dt,
-               int(derivative_order), power)
+               int(derivative_order), power, zoh_divided=bool(zoh))
 
 
 def correct_exponential_window(est: ModalEstimate, tau_s: float) -> ModalEstimate:

@@ -53,6 +53,10 @@ class ModalEstimate:
         Index of the output the shapes are normalised on (0 = cart 1).
     notes : tuple of str
         Human-readable remarks (why a mode was rejected, settings used).
+    pole_cov : ndarray, shape (n_modes, 2, 2), or None
+        Covariance of ``(Re lambda, Im lambda)`` of each pole, 1/s^2, where the method
+        states its error (the multi-mode fit); None otherwise.  ``omega_se`` and
+        ``zeta_se`` follow from it to first order.
     """
 
     method: str
@@ -64,6 +68,20 @@ class ModalEstimate:
     identified: np.ndarray
     reference: int = 0
     notes: tuple[str, ...] = field(default=())
+    pole_cov: np.ndarray | None = None
+
+    @property
+    def omega_se(self) -> np.ndarray:
+        """Standard error of ``omega_rad_s``, shape (n_modes,), rad/s; NaN without
+        ``pole_cov``.  First order: ``omega = |lambda|``, gradient ``(mu, nu) / omega``."""
+        return _stated_error(self, lambda mu, nu, w: np.stack([mu / w, nu / w], -1))
+
+    @property
+    def zeta_se(self) -> np.ndarray:
+        """Standard error of ``zeta``, shape (n_modes,); NaN without ``pole_cov``.  First
+        order: ``zeta = -mu / |lambda|``, gradient ``(-nu^2, mu nu) / omega^3``."""
+        return _stated_error(self, lambda mu, nu, w: np.stack([-nu**2, mu * nu], -1) / w[:, None]
+                             ** 3)
 
     @property
     def n_modes(self) -> int:
@@ -93,6 +111,7 @@ class ModalEstimate:
             identified=self.identified[keep],
             reference=self.reference,
             notes=self.notes,
+            pole_cov=None if self.pole_cov is None else self.pole_cov[keep],
         )
 
     def as_dict(self) -> dict:
@@ -106,8 +125,26 @@ class ModalEstimate:
             "mode_shapes_imag": self.mode_shapes.imag.tolist(),
             "identified": [bool(x) for x in self.identified],
             "reference_output": int(self.reference),
+            "omega_se_rad_s": _json_floats(self.omega_se),
+            "zeta_se": _json_floats(self.zeta_se),
             "notes": list(self.notes),
         }
+
+
+def _stated_error(est: ModalEstimate, gradient) -> np.ndarray:
+    """``sqrt(g^T cov g)`` per mode for the gradient ``g(mu, nu, omega)`` of a function of
+    the pole; NaN for every mode without ``pole_cov``."""
+    if est.pole_cov is None:
+        return np.full(est.n_modes, np.nan)
+    mu, nu = est.poles.real, est.poles.imag
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = gradient(mu, nu, np.abs(est.poles))
+        return np.sqrt(np.einsum("ki,kij,kj->k", g, est.pole_cov, g))
+
+
+def _json_floats(x: np.ndarray) -> list:
+    """A float array as a JSON list, NaN as None."""
+    return [None if not np.isfinite(v) else float(v) for v in x]
 
 
 def normalise_shapes(residues: np.ndarray, reference: int = 0) -> np.ndarray:
@@ -144,6 +181,7 @@ def modal_estimate(
     *,
     reference: int = 0,
     notes: Sequence[str] = (),
+    pole_cov: np.ndarray | None = None,
 ) -> ModalEstimate:
     """Build a ModalEstimate from one pole per mode and its residues.
 
@@ -159,6 +197,9 @@ def modal_estimate(
     reference : int
         Output the shapes are normalised on.
     notes : sequence of str
+    pole_cov : ndarray, shape (n_modes, 2, 2), optional
+        Covariance of each pole's ``(Re, Im)``, 1/s^2 (a conjugated pole's covariance
+        flips the sign of its off-diagonal term).
 
     Returns
     -------
@@ -179,8 +220,14 @@ def modal_estimate(
     ident = np.ones(lam.size, bool) if identified is None else np.asarray(identified, bool)
     if ident.shape != lam.shape:
         raise DataError(f"identified has shape {ident.shape}, expected {lam.shape}")
+    cov = None
+    if pole_cov is not None:
+        cov = np.array(pole_cov, dtype=float).reshape(lam.size, 2, 2)
+        cov[flip, 0, 1] *= -1
+        cov[flip, 1, 0] *= -1
     order = np.lexsort((-lam.real, lam.imag))
     lam, R, ident = lam[order], R[order], ident[order]
+    cov = None if cov is None else cov[order]
     omega = np.abs(lam)
     with np.errstate(invalid="ignore", divide="ignore"):
         zeta = np.where(omega > 0, -lam.real / omega, np.nan)
@@ -194,6 +241,7 @@ def modal_estimate(
         identified=ident,
         reference=reference,
         notes=tuple(notes),
+        pole_cov=cov,
     )
 
 
