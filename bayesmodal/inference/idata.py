@@ -49,7 +49,7 @@ from ..data import Experiment
 from ..model.effects import get_extension
 from ..model.rigs import rig_from_toml, rig_to_toml
 from ..model.system import LinearModel, Rig
-from .likelihood import Likelihood, simulate_noise
+from .likelihood import Likelihood
 from .priors import PriorSet
 from .record_layout import RecordLayout
 from .record_scale import RecordScales
@@ -243,15 +243,8 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
     if n_predictive > 0:
         ch, idx = predictive_subset(n_chain, n_draw, n_predictive)
         sub = draws[np.ix_(ch, idx)].reshape(-1, n_par)
-        if lik.layout is not None:  # several records with their own parameters
-            y_hat = np.concatenate(lik.predict_theta(sub), axis=1)
-            noise = np.concatenate(lik.noise_draws(sub, rng), axis=1)
-        else:
-            mech, sigma, phi = lik.split(sub)
-            y_hat = np.concatenate(lik.predict(mech), axis=1)
-            noise = np.concatenate(
-                [simulate_noise(sigma, phi, e.n_samples, rng) for e in exps], axis=1
-            )
+        y_hat = np.concatenate(lik.predict_theta(sub), axis=1)
+        noise = np.concatenate(lik.noise_draws(sub, rng), axis=1)
         shape = (ch.size, idx.size, y_obs.shape[0], n_out)
         step_m = predictive_quantum(y_obs)
         groups["posterior_predictive"] = xr.Dataset(

@@ -34,7 +34,12 @@ from .record_layout import (
     DEFAULT_LAYOUT,
     PER_RECORD_KINDS,
     RecordLayout,
+    model_layout,
+    parameter_index,
     parse_layout,
+    population_log_density,
+    record_key,
+    record_values,
 )
 from .record_priors import TAU_SCALE, record_priors, records_start
 
@@ -49,6 +54,11 @@ __all__ = [
     "PER_RECORD_KINDS",
     "TAU_SCALE",
     "DEFAULT_LAYOUT",
+    "model_layout",
+    "parameter_index",
+    "population_log_density",
+    "record_key",
+    "record_values",
 ]
 
 
@@ -69,6 +79,7 @@ class RecordsLikelihood(Likelihood):
     Examples
     --------
     >>> import numpy as np
+    >>> from bayesmodal.data import Experiment
     >>> from bayesmodal.model.system import LinearModel, Rig
     >>> t = np.arange(200) * 0.005
     >>> exps = [Experiment(t, 3.0 * (t < 0.05), np.zeros((200, 3)), name=n) for n in "ab"]
