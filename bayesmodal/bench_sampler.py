@@ -37,7 +37,6 @@ from .inference.priors import default_priors
 from .inference.record_layout import DEFAULT_LAYOUT
 from .inference.record_priors import record_priors
 from .inference.record_priors import records_start as start
-from .inference.records import RecordsLikelihood
 from .inference.sampling import LogPosterior
 from .model.simulate import simulate_linear
 from .model.system import LinearModel, Rig
@@ -137,7 +136,7 @@ def _bench_records(model, u, y, dt, min_time, rounds, rng, n_records: int = 3) -
     n = u.size
     exps = tuple(Experiment(np.arange(n) * dt, u, y * (1 + 0.03 * r), name=f"r{r}")
                  for r in range(n_records))
-    lik = RecordsLikelihood(model, exps, "ar1", layout=DEFAULT_LAYOUT)
+    lik = Likelihood(model, exps, "ar1", layout=DEFAULT_LAYOUT)
     priors = record_priors(lik)
     log_post = LogPosterior(lik, priors)
     centre = start(lik, _TABLE3)

@@ -114,6 +114,10 @@ def test_validation_messages():
     e = _experiment(model, THETA_P, n=50)
     with pytest.raises(ConfigError, match="noise must be one of"):
         Likelihood(model, [e], "pink")
+    with pytest.raises(ConfigError, match="need a record layout"):
+        Likelihood(model, [e], "ar2")
+    with pytest.raises(ConfigError, match="pass initial_state by keyword"):
+        Likelihood(model, [e], "ar1", None, "estimate")
     with pytest.raises(DataError, match="no experiments"):
         Likelihood(model, [], "ar1")
     lik = Likelihood(model, [e], "ar1")

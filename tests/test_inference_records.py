@@ -51,6 +51,33 @@ def test_no_per_record_parameter_is_the_single_record_likelihood(records):
     assert lik(x)[0] == single(x)[0]
 
 
+def test_records_sharing_every_parameter_add_up_to_the_one_record_likelihoods(records):
+    """One class for one record or several: with nothing per record (no layout, or the
+    all-shared one) the likelihood of three records is the sum of the one-record
+    likelihoods, record by record, and the white-noise closed form of the known
+    residuals; a gain per record (the negative control) changes it."""
+    sigma = np.array([1e-5, 2e-5, 3e-5])
+    x = np.r_[THETA, sigma][None]
+    ones = np.array([Likelihood(MODEL, [e], "white")(x)[0] for e in records])
+    closed = [np.sum(stats.norm.logpdf(e.y_m - simulate_linear(MODEL, THETA, e.v_volt, DT),
+                                       scale=sigma)) for e in records]
+    for lik in (Likelihood(MODEL, records, "white"),
+                Likelihood(MODEL, records, "white", layout=RecordLayout({}))):
+        assert lik.names == MODEL.names + ("sigma_1", "sigma_2", "sigma_3")
+        np.testing.assert_array_equal(lik.record_loglik(x)[0], ones)
+        assert lik(x)[0] == ones[0] + ones[1] + ones[2]
+        np.testing.assert_allclose(lik.record_loglik(x)[0], closed, rtol=1e-10)
+    per = Likelihood(MODEL, records, "white", layout=RecordLayout({"g_v": "independent"}))
+    at = dict(zip(MODEL.names + ("sigma_1", "sigma_2", "sigma_3"), x[0], strict=True))
+    gains = {f"g_v[r{k}]": THETA[0] for k in range(3)}
+    same = np.array([[{**at, **gains}[nm] for nm in per.names]])
+    assert per(same)[0] == ones[0] + ones[1] + ones[2]
+    other = np.array([[{**at, **gains, "g_v[r1]": 1.1 * THETA[0]}[nm] for nm in per.names]])
+    ll = per.record_loglik(other)[0]
+    assert ll[0] == ones[0] and ll[2] == ones[2]
+    assert abs(ll[1] - ones[1]) > 10.0  # (record 1 was recorded with a gain of 6.0)
+
+
 def test_names_follow_the_layout(records):
     lik = RecordsLikelihood(MODEL, records, "white",
                             layout=RecordLayout({"g_v": "independent", "m1": "hierarchical"},

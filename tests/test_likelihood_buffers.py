@@ -74,7 +74,7 @@ def _reference_records(lik, theta):
             sums = ar1_sums_affine(e.y_m, a, b, mech[:, 0], v0)
         else:
             sums = ar1_sums(e.y_m, simulate_linear(MODEL, mech, e.v_volt, e.dt))
-        out[:, r] = loglik_from_sums(*sums, e.n_samples, *lik._sigma_phi(full[:, n_mech:]))
+        out[:, r] = loglik_from_sums(*sums, e.n_samples, *lik.sigma_phi(full[:, n_mech:]))
     return out
 
 

@@ -33,6 +33,7 @@ from ..model.effects import get_extension
 from ..model.rigs import rig_to_dict
 from ..model.system import LinearModel, Rig
 from .coverage_reference import calibration_summary
+from .likelihood import Likelihood
 from .moves import parse_moves
 from .noise_choice import choose_noise
 from .noise_spec import parse_noise
@@ -40,7 +41,6 @@ from .predictive import PredictiveScores, new_record_parameters, predict_new_rec
 from .propagate import propagate_modes
 from .record_layout import DEFAULT_LAYOUT, RecordLayout
 from .record_priors import record_priors
-from .records import RecordsLikelihood
 from .sampling import sample_posterior
 from .spec import LikelihoodSpec, SamplerSpec, burn_in_steps
 
@@ -277,7 +277,7 @@ def run_fold(spec: CrossvalSpec, experiments: Sequence[Experiment], heldout: int
     noise = spec.noise
     if isinstance(noise, str) and parse_noise(noise).kind == "ar:auto":  # from training only
         noise = choose_noise(train, model, fit_lsq(train, model))
-    lik = RecordsLikelihood(model, tuple(train), noise, spec.extension, spec.layout)
+    lik = Likelihood(model, tuple(train), noise, spec.extension, spec.layout)
     priors = record_priors(lik)
     burn = spec.n_steps // 2 if spec.burn is None else spec.burn
     # at least two walkers per parameter (emcee's requirement), even

@@ -49,11 +49,10 @@ from ..data import Experiment
 from ..model.effects import get_extension
 from ..model.rigs import rig_from_toml, rig_to_toml
 from ..model.system import LinearModel, Rig
-from .likelihood import Likelihood, simulate_noise
+from .likelihood import Likelihood
 from .priors import PriorSet
 from .record_layout import RecordLayout
 from .record_scale import RecordScales
-from .records import RecordsLikelihood
 
 __all__ = [
     "arviz",
@@ -208,7 +207,7 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
     attrs = _attrs(run)
 
     variables = {nm: (("chain", "draw"), draws[:, :, i]) for i, nm in enumerate(run.names)}
-    if hasattr(lik, "record_theta"):
+    if lik.layout is not None:
         # several records: the model parameters at the population centre (e.g. g_v =
         # mu_g_v), so that code written for one record (modal propagation) finds them
         mech = lik.split(draws.reshape(-1, n_par))[0]
@@ -244,15 +243,8 @@ def to_inference_data(run, *, n_predictive: int = 100, pointwise: bool = True, r
     if n_predictive > 0:
         ch, idx = predictive_subset(n_chain, n_draw, n_predictive)
         sub = draws[np.ix_(ch, idx)].reshape(-1, n_par)
-        if hasattr(lik, "predict_theta"):  # several records with their own parameters
-            y_hat = np.concatenate(lik.predict_theta(sub), axis=1)
-            noise = np.concatenate(lik.noise_draws(sub, rng), axis=1)
-        else:
-            mech, sigma, phi = lik.split(sub)
-            y_hat = np.concatenate(lik.predict(mech), axis=1)
-            noise = np.concatenate(
-                [simulate_noise(sigma, phi, e.n_samples, rng) for e in exps], axis=1
-            )
+        y_hat = np.concatenate(lik.predict_theta(sub), axis=1)
+        noise = np.concatenate(lik.noise_draws(sub, rng), axis=1)
         shape = (ch.size, idx.size, y_obs.shape[0], n_out)
         step_m = predictive_quantum(y_obs)
         groups["posterior_predictive"] = xr.Dataset(
@@ -400,13 +392,14 @@ def likelihood_from_idata(idata, experiments=None):
     layout = a.get("record_layout_json")
     if layout:
         at = a.get("record_scale_at_json")
-        return RecordsLikelihood(model_from_idata(idata), tuple(exps), a["noise"],
-                                 extension_from_idata(idata),
-                                 RecordLayout.from_dict(json.loads(layout)),
-                                 scale_at=None if at is None else RecordScales.reference(
-                                     **json.loads(at)))
+        return Likelihood(model_from_idata(idata), tuple(exps), a["noise"],
+                          extension_from_idata(idata),
+                          RecordLayout.from_dict(json.loads(layout)),
+                          scale_at=None if at is None else RecordScales.reference(
+                              **json.loads(at)))
     return Likelihood(model_from_idata(idata), tuple(exps), a["noise"],
-                      extension_from_idata(idata), a.get("initial_state", "rest"))
+                      extension_from_idata(idata),
+                      initial_state=a.get("initial_state", "rest"))
 
 
 def with_pointwise_loglik(idata):

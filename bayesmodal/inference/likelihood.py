@@ -1,22 +1,25 @@
-"""Gaussian likelihoods of measured cart positions, batched over parameter sets.
+"""The likelihood of measured records under the rig model, batched over parameter sets.
 
-The residual of output ``j`` of experiment ``e`` is ``r_k = y_k - yhat_k(theta)`` with
-``yhat`` the exact ZOH simulation from rest.  Two noise models, independent per output:
+One class, :class:`Likelihood`, for one record or several.  The residual of output ``j``
+of record ``r`` is ``y_k - yhat_k(theta_r)`` with ``yhat`` the exact ZOH simulation (from
+rest, or from estimated initial states for free decays); its noise model is white or
+AR(1) (the closed forms of :mod:`.noise_terms`, default AR(1): the rig's residuals have
+lag-1 correlation about 0.998, so the white model counts every sample as new information
+and is overconfident) or, with a record layout, any model of :mod:`.noise` (AR(p),
+integrated AR(1), process noise through the dynamics...).
 
-``"white"``
-    ``r_k ~ N(0, sigma^2)`` independently.
+Which parameters a record has is its *layout*:
 
-``"ar1"`` (default)
-    ``r_k = phi r_{k-1} + e_k`` with innovations ``e_k ~ N(0, sigma^2)`` and a stationary
-    start, written in the exact innovations (prediction-error) form
-
-        log p(r) = log N(r_0; 0, sigma^2 / (1 - phi^2))
-                   + sum_{k>=1} log N(r_k - phi r_{k-1}; 0, sigma^2),
-
-    which is the exact Gaussian log density of a stationary AR(1) record (no conditioning
-    on the first sample is dropped).  Residuals of the rig are strongly autocorrelated
-    (lag-1 correlation about 0.998 with the linear model), so the white model counts
-    every sample as new information and is overconfident.
+``layout=None`` (default)
+    One parameter set for every record: the model parameters, then ``sigma_1..n`` (and
+    ``phi_1..n`` for AR(1)).  White or AR(1) noise; free decays may estimate their
+    initial states (``initial_state="estimate"``).
+a :class:`~.record_layout.RecordLayout`
+    Per-record, shared or hierarchical parameters (``g_v[r]``, ``v0``, ``mu_g_v``...),
+    noise per record and noise levels scaled by each record's size
+    (:mod:`bayesmodal.inference.records`).  ``RecordLayout({})`` shares every parameter
+    like ``None``: the same names and values; a run built with a layout keeps it in its
+    configuration and rebuilds its start and new-record predictions per record.
 
 The pointwise terms (one per sample and output; for AR(1) the first stationary term and
 then the conditional innovation terms) sum exactly to the total log-likelihood.  They are
@@ -31,14 +34,13 @@ rejected.
 Model extensions: with ``extension`` (a name in ``bayesmodal.model.effects.EXTENSIONS`` or an
 ``Extension``) the model output is ``Extension.simulate`` of the free-damping model plus
 the extension's parameters (e.g. Coulomb friction), for all parameter sets of a batch in
-one call; the parameter vector is ``extension.names(rig)`` followed by the noise
-parameters, and parameter sets the extension rejects (``Extension.valid``, e.g.
-``Fs_i < Fc_i``) get ``-inf`` like any other impossible set.
+one call; the model parameters are ``extension.names(rig)``, and parameter sets the
+extension rejects (``Extension.valid``, e.g. ``Fs_i < Fc_i``) get ``-inf`` like any other
+impossible set.
 """
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -47,12 +49,27 @@ import numpy as np
 from .._errors import ConfigError, DataError, ModelError
 from ..data import Experiment
 from ..fit.linear import check_records
-from ..model._resid_kernels import ar1_sums
+from ..model._resid_kernels import ar1_sums, ar1_sums_affine
 from ..model.effects import resolve_extension
-from ..model.simulate import LinearSimulator, simulate_linear
+from ..model.simulate import simulate_linear
 from ..model.system import LinearModel
+from .linear_path import SimulatorCache, fast_path, linear_record_loglik
+from .noise import kalman_loglik, kalman_pointwise
+from .noise_choice import resolve_noise
 from .noise_spec import NOISE_MODELS
-from .priors import noise_names
+from .noise_terms import (
+    ar1_terms,
+    level_column,
+    loglik_from_sums,
+    noise_moments,
+    residual_loglik,
+    simulate_noise,
+    white_terms,
+)
+from .record_layout import RecordLayout, model_layout, parameter_index, record_key
+from .record_mapping import RecordMapping
+from .record_priors import noise_start
+from .record_scale import RecordScales, record_scales
 
 __all__ = [
     "Likelihood",
@@ -64,229 +81,48 @@ __all__ = [
     "loglik_from_sums",
 ]
 
-
-_HALF_LOG_2PI = 0.5 * float(np.log(2 * np.pi))
-
-
-def white_terms(r: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """Pointwise log densities of independent Gaussian residuals.
-
-    Parameters
-    ----------
-    r : ndarray, shape (nb, N, n_out), m
-    sigma : ndarray, shape (nb, n_out), m
-
-    Returns
-    -------
-    ndarray, shape (nb, N, n_out)
-    """
-    s = sigma[:, None, :]
-    return -_HALF_LOG_2PI - np.log(s) - 0.5 * (r / s) ** 2
-
-
-def ar1_terms(r: np.ndarray, sigma: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """Pointwise log densities of a stationary AR(1) residual in innovations form.
-
-    Parameters
-    ----------
-    r : ndarray, shape (nb, N, n_out), m
-    sigma : ndarray, shape (nb, n_out)
-        Innovation standard deviation, m.
-    phi : ndarray, shape (nb, n_out)
-        Lag-1 coefficient, ``|phi| < 1``.
-
-    Returns
-    -------
-    ndarray, shape (nb, N, n_out)
-        Element 0 is ``log N(r_0; 0, sigma^2/(1-phi^2))``, element k >= 1 is
-        ``log N(r_k - phi r_{k-1}; 0, sigma^2)``.
-
-    Examples
-    --------
-    With ``phi = 0`` the terms are the white-noise terms:
-
-    >>> r = np.random.default_rng(0).normal(size=(1, 5, 2))
-    >>> s = np.ones((1, 2))
-    >>> bool(np.allclose(ar1_terms(r, s, 0 * s), white_terms(r, s)))
-    True
-    """
-    s = sigma[:, None, :]
-    p = phi[:, None, :]
-    out = np.empty_like(r)
-    e = r[:, 1:, :] - p * r[:, :-1, :]
-    out[:, 1:, :] = -_HALF_LOG_2PI - np.log(s) - 0.5 * (e / s) ** 2
-    one_m_p2 = 1.0 - phi**2
-    out[:, 0, :] = (
-        -_HALF_LOG_2PI - np.log(sigma) + 0.5 * np.log(one_m_p2)
-        - 0.5 * r[:, 0, :] ** 2 * one_m_p2 / sigma**2
-    )
-    return out
-
-
-def residual_loglik(R: np.ndarray, sigma: np.ndarray, phi: np.ndarray | None) -> np.ndarray:
-    """Total log density of residual records under white or AR(1) noise, batched.
-
-    Computed from sufficient statistics: with ``S00 = sum_{k>=1} r_k^2``,
-    ``S01 = sum_{k>=1} r_k r_{k-1}`` and ``S11 = sum_{k<=N-2} r_k^2``, the innovation sum
-    of squares is ``S00 - 2 phi S01 + phi^2 S11``.  The cancellation costs about three of
-    sixteen digits (the innovations are some 20 times smaller than the residuals), far
-    below what matters for the log-likelihood, and the three sums run over the
-    simulator's batch-innermost memory layout, which makes this several times faster
-    than summing :func:`ar1_terms`.
-
-    Parameters
-    ----------
-    R : ndarray, shape (N, n_out, nb)
-        Residuals ``y - yhat``, m (batch innermost).
-    sigma : ndarray, shape (nb, n_out)
-        (Innovation) standard deviations, m.
-    phi : ndarray, shape (nb, n_out), or None for white noise
-
-    Returns
-    -------
-    ndarray, shape (nb,)
-        Equal to the sum over samples and outputs of :func:`white_terms` or
-        :func:`ar1_terms`.
-    """
-    # the sums of ``_resid_kernels.ar1_sums``, here from an array of residuals
-    s00 = np.einsum("kjb,kjb->jb", R[1:], R[1:])
-    s01 = np.einsum("kjb,kjb->jb", R[1:], R[:-1])
-    return loglik_from_sums(s00, s01, R[0], R[-1], R.shape[0], sigma, phi)
-
-
-def loglik_from_sums(s00, s01, r0, rl, n: int, sigma: np.ndarray,
-                     phi: np.ndarray | None) -> np.ndarray:
-    """:func:`residual_loglik` from the residual sums of ``_resid_kernels.ar1_sums``.
-
-    Parameters
-    ----------
-    s00, s01, r0, rl : ndarray, shape (n_out, nb)
-    n : int
-        Record length.
-    sigma, phi : ndarray, shape (nb, n_out) (phi None for white noise)
-
-    Returns
-    -------
-    ndarray, shape (nb,)
-    """
-    s = sigma.T
-    if phi is None:
-        t = -n * (_HALF_LOG_2PI + np.log(s)) - 0.5 * (s00 + r0**2) / s**2
-    else:
-        p = phi.T
-        s11 = s00 - rl**2 + r0**2
-        ss = s00 - 2 * p * s01 + p**2 * s11
-        one_m_p2 = 1.0 - p**2
-        t = (-n * (_HALF_LOG_2PI + np.log(s)) + 0.5 * np.log(one_m_p2)
-             - 0.5 * r0**2 * one_m_p2 / s**2 - 0.5 * ss / s**2)
-    return t.sum(axis=0)
-
-
-def simulate_noise(
-    sigma: np.ndarray, phi: np.ndarray | None, n_samples: int, rng=None, start=None
-) -> np.ndarray:
-    """Draw residual records from the noise model (stationary start, or a given one).
-
-    Parameters
-    ----------
-    sigma : ndarray, shape (nb, n_out)
-        (Innovation) standard deviations, m.
-    phi : ndarray, shape (nb, n_out), or None for white noise
-    n_samples : int
-    rng : numpy.random.Generator or int, optional
-    start : array_like, shape (nb, n_out) or (n_out,), optional
-        AR(1) only: the residual at sample 0, known (a record that starts at rest, where
-        the model and the rig agree, has 0).  The draws are then the AR(1) process
-        conditioned on it: mean ``phi^k r_0``, variance ``sigma^2 (1 - phi^(2k)) / (1 -
-        phi^2)``, finite for ``phi`` at 1 (a random walk, ``k sigma^2``), where the
-        stationary start's spread ``sigma / sqrt(1 - phi^2)`` is unbounded.
-
-    Returns
-    -------
-    ndarray, shape (nb, n_samples, n_out), m
-    """
-    rng = np.random.default_rng(rng)
-    sigma = np.asarray(sigma, dtype=float)
-    e = rng.standard_normal((sigma.shape[0], n_samples, sigma.shape[1])) * sigma[:, None, :]
-    if phi is None:
-        if start is not None:
-            raise DataError("a known start is for AR(1) noise (white noise has no memory)")
-        return e
-    phi = np.asarray(phi, dtype=float)
-    out = np.empty_like(e)
-    if start is None:
-        out[:, 0] = e[:, 0] / np.sqrt(1.0 - phi**2)
-    else:
-        out[:, 0] = np.broadcast_to(np.asarray(start, dtype=float), out[:, 0].shape)
-    for k in range(1, n_samples):
-        out[:, k] = phi * out[:, k - 1] + e[:, k]
-    return out
-
-
-class SimulatorCache:
-    """Simulators (``LinearSimulator``) kept between likelihood calls, one per thread and key.
-
-    A simulator reuses its output buffer, so a sampler's thousands of calls do not
-    allocate and page in a fresh (N, n_out, nb) array each time; the buffer is
-    overwritten by the next call, hence one set per thread.  Pickling drops the buffers
-    (a process pool rebuilds them on first use).
-    """
-
-    def __init__(self) -> None:
-        self._by_thread: dict = {}
-
-    def get(self, key, u: np.ndarray, dt: float, n_out: int) -> LinearSimulator:
-        sims = self._by_thread.setdefault(threading.get_ident(), {})
-        sim = sims.get(key)
-        if sim is None:
-            sim = sims[key] = LinearSimulator(u, dt, n_out)
-        return sim
-
-    def __getstate__(self) -> dict:
-        return {}
-
-    def __setstate__(self, state: dict) -> None:
-        self._by_thread = {}
-
-
-def prepare_linear(model: LinearModel, theta: np.ndarray, sim: LinearSimulator) -> tuple:
-    """The modal form of admissible linear-model parameter rows ``theta`` (nb, n_params)
-    for ``sim.run_prepared`` (what ``simulate_linear`` computes before its recursion)."""
-    M, C, K, b = model.matrices(theta)
-    return sim.prepare_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
-
-
-def fast_path(model: LinearModel) -> bool:
-    """True when the model's outputs are the simulator's leading states (chain rigs), so
-    that the likelihood can read the simulator's buffer directly."""
-    return getattr(model, "output_index", None) is None
+#: Every parameter shared by the records: the parameter vector of ``layout=None``.
+ALL_SHARED = RecordLayout({})
 
 
 @dataclass(frozen=True, eq=False)
-class Likelihood:
-    """Log-likelihood of one or several experiments under the linear rig model.
+class Likelihood(RecordMapping):
+    """Log-likelihood of one or several records of one rig.
 
     Parameters
     ----------
     model : LinearModel
     experiments : sequence of Experiment
-        All with ``model.n_carts`` outputs; they share the mechanical and noise parameters.
-    noise : {"ar1", "white"}
+        All with ``model.n_outputs`` outputs.
+    noise : str or NoiseModel
+        ``"ar1"`` (default) or ``"white"``; with a ``layout`` any noise model of
+        ``bayesmodal.inference.noise`` (by name, ``noise_choice.resolve_noise``).
     extension : str or Extension, optional
         A model extension (name in ``bayesmodal.model.effects.EXTENSIONS`` or an instance);
         requires ``model`` with free damping.  None (default) is the linear model.
+    layout : RecordLayout, optional
+        Per-record parameters (:mod:`.record_layout`).  None (default): one parameter set
+        for every record.
+    scale_at : array_like, shape (n_mech,), or RecordScales, optional
+        With ``layout.noise_scale`` other than ``"none"``: the model parameters at which
+        each record's response size is simulated (:mod:`.record_scale`).
     initial_state : {"rest", "estimate"}
-        ``"rest"`` (default): every record starts at rest.  ``"estimate"``: the initial
-        positions and velocities of each record are parameters (free decays), named in
-        ``initial_state_names`` and placed at the end of ``mech_names``.
+        ``"rest"`` (default): every record starts at rest.  ``"estimate"`` (no layout, the
+        linear model): the initial positions and velocities of each record are parameters
+        (free decays), named in ``initial_state_names`` and placed at the end of
+        ``mech_names``.
 
     Attributes
     ----------
     names : tuple of str
-        ``mech_names`` followed by ``sigma_1..n`` (and ``phi_1..n`` for AR(1)).
+        The parameter vector: ``mech_names`` followed by ``sigma_1..n`` (and ``phi_1..n``
+        for AR(1)) without a layout; see :mod:`.record_layout` with one.
     mech_names : tuple of str
-        The model parameters: ``model.names``, or ``extension.names(model.rig)`` (the
-        linear free-damping names, then the extension's).
+        The model parameters of one record: ``model.names`` (and the initial states), or
+        ``extension.names(model.rig)`` (the linear free-damping names, then the
+        extension's).
+    record_keys : tuple of str
+        Record names as they appear in per-record parameter names, ``p[key]``.
 
     Examples
     --------
@@ -308,13 +144,15 @@ class Likelihood:
     experiments: tuple[Experiment, ...]
     noise: str = "ar1"
     extension: object = None
+    layout: RecordLayout | None = None
+    scale_at: object = None
     initial_state: str = "rest"
 
     def __post_init__(self) -> None:
-        if isinstance(self.experiments, Experiment):
-            exps = (self.experiments,)
-        else:
-            exps = tuple(self.experiments)
+        if isinstance(self.layout, str):
+            raise ConfigError(f"layout must be a RecordLayout or None, got {self.layout!r}; "
+                              "pass initial_state by keyword")
+        exps = as_experiments(self.experiments)
         if not exps:
             raise DataError("no experiments given")
         for e in exps:
@@ -323,21 +161,72 @@ class Likelihood:
                     f"{e.name}: {e.n_outputs} outputs but the model has "
                     f"{self.model.n_outputs} {'carts' if self.model.rig.is_chain else 'sensors'}"
                 )
-        if self.noise not in NOISE_MODELS:
-            raise ConfigError(f"noise must be one of {NOISE_MODELS}, got {self.noise!r}")
+        if self.layout is None and self.noise not in NOISE_MODELS:
+            raise ConfigError(
+                f"noise must be one of {NOISE_MODELS}, got {self.noise!r}; other noise "
+                "models need a record layout (RecordLayout({}) shares every parameter)")
+        noise_model = resolve_noise(self.noise, self.model.n_outputs)
         if self.initial_state != "rest":
+            if self.layout is not None:
+                raise ConfigError("estimated initial states (free decays) are built for one "
+                                  "parameter set of all records; drop the record layout")
             check_records(self.model, exps, self.initial_state)
             if self.extension is not None:
                 raise ModelError("initial_state='estimate' works with the linear model only; "
                                  "drop the extension or use records that start at rest")
+        ext = resolve_extension(self.extension, self.model)
         object.__setattr__(self, "experiments", exps)
-        object.__setattr__(self, "extension", resolve_extension(self.extension, self.model))
+        object.__setattr__(self, "extension", ext)
+        keys = tuple(record_key(e.name) for e in exps)
+        if self.layout is not None and len(set(keys)) != len(keys):
+            raise DataError(
+                f"record names must be distinct to name per-record parameters, got "
+                f"{[e.name for e in exps]}; give each Experiment its own name")
+        mech = (self.model.names + self.initial_state_names if ext is None
+                else ext.names(self.model.rig))
+        layout = None if self.layout is None else model_layout(self.layout, mech, ext)
+        plan = ALL_SHARED if layout is None else layout
+        _check_process(noise_model, ext, plan)
+        object.__setattr__(self, "layout", layout)
+        object.__setattr__(self, "noise_model", noise_model)
+        # each record's noise model (a model may read a covariate from its record)
+        object.__setattr__(self, "record_noise", tuple(noise_model.for_record(e)
+                                                       for e in exps))
+        object.__setattr__(self, "noise", self.noise if isinstance(self.noise, str) and
+                           self.noise in NOISE_MODELS else noise_model.name)
+        object.__setattr__(self, "record_keys", keys)
+        object.__setattr__(self, "_index", parameter_index(
+            plan, mech, keys, noise_model.names(self.model.n_outputs)))
         object.__setattr__(self, "_sims", SimulatorCache())
+        scales = None
+        if plan.noise_scale != "none" and self.scale_at is not None:
+            given = self.scale_at
+            ref = given.reference_m if isinstance(given, RecordScales) else None
+            at = given.at if isinstance(given, RecordScales) else given
+            scales = record_scales(self._response, at, exps, len(mech), ref)
+        object.__setattr__(self, "record_scales", scales)
 
     # ---------------------------------------------------------------- layout
     @property
+    def parameter_layout(self) -> RecordLayout:
+        """The layout of the parameter vector: ``layout``, or every parameter shared."""
+        return ALL_SHARED if self.layout is None else self.layout
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self._index["names"]
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    @property
     def n_outputs(self) -> int:
         return self.model.n_outputs
+
+    @property
+    def n_records(self) -> int:
+        return len(self.experiments)
 
     @property
     def initial_state_names(self) -> tuple[str, ...]:
@@ -357,14 +246,13 @@ class Likelihood:
 
     @property
     def mech_names(self) -> tuple[str, ...]:
-        """Model parameter names (linear, then the extension's or the initial states)."""
-        if self.extension is None:
-            return self.model.names + self.initial_state_names
-        return self.extension.names(self.model.rig)
+        """The model parameters of one record (linear, then the extension's or the initial
+        states)."""
+        return self._index["mech"]
 
     @property
     def n_mech(self) -> int:
-        """Number of model parameters (linear plus extension)."""
+        """Number of model parameters of one record (linear plus extension)."""
         return len(self.mech_names)
 
     @property
@@ -373,27 +261,9 @@ class Likelihood:
         return None if self.extension is None else self.extension.name
 
     @property
-    def names(self) -> tuple[str, ...]:
-        return self.mech_names + noise_names(self.n_outputs, self.noise)
-
-    @property
-    def n_params(self) -> int:
-        return len(self.names)
-
-    @property
     def n_data(self) -> int:
-        """Number of scalar observations (samples times outputs over all experiments)."""
+        """Number of scalar observations (samples times outputs over all records)."""
         return sum(e.n_samples * e.n_outputs for e in self.experiments)
-
-    def split(self, theta: np.ndarray):
-        """Split full vectors, shape (nb, P), into mechanical, sigma and phi (or None)."""
-        theta = np.asarray(theta, dtype=float)
-        p = self.n_mech
-        n = self.n_outputs
-        mech = theta[:, :p]
-        sigma = theta[:, p : p + n]
-        phi = theta[:, p + n : p + 2 * n] if self.noise == "ar1" else None
-        return mech, sigma, phi
 
     def admissible(self, theta: np.ndarray) -> np.ndarray:
         """Boolean mask, shape (nb,), of parameter sets with a finite likelihood possible."""
@@ -401,49 +271,115 @@ class Likelihood:
         if theta.shape[-1] != self.n_params:
             raise ConfigError(
                 f"parameter vectors must have length {self.n_params} {self.names}, "
-                f"got shape {theta.shape}"
-            )
-        mech, sigma, phi = self.split(theta)
+                f"got shape {theta.shape}")
         ok = np.all(np.isfinite(theta), axis=-1)
-        if self.extension is None:
-            ok &= self.model.valid(mech[:, : self.model.n_params])
-        else:
-            with np.errstate(invalid="ignore"):
-                ok &= self.extension.valid(self.model.rig, mech)
-        ok &= np.all(sigma > 0, axis=-1)
-        if phi is not None:
-            ok &= np.all(np.abs(phi) < 1, axis=-1)
+        n_mech = self.n_mech
+        rig = self.model.rig
+        plan = self.parameter_layout
+        # every record has the same values when nothing is per record
+        for r in range(self.n_records if plan.per_record or plan.noise_per_record else 1):
+            full = self.record_theta(theta, r)[0]
+            if self.extension is None:
+                ok &= self.model.valid(full[:, : self.model.n_params])
+            else:
+                with np.errstate(invalid="ignore"):
+                    ok &= self.extension.valid(rig, full[:, :n_mech])
+            ok &= self.noise_model.valid(full[:, n_mech:])
+        for g in self._index["groups"].values():
+            if g["kind"] == "hierarchical":
+                ok &= theta[:, g["tau"]] > 0
         return ok
 
-    # ---------------------------------------------------------------- evaluation
-    def predict(self, theta_mech: np.ndarray) -> list[np.ndarray]:
-        """Noise-free model outputs per experiment, each shape (nb, N_e, n_out), m.
+    # ---------------------------------------------------------------- prediction
+    def record_mech(self, full: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """Record ``r``'s model parameters and initial state from its single-record rows.
 
-        ``theta_mech`` must be admissible (shape (nb, n_mech)).  With an extension every
-        parameter set of the batch goes through one ``Extension.simulate`` call per
-        experiment.
+        Parameters
+        ----------
+        full : ndarray, shape (nb, n_mech + n_noise) or (nb, n_mech)
+        r : int
+
+        Returns
+        -------
+        mech : ndarray, shape (nb, n_mech) (linear parameters only with estimated initial
+            states)
+        x0 : ndarray, shape (nb, 2 n_free), or None (from rest)
+            Positions m, velocities m/s.
+        """
+        if not self.initial_state_names:
+            return full[:, : self.n_mech], None
+        p = self.model.n_params
+        x0 = full[:, p : self.n_mech].reshape(len(full), self.n_records, -1)[:, r]
+        return full[:, :p], x0
+
+    def predict(self, theta_mech: np.ndarray) -> list[np.ndarray]:
+        """Noise-free outputs per record of one parameter set, each (nb, N_r, n_out), m.
+
+        ``theta_mech`` (shape (nb, n_mech)) must be admissible.  With an extension every
+        parameter set of the batch goes through one ``Extension.simulate`` call per record.
         """
         theta_mech = np.atleast_2d(theta_mech)
+        zero = np.zeros(theta_mech.shape[0])
+        out = []
+        for r, e in enumerate(self.experiments):
+            mech, x0 = self.record_mech(theta_mech, r)
+            out.append(self.predict_mech(mech, zero, e, x0))
+        return out
+
+    def predict_record(self, theta: np.ndarray, r: int, experiment: Experiment | None = None
+                       ) -> np.ndarray:
+        """Noise-free outputs of record ``r``'s parameters, shape (nb, N, n_out), m.
+
+        ``experiment`` (default: record ``r``) gives the input; ``theta`` must be
+        admissible.
+        """
+        full, v0 = self.record_theta(theta, r)
+        mech, x0 = self.record_mech(full, r)
+        return self.predict_mech(mech, v0, experiment or self.experiments[r], x0)
+
+    def predict_mech(self, mech: np.ndarray, v0: np.ndarray, e: Experiment, x0=None
+                     ) -> np.ndarray:
+        """Outputs of single-record parameter sets with input offsets on one input.
+
+        Parameters
+        ----------
+        mech : ndarray, shape (nb, n_mech)
+        v0 : ndarray, shape (nb,), V
+        e : Experiment
+            Gives the input ``v`` and ``dt``.
+        x0 : ndarray, shape (nb, 2 n_free), optional
+            Initial states (positions m, velocities m/s); default rest.
+
+        Returns
+        -------
+        ndarray, shape (nb, N, n_out), m
+        """
         if self.extension is not None:
-            rig = self.model.rig
-            return [self.extension.simulate(rig, theta_mech, e.v_volt, e.dt)
-                    for e in self.experiments]
-        if self.initial_state != "rest":
-            p = self.model.n_params
-            x0 = theta_mech[:, p:].reshape(len(theta_mech), len(self.experiments), -1)
-            return [simulate_linear(self.model, theta_mech[:, :p], e.v_volt, e.dt, x0[:, j])
-                    for j, e in enumerate(self.experiments)]
-        return [
-            simulate_linear(self.model, theta_mech, e.v_volt, e.dt) for e in self.experiments
-        ]
+            return self.extension.simulate(self.model.rig, mech, e.v_volt, e.dt)
+        if not np.any(v0):
+            return simulate_linear(self.model, mech, e.v_volt, e.dt, x0)
+        a, b = self._unit_responses(mech, e)
+        g = mech[:, 0]
+        return g[:, None, None] * (a + v0[:, None, None] * b)
 
-    def _terms(self, r: np.ndarray, sigma: np.ndarray, phi) -> np.ndarray:
-        if phi is None:
-            return white_terms(r, sigma)
-        return ar1_terms(r, sigma, phi)
+    def _unit_responses(self, mech: np.ndarray, e: Experiment):
+        """Unit-gain responses ``a = S1(v)`` and ``b = S1(1)``, each (nb, N, n_out), m/V.
 
+        The linear model is linear in ``g_v`` and in the input, so a record with gain
+        ``g`` and input offset ``v0`` predicts ``g (a + v0 b)``.
+        """
+        unit = mech.copy()
+        unit[:, 0] = 1.0
+        return (simulate_linear(self.model, unit, e.v_volt, e.dt),
+                simulate_linear(self.model, unit, np.ones(e.n_samples), e.dt))
+
+    def predict_theta(self, theta: np.ndarray) -> list[np.ndarray]:
+        """Noise-free outputs of every record, each shape (nb, N_r, n_out), m."""
+        return [self.predict_record(theta, r) for r in range(self.n_records)]
+
+    # ---------------------------------------------------------------- evaluation
     def pointwise(self, theta: np.ndarray) -> list[np.ndarray]:
-        """Pointwise log-likelihood terms per experiment.
+        """Pointwise log-likelihood terms per record.
 
         Parameters
         ----------
@@ -451,7 +387,7 @@ class Likelihood:
 
         Returns
         -------
-        list of ndarray, each shape (nb, N_e, n_out)
+        list of ndarray, each shape (nb, N_r, n_out)
             ``-inf`` everywhere for impossible rows.
         """
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
@@ -460,78 +396,125 @@ class Likelihood:
                for e in self.experiments]
         if not np.any(ok):
             return out
-        mech, sigma, phi = self.split(theta[ok])
-        for o, e, yh in zip(out, self.experiments, self.predict(mech), strict=True):
+        for r, e in enumerate(self.experiments):
+            full, v0 = self.record_theta(theta[ok], r)
+            yh = self.predict_record(theta[ok], r)
             with np.errstate(all="ignore"):
-                t = self._terms(e.y_m[None] - yh, sigma, phi)
-            o[ok] = np.where(np.isfinite(t), t, -np.inf)
+                r_ = e.y_m[None] - yh
+                s = np.reshape(self._scale_rows(theta[ok], r), (-1, 1, 1))
+                if self.noise in NOISE_MODELS:
+                    sigma, phi = self.sigma_phi(full[:, self.n_mech:])
+                    sigma = sigma * s[:, :, 0]
+                    t = white_terms(r_, sigma) if phi is None else ar1_terms(r_, sigma, phi)
+                elif self.noise == "process":
+                    mech, q, sig = self._process_split(full)
+                    t = kalman_pointwise(self.model, mech, q, sig, e.v_volt, e.y_m, e.dt,
+                                         v0=v0)
+                else:
+                    t = self.record_noise[r].pointwise(r_ / s, full[:, self.n_mech:]
+                                                       ) - np.log(s)
+            out[r][ok] = np.where(np.isfinite(t), t, -np.inf)
         return out
 
-    def __call__(self, theta: np.ndarray) -> np.ndarray:
-        """Total log-likelihood, shape (nb,), for parameter vectors of shape (nb, P).
-
-        Equal to the sum of :meth:`pointwise`, computed from sufficient statistics
-        (:func:`residual_loglik`).
-        """
+    def record_loglik(self, theta: np.ndarray) -> np.ndarray:
+        """Log-likelihood of each record, shape (nb, n_records); ``-inf`` if impossible."""
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
         ok = self.admissible(theta)
-        total = np.full(theta.shape[0], -np.inf)
+        out = np.full((theta.shape[0], self.n_records), -np.inf)
         if not np.any(ok):
-            return total
-        mech, sigma, phi = self.split(theta[ok])
-        nb = int(ok.sum())
-        acc = np.zeros(nb)
+            return out
+        th = theta[ok]
+        if (self.extension is None and self.noise in NOISE_MODELS
+                and not self.initial_state_names and fast_path(self.model)):
+            with np.errstate(all="ignore"):
+                ll = linear_record_loglik(self, th)
+            out[ok] = np.where(np.isfinite(ll), ll, -np.inf)
+            return out
         with np.errstate(all="ignore"):
-            if self.extension is None and self.initial_state == "rest" and fast_path(
-                    self.model):
-                # one modal form per sample interval, and the residual sums accumulated
-                # inside the simulator's recursion (the prediction is never stored): the
-                # same numbers as ``predict`` + ``ar1_sums``, bit for bit
-                prep = {}
-                for i, e in enumerate(self.experiments):
-                    sim = self._sims.get(i, e.v_volt, e.dt, self.model.n_carts)
-                    if e.dt not in prep:
-                        prep[e.dt] = prepare_linear(self.model, mech, sim)
-                    acc += loglik_from_sums(*sim.residual_sums(prep[e.dt], e.y_m),
-                                            e.n_samples, sigma, phi)
-            else:
-                for e, yh in zip(self.experiments, self.predict(mech), strict=True):
-                    acc += loglik_from_sums(*ar1_sums(e.y_m, yh), e.n_samples, sigma, phi)
-        total[ok] = np.where(np.isfinite(acc), acc, -np.inf)
+            for r, e in enumerate(self.experiments):
+                full, v0 = self.record_theta(th, r)
+                params = full[:, self.n_mech:]
+                if self.noise in NOISE_MODELS:
+                    ll = self._basic_loglik(r, full, v0, self._scale_rows(th, r))
+                elif self.noise == "process":
+                    mech, q, sigma = self._process_split(full)
+                    ll = kalman_loglik(self.model, mech, q, sigma, e.v_volt, e.y_m, e.dt,
+                                       initial="rest", v0=v0)
+                else:
+                    yh = self.predict_record(th, r)
+                    ll = self.noise_loglik(e.y_m[:, :, None] - np.moveaxis(yh, 0, -1), params,
+                                           self._scale_rows(th, r), record=r)
+                out[ok, r] = np.where(np.isfinite(ll), ll, -np.inf)
+        return out
+
+    def _basic_loglik(self, r: int, full, v0, scale=1.0) -> np.ndarray:
+        """White or AR(1) log-likelihood of record ``r`` from compiled residual sums (a
+        per-record gain and offset applied inside the kernel, no temporaries), the noise
+        level times ``scale``."""
+        e = self.experiments[r]
+        mech, x0 = self.record_mech(full, r)
+        if self.extension is not None or not np.any(v0):
+            sums = ar1_sums(e.y_m, self.predict_mech(mech, v0, e, x0))
+        else:
+            a, b = self._unit_responses(mech, e)
+            sums = ar1_sums_affine(e.y_m, a, b, mech[:, 0], v0)
+        sigma, phi = self.sigma_phi(full[:, self.n_mech:])
+        return loglik_from_sums(*sums, e.n_samples, sigma * level_column(scale), phi)
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        """Total log-likelihood over the records, shape (nb,), for parameter vectors of
+        shape (nb, P); the sum of :meth:`pointwise`, computed from sufficient statistics
+        for white and AR(1) noise."""
+        ll = self.record_loglik(theta)
+        if self.layout is not None:
+            return np.sum(ll, axis=1)
+        # a running sum over the records (numpy's sum pairs the terms from 8 records on,
+        # which would move the last digit of earlier runs without a layout)
+        total = np.zeros(ll.shape[0])
+        for r in range(ll.shape[1]):
+            total += ll[:, r]
         return total
 
-    def residual_noise_start(self, theta_mech: np.ndarray) -> np.ndarray:
-        """Moment estimates of the noise parameters at a mechanical estimate.
+    def residual_noise_start(self, theta: np.ndarray) -> np.ndarray:
+        """Moment estimates of the noise parameters (in ``names`` order of the noise).
 
         Parameters
         ----------
-        theta_mech : ndarray, shape (n_mech,)
+        theta : ndarray, shape (P,), or (n_mech,) without a layout
+            A full parameter vector (its noise entries are not read), or without a layout
+            the model parameters alone.
 
         Returns
         -------
         ndarray, shape (n_noise,)
-            ``sigma`` (RMS residual for white noise; RMS innovation for AR(1)) followed by
-            the lag-1 autocorrelation ``phi`` for AR(1).
+            Without a layout the moments of all records' residuals together: ``sigma``
+            (RMS residual for white noise; RMS innovation for AR(1)) followed by the lag-1
+            autocorrelation ``phi`` for AR(1).  With one, :func:`.record_priors.noise_start`
+            (each record's moments, pooled unless the noise is per record).
         """
-        r = np.concatenate(
-            [e.y_m - yh[0] for e, yh in zip(self.experiments,
-                                             self.predict(theta_mech[None]), strict=True)]
-        )
+        theta = np.asarray(theta, dtype=float)
+        if self.layout is not None:
+            return noise_start(self, theta)
+        mech = theta[: self.n_mech]
+        r = np.concatenate([e.y_m - yh[0] for e, yh in zip(
+            self.experiments, self.predict(mech[None]), strict=True)])
         return noise_moments(r, self.noise)
 
 
-def noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
-    """Moment estimates of white or AR(1) noise parameters from residuals ``r`` (N, n_out).
-
-    Returns ``sigma`` (RMS residual for white noise; RMS innovation for AR(1)) followed,
-    for AR(1), by the lag-1 autocorrelation ``phi`` (clipped inside (-1, 1)).
-    """
-    if noise == "white":
-        return np.sqrt(np.mean(r**2, axis=0))
-    phi = np.sum(r[1:] * r[:-1], axis=0) / np.sum(r[:-1] ** 2, axis=0)
-    phi = np.clip(phi, -0.9999, 0.9999)
-    sigma = np.sqrt(np.mean((r[1:] - phi * r[:-1]) ** 2, axis=0))
-    return np.r_[sigma, phi]
+def _check_process(noise_model, extension, layout: RecordLayout) -> None:
+    """Process noise is built for the linear model and has no level to scale."""
+    if noise_model.name != "process":
+        return
+    if extension is not None:
+        raise ConfigError(
+            "process noise is built for the linear model: the Kalman filter's "
+            "prediction step is linear (friction, backlash and the other effects "
+            "would need an extended filter); use noise 'ar1' or 'arP' with extensions")
+    if layout.noise_scale != "none":
+        raise ConfigError(
+            "process noise has no noise level to scale per record (its random "
+            "force goes through the dynamics); use noise_scale = 'none' or noise "
+            "'ar1' / 'arP'")
 
 
 def as_experiments(experiments: Experiment | Sequence[Experiment]) -> tuple[Experiment, ...]:

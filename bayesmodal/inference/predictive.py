@@ -51,7 +51,6 @@ from .coverage_reference import (
     coverage_reference,
     reference_fields,
 )
-from .likelihood import Likelihood, residual_loglik, simulate_noise
 from .noise import kalman_loglik, simulate_process_noise
 from .record_layout import SIGNED
 
@@ -148,7 +147,7 @@ def new_record_parameters(lik, theta: np.ndarray, rng) -> tuple[np.ndarray, np.n
 
     Parameters
     ----------
-    lik : Likelihood or RecordsLikelihood
+    lik : Likelihood
         The training likelihood.
     theta : ndarray, shape (S, P)
         Posterior draws.
@@ -162,7 +161,7 @@ def new_record_parameters(lik, theta: np.ndarray, rng) -> tuple[np.ndarray, np.n
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     s = theta.shape[0]
-    if not hasattr(lik, "record_theta"):  # one record or everything shared
+    if lik.layout is None:  # one parameter set for every record
         mech, sigma, phi = lik.split(theta)
         noise = sigma if phi is None else np.concatenate([sigma, phi], axis=1)
         return mech, np.zeros(s), noise
@@ -189,20 +188,13 @@ def new_record_parameters(lik, theta: np.ndarray, rng) -> tuple[np.ndarray, np.n
     return full[:, :n_mech], v0, full[:, n_mech:]
 
 
-def _predict_mech(lik, mech, v0, experiment):
-    if hasattr(lik, "predict_mech"):
-        return lik.predict_mech(mech, v0, experiment)
-    single = Likelihood(lik.model, (experiment,), lik.noise, lik.extension)
-    return single.predict(mech)[0]
-
-
 def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=None
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Predictive samples of a record from posterior draws of other records.
 
     Parameters
     ----------
-    lik : Likelihood or RecordsLikelihood
+    lik : Likelihood
         The likelihood the draws were sampled with.
     theta : ndarray, shape (S, P)
     experiment : Experiment
@@ -225,7 +217,7 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
         raise DataError(f"{experiment.name}: {experiment.n_outputs} outputs, the model has "
                         f"{lik.n_outputs}")
     mech, v0, noise = new_record_parameters(lik, theta, rng)
-    y_hat = _predict_mech(lik, mech, v0, experiment)
+    y_hat = lik.predict_mech(mech, v0, experiment)
     R = experiment.y_m[:, :, None] - np.moveaxis(y_hat, 0, -1)
     if getattr(lik, "noise", "") == "process":  # the random force goes through the dynamics
         n = lik.n_outputs
@@ -240,19 +232,11 @@ def predict_new_record(lik, theta: np.ndarray, experiment: Experiment, *, rng=No
     # spread, which is unbounded for phi at 1 (a random-walk discrepancy; the friction
     # model's posterior puts a third of its draws above phi = 0.99999)
     start = R[0].T if lik.noise == "ar1" else None
-    if hasattr(lik, "noise_loglik"):  # any noise model of a RecordsLikelihood
-        # (with noise_scale "response": the level sized by the record's simulated response)
-        s = lik.scale_of(experiment, theta)
-        e = lik.noise_simulate(noise, experiment.n_samples, rng, s, start, record=experiment)
-        with np.errstate(all="ignore"):
-            ll = lik.noise_loglik(R, noise, s, record=experiment)
-    else:
-        n = lik.n_outputs
-        sigma = noise[:, :n]
-        phi = noise[:, n : 2 * n] if lik.noise == "ar1" else None
-        e = simulate_noise(sigma, phi, experiment.n_samples, rng, start)
-        with np.errstate(all="ignore"):
-            ll = residual_loglik(R, sigma, phi)
+    # (with noise_scale "response": the level sized by the record's simulated response)
+    s = lik.scale_of(experiment, theta)
+    e = lik.noise_simulate(noise, experiment.n_samples, rng, s, start, record=experiment)
+    with np.errstate(all="ignore"):
+        ll = lik.noise_loglik(R, noise, s, record=experiment)
     return y_hat, y_hat + e, np.where(np.isfinite(ll), ll, -np.inf)
 
 

@@ -27,8 +27,8 @@ every record, then the noise parameters (``sigma_j[r]``... when per record).
 
 :func:`parameter_index` places the parameters in that vector, :func:`record_values` reads
 one record's values back, and :func:`population_log_density` is the density of the
-per-record values under their populations.  The several-record likelihood
-(:mod:`bayesmodal.inference.records`) is built on them.
+per-record values under their populations.  The likelihood
+(:mod:`bayesmodal.inference.likelihood`) is built on them.
 """
 
 from __future__ import annotations
@@ -256,7 +256,7 @@ def parameter_index(layout: RecordLayout, mech: tuple[str, ...],
 
 def record_values(index: dict, theta: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
     """Record ``r``'s single-record parameters and input offset (see
-    ``RecordsLikelihood.record_theta``).
+    ``Likelihood.record_theta``).
 
     Parameters
     ----------
@@ -289,7 +289,7 @@ def record_values(index: dict, theta: np.ndarray, r: int) -> tuple[np.ndarray, n
 
 def population_log_density(index: dict, theta: np.ndarray) -> np.ndarray:
     """Log density of the per-record values under their populations, shape (nb,) (see
-    ``RecordsLikelihood.log_population``).
+    ``Likelihood.log_population``).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Priors and a starting point of the several-record parameter vector.
 
-The vector of a :class:`~.records.RecordsLikelihood` (:mod:`.record_layout`) holds
+The vector of a :class:`~.likelihood.Likelihood` (:mod:`.record_layout`) holds
 shared parameters, per-record values, population means and spreads and the noise
 parameters.  :func:`record_priors` gives each its default prior (the single-record
 defaults, a half-normal prior on each population spread); :func:`records_start` a
@@ -19,14 +19,14 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..model.simulate import simulate_linear
-from .likelihood import noise_moments
 from .noise_spec import NOISE_MODELS
+from .noise_terms import noise_moments
 from .priors import Normal, PriorSet, Uniform, default_priors
 from .record_layout import SIGNED
 from .record_scale import POWER_BOUNDS, POWER_NAME, POWER_START
 
-if TYPE_CHECKING:  # the likelihood's type only: records builds it and re-exports this module
-    from .records import RecordsLikelihood
+if TYPE_CHECKING:  # the likelihood's type only: it is built on this module
+    from .likelihood import Likelihood
 
 __all__ = ["record_priors", "records_start", "noise_start", "TAU_SCALE", "GAIN_GRID"]
 
@@ -38,9 +38,9 @@ TAU_SCALE = {"log": 0.1, "v0": 0.05}
 V0_PRIOR = Normal(0.0, 0.1, lo=-1.0, hi=1.0)
 
 
-def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None = None
+def record_priors(lik: Likelihood, overrides: Mapping[str, object] | None = None
                   ) -> PriorSet:
-    """Default priors of a :class:`RecordsLikelihood`'s parameters.
+    """Default priors of a :class:`Likelihood`'s parameters.
 
     Shared parameters and per-record values get the single-record defaults
     (``default_priors``); a population mean ``mu_p`` the default of ``p``; a spread
@@ -50,7 +50,7 @@ def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None
 
     Parameters
     ----------
-    lik : RecordsLikelihood
+    lik : Likelihood
     overrides : mapping of str to prior, optional
         Replacements by name in ``lik.names``.
 
@@ -70,7 +70,7 @@ def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None
     for nm in lik.names:
         m = re.fullmatch(r"(mu|tau)_(.+)", nm)
         base_name = nm.split("[", 1)[0]
-        if m and m.group(2) in lik.layout.per_record and base_name == nm:
+        if m and m.group(2) in lik.parameter_layout.per_record and base_name == nm:
             p = m.group(2)
             if m.group(1) == "mu":
                 pr, tr = table[p]
@@ -89,7 +89,7 @@ def record_priors(lik: RecordsLikelihood, overrides: Mapping[str, object] | None
     return ps.replace(overrides) if overrides else ps
 
 
-def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
+def records_start(lik: Likelihood, theta_mech: np.ndarray) -> np.ndarray:
     """A starting point of the full parameter vector from a joint single-record estimate.
 
     Shared parameters come from ``theta_mech`` (e.g. a least-squares fit of all records
@@ -105,7 +105,7 @@ def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    lik : RecordsLikelihood
+    lik : Likelihood
     theta_mech : ndarray, shape (n_mech,)
 
     Returns
@@ -116,7 +116,7 @@ def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
     ix = lik._index
     R = lik.n_records
     values = {p: np.full(R, theta_mech[lik.mech_names.index(p)]) if p != "v0" else np.zeros(R)
-              for p in lik.layout.per_record}
+              for p in lik.parameter_layout.per_record}
     if lik.extension is None and ("g_v" in values or "v0" in values):
         unit = theta_mech.copy()
         unit[0] = 1.0
@@ -152,7 +152,7 @@ def records_start(lik: RecordsLikelihood, theta_mech: np.ndarray) -> np.ndarray:
 GAIN_GRID = 46
 
 
-def _assemble_start(lik: RecordsLikelihood, values: dict, theta_mech: np.ndarray
+def _assemble_start(lik: Likelihood, values: dict, theta_mech: np.ndarray
                     ) -> np.ndarray:
     ix = lik._index
     out = np.empty(lik.n_params)
@@ -174,13 +174,13 @@ def _assemble_start(lik: RecordsLikelihood, values: dict, theta_mech: np.ndarray
     return out
 
 
-def noise_start(lik: RecordsLikelihood, theta: np.ndarray) -> np.ndarray:
+def noise_start(lik: Likelihood, theta: np.ndarray) -> np.ndarray:
     """Moment estimates of the noise parameters (in ``names`` order of the noise) from the
-    residuals of each record at ``theta`` (``RecordsLikelihood.residual_noise_start``).
+    residuals of each record at ``theta`` (``Likelihood.residual_noise_start``).
 
     Parameters
     ----------
-    lik : RecordsLikelihood
+    lik : Likelihood
     theta : ndarray, shape (P,)
         A full parameter vector; its noise entries are not read.
 
@@ -207,7 +207,7 @@ def noise_start(lik: RecordsLikelihood, theta: np.ndarray) -> np.ndarray:
                                 np.sqrt(np.mean(res**2, axis=0))])
         else:
             starts.append(lik.record_noise[r].start(res))
-    if lik.layout.noise_per_record:
+    if lik.parameter_layout.noise_per_record:
         return np.concatenate(starts)
     # shared: pool the per-record moments (RMS of sigma, mean of the coefficients)
     s = np.array(starts)

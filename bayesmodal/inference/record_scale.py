@@ -24,7 +24,7 @@ choose between them.
 
 For Gaussian noise models (white, AR(1), AR(p)) scaling the residual's standard deviation
 by ``s`` is the same as dividing the residual by ``s`` and adding ``-N n_out log s``:
-``RecordsLikelihood`` uses the first for white and AR(1) noise, the second for the others.
+``Likelihood`` uses the first for white and AR(1) noise, the second for the others.
 Process noise (a random force through the dynamics) has no such scale and refuses it.
 """
 
@@ -111,7 +111,7 @@ def record_scales(predict: Callable[[np.ndarray, Experiment], np.ndarray], at,
     ----------
     predict : callable
         ``predict(mech (1, n_mech), experiment) -> (1, N, n_out)``, m: the model's
-        noise-free response (``RecordsLikelihood.predict_mech`` with zero offset).
+        noise-free response (``Likelihood.predict_mech`` with zero offset).
     at : array_like, shape (n_mech,)
         Model parameters in single-record order (e.g. the least-squares estimate).
     experiments : sequence of Experiment

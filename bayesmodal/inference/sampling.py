@@ -47,7 +47,6 @@ from .noise_spec import NoiseSpec, parse_noise
 from .priors import PriorSet, default_priors
 from .record_layout import RecordLayout
 from .record_priors import record_priors, records_start
-from .records import RecordsLikelihood
 from .spec import LikelihoodSpec, SamplerSpec, with_settings
 from .threads import resolve_threads
 
@@ -290,9 +289,9 @@ def sample_posterior(
     -----
     The walkers start around the least-squares estimate with noise parameters from the
     moments of its residuals, refined to the posterior mode (``SamplerSpec.refine``).
-    AR(p) and the other noise models of ``bayesmodal.inference.noise`` go through
-    ``records.RecordsLikelihood`` (one record with every parameter shared is its simplest
-    layout); ``"ar:auto"`` chooses the orders by BIC on the least-squares residuals.
+    AR(p) and the other noise models of ``bayesmodal.inference.noise`` need a record
+    layout of the ``Likelihood`` (one record with every parameter shared is its simplest
+    one); ``"ar:auto"`` chooses the orders by BIC on the least-squares residuals.
     ``restart`` re-centres every walker after that many burn-in steps around the best
     one, ``prune`` moves only the walkers stranded far below the others (the chi-square
     tail ``(chi2_P(1 - 1e-6) - median(chi2_P)) / 2``); both are deterministic for an
@@ -392,13 +391,13 @@ def _likelihood(exps, model: LinearModel, spec: LikelihoodSpec, start):
     else:
         noise = nspec.name  # "AR1" or " ar1" take the path of "ar1"
     if layout is None:
-        return Likelihood(model, exps, noise, spec.extension, spec.initial_state), noise, \
-            None, start
+        return Likelihood(model, exps, noise, spec.extension,
+                          initial_state=spec.initial_state), noise, None, start
     if spec.initial_state != "rest":
         raise ConfigError("estimated initial states (free decays) are built for the "
                           "single-record likelihood; drop the per-record layout")
     # (with a noise scale the records' sizes need the start: built again there)
-    return RecordsLikelihood(model, exps, noise, spec.extension, layout), noise, layout, start
+    return Likelihood(model, exps, noise, spec.extension, layout), noise, layout, start
 
 
 def _start_point(exps, model: LinearModel, lik, priors: PriorSet, spec: LikelihoodSpec,
@@ -428,13 +427,13 @@ def _start_point(exps, model: LinearModel, lik, priors: PriorSet, spec: Likeliho
         lsq = start if isinstance(start, ExtensionFit) else None
         theta_mech = ext.check(model.rig, np.asarray(
             start.theta if lsq is not None else start, dtype=float))
-        if not isinstance(lik, RecordsLikelihood):
+        if lik.layout is None:
             theta_mech = _inside_priors(theta_mech, priors)
-    if not isinstance(lik, RecordsLikelihood):
+    if lik.layout is None:
         return lik, lsq, np.r_[theta_mech, lik.residual_noise_start(theta_mech)]
     if lik.layout.noise_scale != "none":
         # each record's noise level sized by its response at the start, a constant
-        lik = RecordsLikelihood(model, exps, noise, ext, layout, scale_at=theta_mech)
+        lik = Likelihood(model, exps, noise, ext, layout, scale_at=theta_mech)
     return lik, lsq, _inside_priors(records_start(lik, theta_mech), priors)
 
 
@@ -466,7 +465,7 @@ def _run_config(model, lik, priors, exps, spec: LikelihoodSpec, smp: SamplerSpec
         "refine": bool(smp.refine),
         **({} if smp.restart is None else {"restart": smp.restart}),
         **({} if smp.prune is None else {"prune": smp.prune}),
-        **({} if not isinstance(lik, RecordsLikelihood) else {"layout": lik.layout.to_dict()}),
+        **({} if lik.layout is None else {"layout": lik.layout.to_dict()}),
         **({} if temperature == 1.0 else {"temperature": temperature}),
         **({} if smp.init == "ball" else {"init": smp.init}),
     }

@@ -18,11 +18,11 @@ from .._window import motion_at_start, offset_at_rest
 from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
 from ..fit.linear import fit_lsq
 from ..inference import LogUniform, Uniform, default_priors
+from ..inference.likelihood import Likelihood
 from ..inference.moves import parse_moves
 from ..inference.noise_choice import choose_noise
 from ..inference.noise_spec import parse_noise
 from ..inference.record_priors import record_priors
-from ..inference.records import RecordsLikelihood
 from ..model.effects import get_extension
 from ..model.system import LinearModel
 from .config import RunConfig
@@ -158,7 +158,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
                               extension=extension)
     else:
         try:
-            base = record_priors(RecordsLikelihood(model, exps, noise, extension, layout))
+            base = record_priors(Likelihood(model, exps, noise, extension, layout))
         except ValueError as exc:
             raise ConfigError(f"{src}: [records] {exc}") from exc
     overrides = {}

@@ -228,7 +228,7 @@ def _record_medians(run, idata) -> dict:
     g_v), so that its residual diagnostics see its gain.  The input offset v0 is not a
     model parameter of the single-record diagnostics and is left out."""
     lik = run.likelihood
-    if not hasattr(lik, "record_theta"):
+    if lik.layout is None:
         return {}
 
     draws = posterior_matrix(idata, list(lik.names)).reshape(-1, lik.n_params)

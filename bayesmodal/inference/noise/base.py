@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._errors import DataError
-from ..likelihood import (
+from ..noise_terms import (
     ar1_terms,
     residual_loglik,  # the sufficient-statistics form
     simulate_noise,
