@@ -30,6 +30,14 @@ def accelerations(p, x, xd, f):
 
 def simulate(p, f, dt):
     """Noise-free accelerations, shape (N, 2), m/s^2, of the force ``f`` (N,) N."""
+    states = simulate_states(p, f, dt)
+    return np.array([accelerations(p, s[:2], s[2:], fk) for s, fk in zip(states, f,
+                                                                           strict=True)])
+
+
+def simulate_states(p, f, dt):
+    """Positions (m) and velocities (m/s) of both carts, shape (N, 4), from rest under
+    the force ``f`` (N,) N held over each sample interval."""
     n = f.size
     state = np.zeros(4)
     states = np.empty((n, 4))
@@ -48,8 +56,7 @@ def simulate(p, f, dt):
                         t_eval=t_eval, rtol=1e-10, atol=1e-13)
         states[a + 1 : a + t_eval.size] = sol.y[:, 1:].T
         state = sol.y[:, -1]
-    return np.array([accelerations(p, s[:2], s[2:], fk) for s, fk in zip(states, f,
-                                                                           strict=True)])
+    return states
 
 
 def hammer_force(n, dt, *, peak=60.0, every_s=4.0):
@@ -69,3 +76,31 @@ def measured_record(p, rng, *, n=2000, dt=0.004, sigma_acc=0.05, step_acc=5e-3,
     f = np.round(hammer_force(n, dt) / step_force) * step_force
     y = simulate(p, f, dt) + rng.normal(0.0, sigma_acc, (n, 2))
     return np.arange(n) * dt, f, np.round(y / step_acc) * step_acc
+
+
+def voltage_pulses(n, dt, *, volts=2.0, width_s=0.05, every_s=4.0):
+    """Rectangular drive pulses of ``volts`` V, ``width_s`` long, every ``every_s``, V."""
+    v = np.zeros(n)
+    width = max(int(round(width_s / dt)), 1)
+    for k0 in range(int(0.1 / dt), n - width, int(every_s / dt)):
+        v[k0 : k0 + width] = volts
+    return v
+
+
+def mixed_record(p, g_v, rng, *, n=2000, dt=0.004, m_per_count=2.2e-5, sigma_acc=0.05,
+                 step_acc=5e-3):
+    """``(t, v, y)`` of a voltage-driven rig read by an encoder on cart 1 and an
+    accelerometer on cart 2: the drive's force is ``g_v v`` (N/V times V) on cart 1;
+    ``y[:, 0]`` the encoder's position (m, quantised to ``m_per_count``: the count is
+    zeroed at the start, where cart 1 rests at a random fraction of a count, so that the
+    quantisation error differs from record to record), ``y[:, 1]`` cart 2's acceleration
+    (m/s^2, white noise and quantisation)."""
+    v = voltage_pulses(n, dt)
+    f = g_v * v
+    states = simulate_states(p, f, dt)
+    acc = np.array([accelerations(p, s[:2], s[2:], fk)[1] for s, fk in zip(states, f,
+                                                                          strict=True)])
+    rest = rng.uniform(0.0, 1.0)  # where cart 1 rests within a count
+    x1 = (np.round(states[:, 0] / m_per_count + rest) - np.round(rest)) * m_per_count
+    a2 = np.round((acc + rng.normal(0.0, sigma_acc, n)) / step_acc) * step_acc
+    return np.arange(n) * dt, v, np.column_stack([x1, a2])
