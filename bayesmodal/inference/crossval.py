@@ -28,7 +28,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 from ..fit.effects import fit_extension_lsq
-from ..fit.linear import fit_lsq
+from ..fit.lsq import fit_lsq
 from ..model.effects import get_extension
 from ..model.rigs import rig_to_dict
 from ..model.system import LinearModel, Rig

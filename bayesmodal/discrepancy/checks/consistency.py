@@ -18,7 +18,7 @@ import numpy as np
 
 from ..._errors import DataError
 from ...data import Experiment
-from ...fit.linear import fit_lsq
+from ...fit.lsq import fit_lsq
 from ...metrics import fit_percent
 from ...model.effects import suggested_by
 from ...model.simulate import simulate_linear

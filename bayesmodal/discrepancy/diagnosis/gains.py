@@ -17,7 +17,8 @@ import numpy as np
 from ..._errors import DataError, ModelError
 from ...data import Experiment
 from ...fit.effects import fit_extension_lsq
-from ...fit.linear import LSQResult, fit_lsq
+from ...fit.lsq import fit_lsq
+from ...fit.result import LSQResult
 from ...metrics import fit_percent
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig

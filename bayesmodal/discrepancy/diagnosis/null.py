@@ -39,7 +39,7 @@ from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import progress_bar
 from ...data import ECP_M_PER_COUNT, Experiment
 from ...fit.effects import fit_extension_lsq
-from ...fit.linear import fit_lsq
+from ...fit.lsq import fit_lsq
 from ...inference.likelihood import simulate_noise
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel

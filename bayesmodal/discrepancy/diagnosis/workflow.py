@@ -37,7 +37,7 @@ from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import announce, progress_bar
 from ...data import Experiment
 from ...fit.effects import fit_extension_lsq
-from ...fit.linear import fit_lsq
+from ...fit.lsq import fit_lsq
 from ...identified import require_identified
 from ...metrics import fit_percent
 from ...model.effects import EXTENSIONS, Extension, default_candidates, get_extension
