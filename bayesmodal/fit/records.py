@@ -3,7 +3,8 @@ leave-one-record-out check.
 
 The records of the ECP rig share the physics (masses, dampers, friction levels, ...) but
 ask for their own drive gain and amplifier offset (``bayesmodal.inference.records``).
-``fit_records_lsq`` fits them jointly: every parameter is shared except those named in
+``fit_records_lsq`` fits them jointly (``fit_lsq(..., per_record=...,
+weights="cart_spread")``): every parameter is shared except those named in
 ``per_record`` (default the drive gain ``g_v`` and, when the model has it, the input
 offset ``v_offset``), which get one value per record.  The cost is the sum over records
 and carts of the squared residual relative to the signal's spread, ``sum_{r,j} |y_rj -
@@ -48,7 +49,8 @@ __all__ = ["RecordsFit", "LOROFit", "fit_records_lsq", "loro_lsq", "new_record_t
 
 @dataclass(frozen=True)
 class RecordsFit:
-    """A joint least-squares fit of several records.
+    """A joint least-squares fit of several records (the result of ``fit_records_lsq``,
+    drawn from :class:`~bayesmodal.fit.result.LSQResult`).
 
     Attributes
     ----------
@@ -124,7 +126,10 @@ def fit_records_lsq(
     max_nfev: int = 100,
     fd_step: float = 1e-3,
 ) -> RecordsFit:
-    """Joint least squares of several records with per-record parameters.
+    """Joint least squares of several records with per-record parameters: ``fit_lsq(
+    experiments, rig, extension=ext, per_record=per_record, weights="cart_spread",
+    theta0=theta0, max_nfev=max_nfev, fd_step=fd_step)`` (:func:`bayesmodal.fit.fit_lsq`),
+    its result in the layout below (``theta`` is the result's ``theta_records``).
 
     Parameters
     ----------
