@@ -8,7 +8,8 @@ The public API, one import away::
 the rig and its model              ``Rig``, ``load_rig``, ``LinearModel``, ``simulate_linear``,
                                    ``discretize_zoh``, ``EXTENSIONS``, ``get_extension``
 records                            ``Experiment``, ``load_experiment``
-least squares                      ``fit_lsq``, ``fit_extension_lsq``
+least squares                      ``fit_lsq``, ``LSQOptions`` (``fit_extension_lsq``: the
+                                   same as ``fit_lsq(..., extension=...)``)
 posterior                          ``sample_posterior``, ``LikelihoodSpec``, ``SamplerSpec``,
                                    ``crossval``
 what the model misses              ``diagnose``, ``DiagnoseSpec``
@@ -26,7 +27,7 @@ from importlib import import_module
 from ._errors import ConfigError, DataError, IdentificationError, ModelError
 from ._version import __version__
 from .data import Experiment, load_experiment
-from .fit import fit_extension_lsq, fit_lsq
+from .fit import LSQOptions, fit_extension_lsq, fit_lsq
 from .model import EXTENSIONS, LinearModel, Rig, get_extension, load_rig
 from .model.simulate import discretize_zoh, simulate_linear
 
@@ -44,7 +45,8 @@ _LAZY = {
 
 __all__ = [
     "Rig", "load_rig", "LinearModel", "simulate_linear", "discretize_zoh", "EXTENSIONS",
-    "get_extension", "Experiment", "load_experiment", "fit_lsq", "fit_extension_lsq",
+    "get_extension", "Experiment", "load_experiment", "fit_lsq", "LSQOptions",
+    "fit_extension_lsq",
     "sample_posterior", "LikelihoodSpec", "SamplerSpec", "crossval", "diagnose",
     "DiagnoseSpec", "RunConfig", "load_config",
     "ConfigError", "DataError", "ModelError", "IdentificationError", "__version__",

@@ -29,7 +29,8 @@ import numpy as np
 
 from ._errors import DataError
 from .data import Experiment, data_root, load_experiment
-from .fit.linear import LSQResult, fit_lsq
+from .fit.lsq import fit_lsq
+from .fit.result import LSQResult
 from .metrics import fit_percent
 from .modal import (
     ComplexModes,

@@ -76,7 +76,7 @@ def test_parallel_springs_are_refused_before_any_fitting(tmp_path, monkeypatch):
     def no_fit(*args, **kwargs):  # the refusal comes before the optimiser
         raise AssertionError("least squares was called")
 
-    monkeypatch.setattr("bayesmodal.fit.linear.least_squares", no_fit)
+    monkeypatch.setattr("bayesmodal.fit._engine.least_squares", no_fit)
     with pytest.raises(ModelError, match=r"the rig's unknowns cannot be identified from any "
                        r"record: g_v, m1, c1, k_b can change together without changing the "
                        r"motion at the sensors \(structural rank 3 of 4\); make one of them "

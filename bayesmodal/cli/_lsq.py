@@ -8,7 +8,7 @@ import numpy as np
 
 from .._errors import IdentificationError
 from .._format import estimate, param_unit, percent, values
-from ..fit.linear import fit_lsq
+from ..fit.lsq import fit_lsq
 from ..identified import identify
 from ..modal import modal_summary
 from ..model.system import LinearModel

@@ -1,16 +1,16 @@
-"""Steps the least-squares fitters of a model with effects share.
+"""Optimiser coordinates of a model with effects, and the forward differences of
+:func:`bayesmodal.fit.fit_lsq`.
 
-``effects.fit_extension_lsq`` (one parameter vector for all records) and
-``records.fit_records_lsq`` (some parameters per record) fit the same kind of vector, the
-linear free-damping parameters followed by the extension's, in the same optimiser
-coordinates: log for the positive linear parameters (``log_scale_mask``), the relative
-dampers divided by their size in a reference fit (at least 1e-3) with a zero lower bound,
-and the extension's parameters in the extension's own coordinates (``Extension.to_opt``)
-divided by their typical size (``ParamSpec.scale``), within ``Extension.opt_bounds``.
-Both differentiate by forward differences that step away from an upper bound, with steps
-of 1e-6 (log) and 1e-4 (linear) for the linear parameters and ``fd_step`` for the
-extension's (larger than the jumps of a stick-slip cost), and solve by ``trf`` at
-tolerances 1e-10.
+A fit of a model with effects, one parameter vector for all records or some parameters
+per record, works on the linear free-damping parameters followed by the extension's, in
+the same optimiser coordinates: log for the positive linear parameters
+(``log_scale_mask``), the relative dampers divided by their size in a reference fit (at
+least 1e-3) with a zero lower bound, and the extension's parameters in the extension's
+own coordinates (``Extension.to_opt``) divided by their typical size
+(``ParamSpec.scale``), within ``Extension.opt_bounds``.  It is differentiated by forward
+differences that step away from an upper bound, with steps of 1e-6 (log) and 1e-4
+(linear) for the linear parameters and ``fd_step`` for the extension's (larger than the
+jumps of a stick-slip cost); ``_engine`` solves by ``trf`` at tolerances 1e-10.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .._errors import DataError
 from ..data import Experiment
@@ -132,9 +131,3 @@ def fd_jacobian(resid: Callable[[np.ndarray], np.ndarray], w: np.ndarray,
     r = resid(ws)
     return ((r[1:] - r[0]) / h[:, None]).T
 
-
-def solve(fun, w0, jac, lower, upper, max_nfev: int, **options):
-    """``scipy.optimize.least_squares`` by ``trf`` within ``(lower, upper)``, tolerances
-    1e-10; ``options`` are passed on."""
-    return least_squares(fun, w0, jac=jac, bounds=(lower, upper), method="trf",
-                         max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10, **options)

@@ -27,8 +27,7 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..data import Experiment
-from ..fit.effects import fit_extension_lsq
-from ..fit.linear import fit_lsq
+from ..fit.lsq import fit_lsq
 from ..model.effects import get_extension
 from ..model.rigs import rig_to_dict
 from ..model.system import LinearModel, Rig
@@ -329,8 +328,8 @@ def _own_lsq(spec: CrossvalSpec, exps: Sequence[Experiment]) -> dict:
         fit = fit_lsq([e], model)
         theta, fp = fit.theta, fit.fit_percent
         if ext is not None:
-            xfit = fit_extension_lsq([e], ext, model.rig, linear=fit,
-                                     damper_scales=(1.0, 0.3))
+            xfit = fit_lsq([e], model.rig, extension=ext, linear=fit,
+                           damper_scales=(1.0, 0.3))
             theta, fp = xfit.theta[: model.n_params], xfit.fit_percent
         ms = propagate_modes(model, theta[None], methods=("eig",))
         out[e.name] = {"g_v": float(theta[0]),

@@ -14,7 +14,8 @@ backend therefore continues exactly as the uninterrupted run would have.
 
 Model extensions (``extension="coulomb_friction"`` etc.) sample the free-damping
 parameters, the extension's parameters and the noise parameters jointly; the walkers start
-around ``bayesmodal.fit.fit_extension_lsq`` and every half-ensemble is one batched
+around the least-squares fit of the extended model (``bayesmodal.fit.fit_lsq`` with
+``extension=``) and every half-ensemble is one batched
 ``Extension.simulate`` call per experiment.
 """
 
@@ -31,8 +32,8 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..data import Experiment
-from ..fit.effects import ExtensionFit, fit_extension_lsq
-from ..fit.linear import LSQResult, fit_lsq
+from ..fit.lsq import fit_lsq
+from ..fit.result import LSQResult
 from ..identified import require_identified
 from ..model.effects import extension_revisions
 from ..model.rigs import rig_to_dict
@@ -114,8 +115,8 @@ class PosteriorRun:
     ----------
     likelihood : Likelihood
     priors : PriorSet
-    lsq : LSQResult, ExtensionFit or None
-        The least-squares fit the walkers started from (an ``ExtensionFit`` for a run
+    lsq : LSQResult or None
+        The least-squares fit the walkers started from (of the extended model for a run
         with a model extension; its ``theta`` has the extension's parameters too).
     start : ndarray, shape (P,)
         Centre of the start ball, physical units.
@@ -265,11 +266,12 @@ def sample_posterior(
     priors : PriorSet, optional
         Default ``default_priors(model, noise=..., extension=...)`` (``record_priors``
         with a records layout).
-    start : LSQResult, ExtensionFit or ndarray, optional
-        Least-squares estimate to start from (computed with ``fit_lsq``, or with
-        ``fit_extension_lsq`` for an extension, if omitted).  An array has the model
-        parameters only (``Likelihood.mech_names``).  With an extension an ``LSQResult``
-        is taken as the linear start of ``fit_extension_lsq``.
+    start : LSQResult or ndarray, optional
+        Least-squares estimate to start from (computed with ``fit_lsq``, with
+        ``extension=`` for an extension, if omitted).  An array has the model
+        parameters only (``Likelihood.mech_names``).  With an extension a fit of the
+        linear model (``extension`` None) is taken as the linear start of the extended
+        fit.
     rng : numpy.random.Generator or int, optional
         Seeds the start and emcee's generator; same seed, same chain.
     backend : str, path or emcee backend, optional
@@ -422,9 +424,9 @@ def _start_point(exps, model: LinearModel, lik, priors: PriorSet, spec: Likeliho
         else:
             theta_mech = model.check(theta_mech)
     else:
-        if start is None or isinstance(start, LSQResult):
-            start = fit_extension_lsq(list(exps), ext, model.rig, linear=start)
-        lsq = start if isinstance(start, ExtensionFit) else None
+        if start is None or (isinstance(start, LSQResult) and start.extension is None):
+            start = fit_lsq(list(exps), model.rig, extension=ext, linear=start)
+        lsq = start if isinstance(start, LSQResult) else None
         theta_mech = ext.check(model.rig, np.asarray(
             start.theta if lsq is not None else start, dtype=float))
         if lik.layout is None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from .._errors import ConfigError, DataError
 from .._window import motion_at_start, offset_at_rest
 from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
-from ..fit.linear import fit_lsq
+from ..fit.lsq import fit_lsq
 from ..inference import LogUniform, Uniform, default_priors
 from ..inference.likelihood import Likelihood
 from ..inference.moves import parse_moves

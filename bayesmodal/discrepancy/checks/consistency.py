@@ -18,7 +18,7 @@ import numpy as np
 
 from ..._errors import DataError
 from ...data import Experiment
-from ...fit.linear import fit_lsq
+from ...fit.lsq import fit_lsq
 from ...metrics import fit_percent
 from ...model.effects import suggested_by
 from ...model.simulate import simulate_linear
@@ -47,7 +47,7 @@ def cross_experiment_consistency(
         Model used by the default ``fit`` and ``simulate`` (free damping by default).
     fit : callable, optional
         ``fit(list_of_experiments) -> theta``; default ``fit_lsq(..., model).theta``.  Pass
-        e.g. ``lambda es: fit_extension_lsq(es, ext, rig).theta`` for an extended model.
+        e.g. ``lambda es: fit_lsq(es, rig, extension=ext).theta`` for an extended model.
     simulate : callable, optional
         ``simulate(theta, experiment) -> y_pred`` (N, n_out); default ``simulate_linear``.
     names : sequence of str, optional

@@ -15,8 +15,9 @@ import itertools
 import numpy as np
 
 from ..._errors import ModelError
-from ...fit.effects import ExtensionFit, extension_residuals, fit_extension_lsq, root_weights
-from ...fit.global_search import fit_extension_global, is_stick_slip
+from ...fit.effects import ExtensionFit, extension_residuals, root_weights
+from ...fit.global_search import is_stick_slip
+from ...fit.lsq import fit_lsq
 from ...model.effects import EXTENSIONS, get_extension
 from .gains import _FIT_ERRORS
 from .starts import extra_starts
@@ -82,10 +83,10 @@ def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None, weights=Non
     records by ``weights`` (``fit_extension_lsq``)."""
     fits = []
     if search is not None and is_stick_slip(new):
-        fits.append(lambda: fit_extension_global(exps, new, rig, linear=linear, rng=search,
-                                                 max_nfev=max_nfev, weights=weights))
-    fits += [lambda th0=th0: fit_extension_lsq(exps, new, rig, theta0=th0, linear=linear,
-                                               max_nfev=max_nfev, weights=weights)
+        fits.append(lambda: fit_lsq(exps, rig, extension=new, search="global", linear=linear,
+                                    rng=search, max_nfev=max_nfev, weights=weights))
+    fits += [lambda th0=th0: fit_lsq(exps, rig, extension=new, theta0=th0, linear=linear,
+                                     max_nfev=max_nfev, weights=weights)
              for th0 in starts]
     best = None
     for fit in fits:

@@ -82,7 +82,7 @@ from ..._progress import announce
 from ...data import Experiment
 from ...fit.effects import ExtensionFit
 from ...fit.global_search import is_stick_slip
-from ...fit.linear import LSQResult
+from ...fit.result import LSQResult
 from ...metrics import fit_percent
 from ...model.effects import EXTENSIONS, get_extension
 from ...model.system import LinearModel, Rig

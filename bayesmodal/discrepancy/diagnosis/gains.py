@@ -16,8 +16,8 @@ import numpy as np
 
 from ..._errors import DataError, ModelError
 from ...data import Experiment
-from ...fit.effects import fit_extension_lsq
-from ...fit.linear import LSQResult, fit_lsq
+from ...fit.lsq import fit_lsq
+from ...fit.result import LSQResult
 from ...metrics import fit_percent
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
@@ -56,8 +56,8 @@ def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int, weights=None
             if ext is None:
                 return fit_lsq(exps, LinearModel(rig, "free"), theta0=theta,
                                max_nfev=max_nfev).theta
-            return fit_extension_lsq(exps, ext, rig, theta0=theta, linear=linear,
-                                     max_nfev=max_nfev, weights=weights).theta
+            return fit_lsq(exps, rig, extension=ext, theta0=theta, linear=linear,
+                           max_nfev=max_nfev, weights=weights).theta
     except _FIT_ERRORS:
         return np.asarray(theta, float)
 

@@ -38,8 +38,7 @@ import numpy as np
 from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import progress_bar
 from ...data import ECP_M_PER_COUNT, Experiment
-from ...fit.effects import fit_extension_lsq
-from ...fit.linear import fit_lsq
+from ...fit.lsq import fit_lsq
 from ...inference.likelihood import simulate_noise
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel
@@ -338,9 +337,8 @@ def calibrate_null(
                 if ef is None:
                     fit = fit_lsq(null_exps, model, theta0=theta, max_nfev=refit_nfev)
                 else:
-                    fit = fit_extension_lsq(null_exps, ef.extension, ef.rig, theta0=theta,
-                                            linear=ef.linear, max_nfev=refit_nfev,
-                                            weights=weights)
+                    fit = fit_lsq(null_exps, ef.rig, extension=ef.extension, theta0=theta,
+                                  linear=ef.linear, max_nfev=refit_nfev, weights=weights)
         except ModelError:
             # the refit ran off to an impossible point (e.g. a damper to infinity): keep
             # the generating parameters for this null set rather than drop it

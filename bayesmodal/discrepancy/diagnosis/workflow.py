@@ -36,8 +36,7 @@ from scipy import stats
 from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import announce, progress_bar
 from ...data import Experiment
-from ...fit.effects import fit_extension_lsq
-from ...fit.linear import fit_lsq
+from ...fit.lsq import fit_lsq
 from ...identified import require_identified
 from ...metrics import fit_percent
 from ...model.effects import EXTENSIONS, Extension, default_candidates, get_extension
@@ -394,9 +393,9 @@ def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, sp
                 for theta0 in best_starts(ext, rig, linear.theta, train_exps, spec.n_starts,
                                           spec.weights):
                     inactive = c == "input_saturation" and theta0[-1] >= peak_volt
-                    f = fit_extension_lsq(train_exps, ext, rig, theta0=theta0, linear=linear,
-                                          max_nfev=1 if inactive else spec.max_nfev,
-                                          weights=spec.weights)
+                    f = fit_lsq(train_exps, rig, extension=ext, theta0=theta0, linear=linear,
+                                max_nfev=1 if inactive else spec.max_nfev,
+                                weights=spec.weights)
                     if ef is None or f.cost < ef.cost:
                         ef = f
         except (ModelError, DataError, ValueError, FloatingPointError,
