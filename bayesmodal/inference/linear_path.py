@@ -54,15 +54,38 @@ class SimulatorCache:
 
 
 def prepare_linear(model: LinearModel, theta: np.ndarray, sim: LinearSimulator) -> tuple:
-    """The modal form of admissible linear-model parameter rows ``theta`` (nb, n_params)
-    for ``sim.run_prepared`` (what ``simulate_linear`` computes before its recursion)."""
+    """The modal form of admissible linear-model parameter rows for ``sim.run_prepared``
+    (what ``simulate_linear`` computes before its recursion).
+
+    Parameters
+    ----------
+    model : LinearModel
+    theta : ndarray, shape (nb, n_params)
+        Admissible parameter rows in ``model.names`` order.
+    sim : LinearSimulator
+        The simulator of the record (its input and sample interval).
+
+    Returns
+    -------
+    tuple
+        The prepared modal form, as ``LinearSimulator.prepare_second_order`` gives it.
+    """
     M, C, K, b = model.matrices(theta)
     return sim.prepare_second_order(np.diagonal(M, axis1=1, axis2=2), C, K, b)
 
 
 def fast_path(model: LinearModel) -> bool:
-    """True when the model's outputs are the simulator's leading states (chain rigs), so
-    that the likelihood can read the simulator's buffer directly."""
+    """Whether the likelihood can read the simulator's buffer directly.
+
+    Parameters
+    ----------
+    model : LinearModel
+
+    Returns
+    -------
+    bool
+        True when the model's outputs are the simulator's leading states (chain rigs).
+    """
     return getattr(model, "output_index", None) is None
 
 

@@ -200,10 +200,19 @@ def simulate_noise(
 
 
 def noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
-    """Moment estimates of white or AR(1) noise parameters from residuals ``r`` (N, n_out).
+    """Moment estimates of white or AR(1) noise parameters from residuals.
 
-    Returns ``sigma`` (RMS residual for white noise; RMS innovation for AR(1)) followed,
-    for AR(1), by the lag-1 autocorrelation ``phi`` (clipped inside (-1, 1)).
+    Parameters
+    ----------
+    r : ndarray, shape (N, n_out), m
+        Residuals.
+    noise : {"white", "ar1"}
+
+    Returns
+    -------
+    ndarray, shape (n_out,) or (2 n_out,)
+        ``sigma`` (RMS residual for white noise; RMS innovation for AR(1)) followed, for
+        AR(1), by the lag-1 autocorrelation ``phi`` (clipped inside (-1, 1)).
     """
     if noise == "white":
         return np.sqrt(np.mean(r**2, axis=0))
@@ -214,6 +223,15 @@ def noise_moments(r: np.ndarray, noise: str) -> np.ndarray:
 
 
 def level_column(scale) -> np.ndarray:
-    """A noise-level factor as a column to multiply ``sigma`` (nb, n_out) with: shape
-    (1, 1) for a number, (nb, 1) for one factor per parameter row."""
+    """A noise-level factor as a column to multiply ``sigma`` (nb, n_out) with.
+
+    Parameters
+    ----------
+    scale : float or array_like, shape (nb,)
+        One factor, or one per parameter row.
+
+    Returns
+    -------
+    ndarray, shape (1, 1) or (nb, 1)
+    """
     return np.reshape(np.asarray(scale, dtype=float), (-1, 1))

@@ -57,7 +57,18 @@ PER_RECORD_KINDS = ("independent", "hierarchical", "shared")
 
 
 def record_key(name: str) -> str:
-    """A record name usable inside parameter names (letters, digits, ``_ - .``)."""
+    """A record name usable inside parameter names.
+
+    Parameters
+    ----------
+    name : str
+        The record's name (e.g. its file's stem).
+
+    Returns
+    -------
+    str
+        Letters, digits and ``_ - .`` only; ``"record"`` when nothing is left.
+    """
     key = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_")
     return key or "record"
 
