@@ -8,27 +8,17 @@ in docs/accelerometers.md.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from _benchmarks import load_benchmark
 from accel_reference import measured_record, simulate
 
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import LinearModel
 
-REPO = Path(__file__).resolve().parents[1]
-
 
 def _benchmark():
-    path = REPO / "benchmarks" / "accel_coverage.py"
-    spec = importlib.util.spec_from_file_location("bayesmodal_accel_coverage", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # dataclasses look their module up while being created
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("accel_coverage")
 
 
 def test_reference_agrees_with_the_package_simulator():

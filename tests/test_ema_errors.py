@@ -8,18 +8,14 @@ of the independent reference simulator (``benchmarks/ema_errors.py``, reduced).
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from _benchmarks import load_benchmark
 from scipy import signal
 
 from bayesmodal.ema import FRF, multimode_fit
 from bayesmodal.ema.result import modal_estimate
 
-REPO = Path(__file__).resolve().parents[1]
 Z90 = 1.6448536269514722  # the standard normal's 95th percentile
 
 
@@ -124,12 +120,7 @@ def test_stated_errors_cover_the_truth_on_noisy_frfs(rho):
 
 
 def _benchmark():
-    path = REPO / "benchmarks" / "ema_errors.py"
-    spec = importlib.util.spec_from_file_location("bayesmodal_ema_errors", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # dataclasses look their module up while being created
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("ema_errors")
 
 
 @pytest.mark.slow

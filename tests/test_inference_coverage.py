@@ -9,12 +9,9 @@ truth estimates the coverage, with binomial standard error sqrt(0.9 * 0.1 / R) p
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from _benchmarks import load_benchmark
 
 pytestmark = pytest.mark.slow
 
@@ -22,12 +19,7 @@ R = 24
 
 
 def _benchmark():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "linear_coverage.py"
-    spec = importlib.util.spec_from_file_location("bayesmodal_coverage_benchmark", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # dataclasses look their module up while being created
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("linear_coverage")
 
 
 def test_matching_likelihood_covers_and_white_on_ar1_data_covers_worse():
