@@ -88,14 +88,15 @@ def voltage_pulses(n, dt, *, volts=2.0, width_s=0.05, every_s=4.0):
 
 
 def mixed_record(p, g_v, rng, *, n=2000, dt=0.004, m_per_count=2.2e-5, sigma_acc=0.05,
-                 step_acc=5e-3):
+                 step_acc=5e-3, every_s=4.0):
     """``(t, v, y)`` of a voltage-driven rig read by an encoder on cart 1 and an
-    accelerometer on cart 2: the drive's force is ``g_v v`` (N/V times V) on cart 1;
+    accelerometer on cart 2: the drive's force is ``g_v v`` (N/V times V) on cart 1, ``v``
+    2 V pulses ``every_s`` apart;
     ``y[:, 0]`` the encoder's position (m, quantised to ``m_per_count``: the count is
     zeroed at the start, where cart 1 rests at a random fraction of a count, so that the
     quantisation error differs from record to record), ``y[:, 1]`` cart 2's acceleration
     (m/s^2, white noise and quantisation)."""
-    v = voltage_pulses(n, dt)
+    v = voltage_pulses(n, dt, every_s=every_s)
     f = g_v * v
     states = simulate_states(p, f, dt)
     acc = np.array([accelerations(p, s[:2], s[2:], fk)[1] for s, fk in zip(states, f,

@@ -325,7 +325,9 @@ def identify(
         est = det.estimate
         fitted = _fitted_from_poles(frf, est.poles[np.isfinite(est.poles)], band)
     elif method == "multimode":
-        det = multimode_fit(frf, band=band, n_modes=n_modes, reference=reference)
+        mixed = orders is not None and np.any(orders != orders[0])
+        det = multimode_fit(frf, band=band, n_modes=n_modes, reference=reference,
+                            derivative_orders=orders if mixed else None)
         est = det.estimate
         fitted = det.model(frf.omega_rad_s)
     elif method == "tfest":

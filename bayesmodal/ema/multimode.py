@@ -79,9 +79,15 @@ class MultiModeFit:
     relative_error : float
         ``|H - H_fit| / |H|`` over the band and all FRFs.
     sample_interval_s : float or None
-        The sample interval of the sampled-data basis, s; None for the continuous basis.
+        The sample interval of the sampled-data basis, s; None when no FRF used it.
     zoh_divided : bool
         Whether that basis was divided by the hold's factor (as the FRF was).
+    output_orders : tuple of int
+        Each FRF's derivative order (``derivative_orders`` of the fit; empty: every FRF
+        of ``derivative_order``).
+    sampled : tuple of bool
+        Which FRFs were fitted in the sampled-data basis (empty: all of them when
+        ``sample_interval_s`` is set).
     """
 
     estimate: ModalEstimate
@@ -93,15 +99,20 @@ class MultiModeFit:
     relative_error: float
     sample_interval_s: float | None = None
     zoh_divided: bool = False
+    output_orders: tuple = ()
+    sampled: tuple = ()
 
     def model(self, omega_rad_s) -> np.ndarray:
         """Fitted FRF, shape (n_freq, n_outputs)."""
         w = np.asarray(omega_rad_s, dtype=float)
-        G, _ = modal_basis(w, self.estimate.poles, self.derivative_order, True, True,
-                           dt=self.sample_interval_s, zoh_divided=self.zoh_divided)
         s = self.estimate.residues.shape[1]
         out = np.empty((w.size, s), complex)
         for i in range(s):
+            p = self.output_orders[i] if self.output_orders else self.derivative_order
+            on = self.sampled[i] if self.sampled else self.sample_interval_s is not None
+            G, _ = modal_basis(w, self.estimate.poles, p, True, True,
+                               dt=self.sample_interval_s if on else None,
+                               zoh_divided=self.zoh_divided)
             R = self.estimate.residues[:, i]
             a = np.r_[self.residual_flexibility[i], self.residual_mass_coef[i],
                       np.column_stack([R.real, R.imag]).ravel()]
@@ -264,6 +275,7 @@ def multimode_fit(
     reference: int = 0,
     zeta_max: float = 0.5,
     time_base: str = "auto",
+    derivative_orders=None,
 ) -> MultiModeFit:
     """Multi-mode frequency-domain fit of a column of FRFs.
 
@@ -290,7 +302,13 @@ def multimode_fit(
     time_base : {"auto", "continuous", "discrete"}
         The modes' basis: ``1 / (j w - lambda)``, or the sampled-data terms of a
         zero-order hold (needs ``frf.dt``; see the module docstring).  ``"auto"``:
-        discrete for a mobility or accelerance with a sample interval, else continuous.
+        discrete for a mobility or accelerance with a sample interval, else continuous
+        (decided per FRF with ``derivative_orders``).
+    derivative_orders : sequence of int, optional
+        The form of each FRF (0 receptance, 1 mobility, 2 accelerance) when the sensors
+        differ, e.g. an encoder and an accelerometer (``forms.orders_of``); default every
+        FRF of ``frf.derivative_order``.  Each FRF gets its own residual terms and basis;
+        the residues stay in each FRF's units.
 
     Returns
     -------
@@ -305,7 +323,6 @@ def multimode_fit(
     >>> bool(np.allclose(fit.estimate.poles, lam, rtol=1e-6))
     True
     """
-    dt = _sample_interval(frf, time_base)
     sub = frf if band is None else frf.band(*band)
     w = sub.omega_rad_s
     if poles0 is None:
@@ -320,16 +337,30 @@ def multimode_fit(
     p = sub.derivative_order
     H = sub.H
     s = H.shape[1]
+    orders = _orders(derivative_orders, p, s)
+    dts = [_sample_interval(frf, time_base, q) for q in orders]
+    dt = next((d for d in dts if d is not None), None)
+    zoh_div = bool(frf.zoh_divided) and dt is not None
     nu_scale = np.abs(lam0.imag)
-    opts = {"dt": dt, "zoh_divided": bool(frf.zoh_divided) and dt is not None}
 
     def unpack(x):
         return x[:m] * nu_scale + 1j * x[m:] * nu_scale
 
+    def solve(lam, cols):
+        """Linear coefficients (n_lin, n_cols) and residuals (2 n_freq, n_cols) of the
+        FRFs ``cols`` at poles ``lam``, each FRF in its own form and basis."""
+        cols = list(cols)
+        a = np.empty((2 + 2 * m, len(cols)))
+        r = np.empty((2 * w.size, len(cols)))
+        for key in dict.fromkeys((orders[c], dts[c]) for c in cols):
+            idx = [j for j, c in enumerate(cols) if (orders[c], dts[c]) == key]
+            G, _ = modal_basis(w, lam, key[0], residual_flexibility, residual_mass,
+                               dt=key[1], zoh_divided=zoh_div)
+            a[:, idx], r[:, idx] = _linear(G, H[:, [cols[j] for j in idx]])
+        return a, r
+
     def resid(x, cols):
-        G, _ = modal_basis(w, unpack(x), p, residual_flexibility, residual_mass, **opts)
-        _, r = _linear(G, H[:, cols])
-        return r.ravel()
+        return solve(unpack(x), cols)[1].ravel()
 
     x0 = np.r_[lam0.real / nu_scale, lam0.imag / nu_scale]
     lower = np.r_[np.full(m, -np.inf), np.zeros(m)]
@@ -352,16 +383,13 @@ def multimode_fit(
         # weights |A_k[i]| from each FRF's own fit
         wts = np.empty((s, m))
         for i in range(s):
-            G, _ = modal_basis(w, per_output[i], p, residual_flexibility, residual_mass,
-                                **opts)
-            a, _ = _linear(G, H[:, [i]])
+            a, _ = solve(per_output[i], [i])
             wts[i] = np.hypot(a[2::2, 0], a[3::2, 0])
         wts = np.where(np.isfinite(wts), wts, 0.0) + 1e-300
         lam = np.sum(wts * per_output, axis=0) / np.sum(wts, axis=0)
         # the weighted mean of independent per-FRF estimates (weights held fixed)
         cov = np.einsum("ik,ikab->kab", wts**2, covs) / np.sum(wts, axis=0)[:, None, None] ** 2
-    G, _ = modal_basis(w, lam, p, residual_flexibility, residual_mass, **opts)
-    a, r = _linear(G, H)
+    a, r = solve(lam, range(s))
     rel = float(np.linalg.norm(r) / np.linalg.norm(np.concatenate([H.real, H.imag])))
     residues = (a[2::2] + 1j * a[3::2])  # (m, s)
     omega = np.abs(lam)
@@ -369,25 +397,45 @@ def multimode_fit(
     ident = (lam.real < 0) & (zeta < zeta_max) & (lam.imag >= w[0]) & (lam.imag <= w[-1])
     notes = [f"band [{w[0]:.4g}, {w[-1]:.4g}] rad/s, {m} mode(s), "
              f"{'shared poles' if shared else 'poles averaged over FRFs'}, "
-             f"{'continuous' if dt is None else 'sampled-data'} basis"]
+             f"{_basis_words(dts)} basis"]
     for k in np.flatnonzero(~ident):
         notes.append(f"mode at {lam[k]:.4g} 1/s rejected (unstable, too damped or outside band)")
     est = modal_estimate("multimode", lam, residues, ident, reference=reference, notes=notes,
                          pole_cov=cov)
     order = np.lexsort((-lam.real, lam.imag))
+    mixed = derivative_orders is not None
     return MultiModeFit(est, a[1], a[0], np.array([w[0], w[-1]]), per_output[:, order], p, rel,
-                        dt, opts["zoh_divided"])
+                        dt, zoh_div, tuple(orders) if mixed else (),
+                        tuple(d is not None for d in dts) if mixed else ())
 
 
 TIME_BASES = ("auto", "continuous", "discrete")
 
 
-def _sample_interval(frf: FRF, time_base: str) -> float | None:
-    """The sample interval of the sampled-data basis, or None for the continuous one."""
+def _orders(derivative_orders, default: int, n: int) -> list[int]:
+    """Each FRF's derivative order, checked (one per FRF, 0, 1 or 2)."""
+    if derivative_orders is None:
+        return [int(default)] * n
+    orders = [int(q) for q in np.ravel(derivative_orders)]
+    if len(orders) != n or any(q not in (0, 1, 2) for q in orders):
+        raise DataError(f"derivative_orders must give 0, 1 or 2 for each of the {n} FRFs, "
+                        f"got {list(np.ravel(derivative_orders))}")
+    return orders
+
+
+def _basis_words(dts) -> str:
+    """How the notes name the bases used."""
+    kinds = {"continuous" if d is None else "sampled-data" for d in dts}
+    return " and ".join(sorted(kinds))
+
+
+def _sample_interval(frf: FRF, time_base: str, order: int) -> float | None:
+    """The sample interval of the sampled-data basis for an FRF of derivative ``order``,
+    or None for the continuous one."""
     if time_base not in TIME_BASES:
         raise DataError(f"time_base must be one of {TIME_BASES}, got {time_base!r}")
     if time_base == "continuous" or (time_base == "auto" and (
-            frf.dt is None or frf.derivative_order < 1)):
+            frf.dt is None or order < 1)):
         return None
     if frf.dt is None:
         raise DataError("time_base 'discrete' needs the FRF's sample interval (FRF.dt); "
