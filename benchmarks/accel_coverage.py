@@ -41,9 +41,10 @@ sys.path.insert(0, str(_HERE.parent / "tests"))
 import numpy as np  # noqa: E402
 from _replicates import map_replicates  # noqa: E402
 from accel_reference import NAMES, measured_record, mixed_record  # noqa: E402
+from accel_reference import TRUTH as REFERENCE_RIG  # noqa: E402
 
-#: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m), in NAMES order.
-TRUTH = np.array([1.5, 1.2, 1.2, 0.8, 0.3, 600.0, 450.0])
+#: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m), in NAMES order: the reference's rig.
+TRUTH = np.array(REFERENCE_RIG)
 #: The drive gain of the mixed case, N/V.
 G_V = 6.0
 GROUPS = ("mass", "stiffness", "damping", "omega", "zeta")

@@ -39,10 +39,11 @@ sys.path.insert(0, str(_HERE.parent / "tests"))
 
 import numpy as np  # noqa: E402
 from _replicates import map_replicates  # noqa: E402
+from accel_reference import TRUTH as REFERENCE_RIG  # noqa: E402
 from accel_reference import measured_record, mixed_record  # noqa: E402
 
-#: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m): the rig of benchmarks/accel_coverage.py.
-TRUTH = np.array([1.5, 1.2, 1.2, 0.8, 0.3, 600.0, 450.0])
+#: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m): the reference's rig.
+TRUTH = np.array(REFERENCE_RIG)
 QUANTITIES = ("omega_1", "omega_2", "zeta_1", "zeta_2")
 
 

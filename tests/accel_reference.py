@@ -18,6 +18,9 @@ from scipy.integrate import solve_ivp
 #: (m1, m2 kg, c1, c2, c12 N s/m, k1, k2 N/m): the names of the rig with both springs
 #: unknown, in the package's parameter order.
 NAMES = ("m1", "m2", "c1", "c2", "c12", "k1", "k2")
+#: The rig of the known-truth studies (``benchmarks/accel_coverage.py``,
+#: ``benchmarks/ema_errors.py``), in NAMES order.
+TRUTH = (1.5, 1.2, 1.2, 0.8, 0.3, 600.0, 450.0)
 
 
 def accelerations(p, x, xd, f):

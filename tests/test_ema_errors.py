@@ -13,7 +13,7 @@ import pytest
 from _benchmarks import load_benchmark
 from scipy import signal
 
-from bayesmodal.ema import FRF, multimode_fit
+from bayesmodal.ema import FRF, multimode_fit, zoh_factor
 from bayesmodal.ema.result import modal_estimate
 
 Z90 = 1.6448536269514722  # the standard normal's 95th percentile
@@ -56,11 +56,10 @@ def test_stated_errors_are_the_delta_method_of_the_pole_covariance():
     assert np.all(np.isnan(modal_estimate("demo", lam, np.ones((2, 1))).omega_se))
 
 
-def test_the_sampled_data_basis_is_exact_for_a_held_input():
-    """Accelerances of a two-cart rig sampled under a held force: the exact discrete-time
-    FRF (``cont2discrete``, zero-order hold).  The sampled-data basis returns the
-    continuous poles to the fit's round-off; the continuous basis misses them by far more
-    (the control)."""
+def _two_carts_under_a_force():
+    """State matrices ``(A, B)`` of a two-cart rig (cart 1 - k1 - cart 2 - k2 - frame,
+    dampers c1, c2 to the frame and c12 across) driven by a force on cart 1, and its
+    poles with positive imaginary part by frequency."""
     m1, m2, c1, c2, c12, k1, k2 = 1.5, 1.2, 1.2, 0.8, 0.3, 600.0, 450.0
     M = np.diag([m1, m2])
     C = np.array([[c1 + c12, -c12], [-c12, c2 + c12]])
@@ -68,22 +67,34 @@ def test_the_sampled_data_basis_is_exact_for_a_held_input():
     Mi = np.linalg.inv(M)
     Ac = np.block([[np.zeros((2, 2)), np.eye(2)], [-Mi @ K, -Mi @ C]])
     Bc = np.r_[0.0, 0.0, Mi[:, 0]][:, None]
-    Cc, Dc = Ac[2:], Bc[2:]  # accelerations and their feedthrough
-    dt = 0.004
-    Ad, Bd, Cd, Dd, _ = signal.cont2discrete((Ac, Bc, Cc, Dc), dt, method="zoh")
-    w = np.linspace(5.0, 60.0, 300)
-    z = np.exp(1j * w * dt)
-    H = np.array([(Cd @ np.linalg.solve(zk * np.eye(4) - Ad, Bd) + Dd)[:, 0] for zk in z])
     lam = np.linalg.eigvals(Ac)
     lam = lam[lam.imag > 0]
-    lam = lam[np.argsort(lam.imag)]
+    return Ac, Bc, lam[np.argsort(lam.imag)]
+
+
+def _held_input_frf(Ac, Bc, Cc, Dc, dt, w):
+    """The exact FRF, shape (n_freq, n_outputs), of outputs ``Cc x + Dc u`` sampled every
+    ``dt`` under an input held between samples (``cont2discrete``, zero-order hold)."""
+    Ad, Bd, Cd, Dd, _ = signal.cont2discrete((Ac, Bc, Cc, Dc), dt, method="zoh")
+    n = Ad.shape[0]
+    return np.array([(Cd @ np.linalg.solve(np.exp(1j * wk * dt) * np.eye(n) - Ad, Bd)
+                      + Dd)[:, 0] for wk in w])
+
+
+def test_the_sampled_data_basis_is_exact_for_a_held_input():
+    """Accelerances of a two-cart rig sampled under a held force: the exact discrete-time
+    FRF (``cont2discrete``, zero-order hold).  The sampled-data basis returns the
+    continuous poles to the fit's round-off; the continuous basis misses them by far more
+    (the control)."""
+    Ac, Bc, lam = _two_carts_under_a_force()
+    dt = 0.004
+    w = np.linspace(5.0, 60.0, 300)
+    H = _held_input_frf(Ac, Bc, Ac[2:], Bc[2:], dt, w)  # accelerations, their feedthrough
     frf = FRF(w, H, dt=dt, derivative_order=2, units="m/s^2/N")
     start = lam * (1.01 + 0.01j)
     exact = multimode_fit(frf, start, time_base="auto").estimate
     assert exact.poles == pytest.approx(lam, rel=1e-9)
     # the same FRF with the hold's factor divided out, as the estimators give it
-    from bayesmodal.ema import zoh_factor
-
     divided = FRF(w, H / zoh_factor(w, dt)[:, None], dt=dt, derivative_order=2,
                   zoh_divided=True)
     assert multimode_fit(divided, start).estimate.poles == pytest.approx(lam, rel=1e-9)
@@ -98,21 +109,12 @@ def test_mixed_sensors_are_fitted_each_in_its_own_form():
     record, from the exact discrete-time model: with each FRF's order given, the
     sampled-data basis returns the poles to round-off; read as two receptances under
     ``"auto"`` the accelerance gets the continuous basis and its aliasing (the control)."""
-    M, C, K = np.diag([1.5, 1.2]), np.array([[1.5, -0.3], [-0.3, 1.1]]), np.array(
-        [[600.0, -600.0], [-600.0, 1050.0]])
-    Mi = np.linalg.inv(M)
-    Ac = np.block([[np.zeros((2, 2)), np.eye(2)], [-Mi @ K, -Mi @ C]])
-    Bc = np.r_[0.0, 0.0, Mi[:, 0]][:, None]
-    Cc = np.vstack([np.eye(4)[0], Ac[3]])  # cart 1's position, cart 2's acceleration
-    Dc = np.array([[0.0], [Bc[3, 0]]])
+    Ac, Bc, lam = _two_carts_under_a_force()
     dt = 0.004
-    Ad, Bd, Cd, Dd, _ = signal.cont2discrete((Ac, Bc, Cc, Dc), dt, method="zoh")
     w = np.linspace(5.0, 60.0, 300)
-    H = np.array([(Cd @ np.linalg.solve(np.exp(1j * wk * dt) * np.eye(4) - Ad, Bd)
-                   + Dd)[:, 0] for wk in w])
-    lam = np.linalg.eigvals(Ac)
-    lam = lam[lam.imag > 0]
-    lam = lam[np.argsort(lam.imag)]
+    # cart 1's position, cart 2's acceleration and its feedthrough
+    H = _held_input_frf(Ac, Bc, np.vstack([np.eye(4)[0], Ac[3]]),
+                        np.array([[0.0], [Bc[3, 0]]]), dt, w)
     frf = FRF(w, H, dt=dt)
     start = lam * (1.01 + 0.01j)
     fit = multimode_fit(frf, start, time_base="discrete", derivative_orders=(0, 2))

@@ -78,16 +78,13 @@ class MultiModeFit:
     derivative_order : int
     relative_error : float
         ``|H - H_fit| / |H|`` over the band and all FRFs.
-    sample_interval_s : float or None
-        The sample interval of the sampled-data basis, s; None when no FRF used it.
-    zoh_divided : bool
-        Whether that basis was divided by the hold's factor (as the FRF was).
     output_orders : tuple of int
-        Each FRF's derivative order (``derivative_orders`` of the fit; empty: every FRF
-        of ``derivative_order``).
-    sampled : tuple of bool
-        Which FRFs were fitted in the sampled-data basis (empty: all of them when
-        ``sample_interval_s`` is set).
+        Each FRF's derivative order (``derivative_orders`` of the fit).
+    sample_intervals : tuple of (float or None)
+        Each FRF's sampled-data basis: its sample interval, s, or None for the continuous
+        basis.
+    zoh_divided : bool
+        Whether the sampled-data basis was divided by the hold's factor (as the FRF was).
     """
 
     estimate: ModalEstimate
@@ -97,10 +94,9 @@ class MultiModeFit:
     per_output_poles: np.ndarray
     derivative_order: int
     relative_error: float
-    sample_interval_s: float | None = None
-    zoh_divided: bool = False
     output_orders: tuple = ()
-    sampled: tuple = ()
+    sample_intervals: tuple = ()
+    zoh_divided: bool = False
 
     def model(self, omega_rad_s) -> np.ndarray:
         """Fitted FRF, shape (n_freq, n_outputs)."""
@@ -108,11 +104,8 @@ class MultiModeFit:
         s = self.estimate.residues.shape[1]
         out = np.empty((w.size, s), complex)
         for i in range(s):
-            p = self.output_orders[i] if self.output_orders else self.derivative_order
-            on = self.sampled[i] if self.sampled else self.sample_interval_s is not None
-            G, _ = modal_basis(w, self.estimate.poles, p, True, True,
-                               dt=self.sample_interval_s if on else None,
-                               zoh_divided=self.zoh_divided)
+            G, _ = modal_basis(w, self.estimate.poles, self.output_orders[i], True, True,
+                               dt=self.sample_intervals[i], zoh_divided=self.zoh_divided)
             R = self.estimate.residues[:, i]
             a = np.r_[self.residual_flexibility[i], self.residual_mass_coef[i],
                       np.column_stack([R.real, R.imag]).ravel()]
@@ -339,8 +332,7 @@ def multimode_fit(
     s = H.shape[1]
     orders = _orders(derivative_orders, p, s)
     dts = [_sample_interval(frf, time_base, q) for q in orders]
-    dt = next((d for d in dts if d is not None), None)
-    zoh_div = bool(frf.zoh_divided) and dt is not None
+    zoh_div = bool(frf.zoh_divided) and any(d is not None for d in dts)
     nu_scale = np.abs(lam0.imag)
 
     def unpack(x):
@@ -403,10 +395,8 @@ def multimode_fit(
     est = modal_estimate("multimode", lam, residues, ident, reference=reference, notes=notes,
                          pole_cov=cov)
     order = np.lexsort((-lam.real, lam.imag))
-    mixed = derivative_orders is not None
     return MultiModeFit(est, a[1], a[0], np.array([w[0], w[-1]]), per_output[:, order], p, rel,
-                        dt, zoh_div, tuple(orders) if mixed else (),
-                        tuple(d is not None for d in dts) if mixed else ())
+                        tuple(orders), tuple(dts), zoh_div)
 
 
 TIME_BASES = ("auto", "continuous", "discrete")
