@@ -77,3 +77,22 @@ def test_quoted_truth_and_fit():
     z = (res.theta - truth) / res.stderr
     assert abs(z[1]) == pytest.approx(7.6, abs=0.05)
     assert abs(rel[1] * 100) == pytest.approx(0.016, abs=0.0005)
+
+
+def test_ema_command_reads_the_rigs_sensor_kinds(tmp_path, capsys):
+    """``bayesmodal ema --rig``: the FRF in the rig's form and units (accelerance per
+    newton) and the accelerance fitted in the sampled-data basis; without the rig the file
+    is read as volts and positions, and its 55 N hits are refused as a voltage (the
+    control)."""
+    from bayesmodal.cli import main
+
+    mod = _maker()
+    path = tmp_path / "accel_hammer.csv"
+    mod.write(mod.hammer(), path)
+    path = str(path)
+    args = ["ema", path, "--method", "multimode", "--n-modes", "2", "--band", "5", "60"]
+    assert main(args + ["--rig", str(RIG)]) == 0
+    out = capsys.readouterr().out
+    assert "FRF in m/s^2/N" in out and "sampled-data basis" in out
+    assert main(args) == 2
+    assert "beyond the rig's +-10 V command" in capsys.readouterr().err

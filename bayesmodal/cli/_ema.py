@@ -10,7 +10,7 @@ from .._errors import DataError
 from ..ema import METHODS, identify
 from ..ema.frf import FRF_METHODS
 from ..plots.ema import save_ema_figures
-from ._common import add_data_args, add_rig_argument, load_args, print_json
+from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
 
 def register(sub) -> None:
@@ -51,10 +51,12 @@ def run(args) -> int:
     if args.plots and args.method == "lsce":
         top = args.order or 2 * n_modes
         orders = list(range(1, top + 3))
+    rig = load_rig(args) if getattr(args, "rig", None) else None
+    kinds = {} if rig is None else {"output_kinds": rig.output_kinds, "input_kind": rig.input}
     try:
         res = identify(exp, args.method, n_modes=n_modes, order=args.order,
                        band=tuple(args.band) if args.band else None,
-                       stabilization_orders=orders, frf_method=args.frf)
+                       stabilization_orders=orders, frf_method=args.frf, **kinds)
     except DataError as exc:  # name the file in every data problem
         raise DataError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") from exc
     est = res.estimate
