@@ -9,12 +9,21 @@ from pathlib import Path
 
 from .._errors import DataError
 from .._format import param_unit, sig
-from ..inference import LikelihoodSpec, SamplerSpec, sample_posterior, to_inference_data
+from ..inference import sample_posterior, to_inference_data
 from ..inference.noise_spec import accepted_noise
 from ..inference.record_layout import parse_layout
 from ..inference.record_scale import NOISE_SCALES
+from ..model.rigs import rig_to_dict
 from ..model.system import LinearModel
 from ..runs import checkpoint_iteration
+from ..runs.description import (
+    DataSection,
+    LikelihoodSection,
+    ModelSection,
+    RecordsSection,
+    RunConfig,
+    SamplerSection,
+)
 from ..runs.outputs import write_run
 from ._common import (
     add_data_args,
@@ -56,7 +65,7 @@ def add_sampler_args(p) -> None:
                    help="damping model: free (c1, c2, c3, c12, c23) or proportional "
                    "(C = ca M + cb K)"
                    " (default: the rig's [dampers] proportional declaration, else free)")
-    p.add_argument("--noise", default="ar1", metavar="MODEL",
+    p.add_argument("--noise", default=LikelihoodSection.noise, metavar="MODEL",
                    help=f"residual model: {accepted_noise()}")
     p.add_argument("--per-record", default="none", metavar="NAME=KIND,...",
                    help="several DATA records, one physical system: parameters with one "
@@ -66,19 +75,55 @@ def add_sampler_args(p) -> None:
                    help="response: each record's noise level times the relative size of "
                    "the model's response to its input; power: times that size to a sampled "
                    "power in [0, 1] (default none: one level in m)")
-    p.add_argument("--walkers", type=int, default=32, help="ensemble size")
-    p.add_argument("--steps", type=int, default=5000, help="steps per walker")
+    p.add_argument("--walkers", type=int, default=SamplerSection.walkers,
+                   help="ensemble size")
+    p.add_argument("--steps", type=int, default=SamplerSection.steps,
+                   help="steps per walker")
     p.add_argument("--burn", type=int, default=None,
                    help="burn-in steps to discard (default steps/5)")
     p.add_argument("--thin", type=int, default=None,
                    help="keep every N-th step (default: about 1000 retained draws)")
-    p.add_argument("--seed", type=int, default=1, help="random seed")
+    p.add_argument("--seed", type=int, default=SamplerSection.seed, help="random seed")
     p.add_argument("--init", choices=["ball", "laplace"], default="ball",
                    help="walker start: a small ball at the posterior mode, or draws of the "
                    "Laplace approximation there (shorter burn-in; default ball)")
     p.add_argument("--threads", default="1", metavar="N|auto",
                    help="threads evaluating each half-ensemble (auto: one per core); the "
                    "same chain, faster for a costly likelihood (default 1)")
+
+
+def description_from_args(args, damping: str) -> RunConfig:
+    """The run description of ``bayesmodal sample``'s flags (the same object a run's TOML
+    file makes, ``bayesmodal.runs.RunConfig``).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (``add_data_args``, ``add_rig_argument``, ``add_sampler_args``).
+    damping : {"free", "proportional"}
+        The damping model (``damping_of``).
+
+    Returns
+    -------
+    RunConfig
+    """
+    layout = parse_layout(getattr(args, "per_record", "none"),
+                          noise_scale=getattr(args, "noise_scale", "none"))
+    paths = args.data if isinstance(args.data, list) else [args.data]
+    return RunConfig(
+        name="sample", source="bayesmodal sample",
+        data=DataSection(files=tuple(str(p) for p in paths)),
+        model=ModelSection(
+            rig=None if getattr(args, "rig", None) is None else rig_to_dict(load_rig(args)),
+            damping=damping),
+        records=RecordsSection(per_record=dict(layout.per_record),
+                               noise_scale=layout.noise_scale),
+        likelihood=LikelihoodSection(noise=args.noise,
+                                     initial_state=getattr(args, "initial_state", "rest")),
+        sampler=SamplerSection(walkers=args.walkers, steps=args.steps, burn=args.burn,
+                               thin=args.thin, seed=args.seed,
+                               init=getattr(args, "init", "ball"),
+                               threads=getattr(args, "threads", "1")))
 
 
 def sample_to_dir(exps, args, damping: str, out: Path):
@@ -97,17 +142,8 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     if getattr(args, "fresh", False) and ckpt.exists():
         ckpt.unlink()
     try:
-        layout = parse_layout(getattr(args, "per_record", "none"),
-                              noise_scale=getattr(args, "noise_scale", "none"))
-        run = sample_posterior(
-            exps, model,
-            LikelihoodSpec(
-                noise=args.noise, initial_state=getattr(args, "initial_state", "rest"),
-                layout=layout if layout.per_record or layout.noise_scale != "none" else None),
-            SamplerSpec(n_walkers=args.walkers, n_steps=args.steps, burn=args.burn,
-                        thin=args.thin, init=getattr(args, "init", "ball"),
-                        threads=getattr(args, "threads", "1"), progress=not args.quiet),
-            rng=args.seed, backend=ckpt)
+        run = sample_posterior(exps, description_from_args(args, damping),
+                               progress=not args.quiet, backend=ckpt)
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)
         with contextlib.suppress(Exception):

@@ -41,7 +41,7 @@ from .propagate import propagate_modes
 from .record_layout import DEFAULT_LAYOUT, RecordLayout
 from .record_priors import record_priors
 from .sampling import sample_posterior
-from .spec import LikelihoodSpec, SamplerSpec, burn_in_steps
+from .spec import LikelihoodSpec, RunDescription, SamplerSpec, burn_in_steps
 
 __all__ = ["CrossvalSpec", "FoldResult", "CrossvalResult", "crossval", "run_fold"]
 
@@ -343,7 +343,8 @@ def _call(args):
     return run_fold(spec, exps, heldout)
 
 
-def crossval(experiments: Sequence[Experiment], spec: CrossvalSpec | None = None, *,
+def crossval(experiments: Sequence[Experiment],
+             spec: CrossvalSpec | RunDescription | None = None, *,
              workers: int | None = None, scheduler: str | None = None, joint: bool = True,
              progress=None) -> CrossvalResult:
     """Leave-one-record-out validation of a model on several records.
@@ -352,8 +353,10 @@ def crossval(experiments: Sequence[Experiment], spec: CrossvalSpec | None = None
     ----------
     experiments : sequence of Experiment
         At least two records with distinct names.
-    spec : CrossvalSpec, optional
-        Model, noise, per-record layout and sampler settings.
+    spec : CrossvalSpec or RunDescription, optional
+        Model, noise, per-record layout and sampler settings, or a run description
+        (``bayesmodal.runs.RunConfig``: its ``crossval_spec()``, the model, noise, layout
+        and sampler of the run with the ``[crossval]`` walkers, steps and draws).
     workers : int, optional
         Local processes (default: the number of CPUs, at most the number of folds).
     scheduler : str, optional
@@ -372,7 +375,13 @@ def crossval(experiments: Sequence[Experiment], spec: CrossvalSpec | None = None
     >>> # res = crossval([imp, steps, fast, slow], CrossvalSpec(n_steps=3000), workers=2)
     >>> # print(res.table())
     """
-    spec = CrossvalSpec() if spec is None else spec
+    if spec is None:
+        spec = CrossvalSpec()
+    elif not isinstance(spec, CrossvalSpec):
+        if not isinstance(spec, RunDescription):
+            raise TypeError(f"spec must be a CrossvalSpec or a run description (RunConfig), "
+                            f"got {type(spec).__name__}")
+        spec = spec.crossval_spec()
     exps = list(experiments)
     if len(exps) < 2:
         raise DataError(f"leave-one-record-out needs at least 2 records, got {len(exps)}; "

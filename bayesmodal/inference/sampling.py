@@ -48,7 +48,7 @@ from .noise_spec import NoiseSpec, parse_noise
 from .priors import PriorSet, default_priors
 from .record_layout import RecordLayout
 from .record_priors import record_priors, records_start
-from .spec import LikelihoodSpec, SamplerSpec, with_settings
+from .spec import LikelihoodSpec, RunDescription, SamplerSpec, with_settings
 from .threads import resolve_threads
 
 __all__ = [
@@ -239,7 +239,7 @@ def _inside_priors(theta_mech: np.ndarray, priors: PriorSet) -> np.ndarray:
 
 def sample_posterior(
     experiments: Experiment | Sequence[Experiment],
-    model: LinearModel,
+    model: LinearModel | RunDescription,
     likelihood: LikelihoodSpec | None = None,
     sampler: SamplerSpec | None = None,
     *,
@@ -254,7 +254,12 @@ def sample_posterior(
     Parameters
     ----------
     experiments : Experiment or sequence of Experiment
-    model : LinearModel
+    model : LinearModel or RunDescription
+        The model sampled, or a whole run description (``bayesmodal.runs.RunConfig``,
+        from a run's TOML file, ``load_config``): its rig and damping, its
+        ``[likelihood]``, ``[records]``, effects and ``[sampler]`` sections (where
+        ``likelihood`` and ``sampler`` are not given), its ``[priors]`` (where
+        ``priors`` is not given) and its seed (where ``rng`` is not given).
     likelihood : LikelihoodSpec, optional
         What is modelled: the noise model, an extension, the records' layout, a
         temperature, the initial states (``bayesmodal.inference.spec``; default
@@ -316,6 +321,10 @@ def sample_posterior(
     >>> run.chain.shape
     (60, 32, 9)
     """
+    overrides = {}
+    if not isinstance(model, LinearModel):
+        model, likelihood, sampler, rng, overrides = _from_description(
+            model, likelihood, sampler, rng)
     lik_spec, smp = with_settings(likelihood, sampler, settings)
     exps = as_experiments(experiments)
     lik, noise, layout, start = _likelihood(exps, model, lik_spec, start)
@@ -323,6 +332,7 @@ def sample_posterior(
     if priors is None:
         priors = (record_priors(lik) if layout is not None else default_priors(
             model, noise=noise, extension=ext, initial_states=lik.initial_state_names))
+        priors = priors.replace(overrides)
     n_par = priors.n_params
     n_walkers, n_steps = int(smp.n_walkers), int(smp.n_steps)
     if n_walkers < 2 * n_par or n_walkers % 2:
@@ -373,6 +383,19 @@ def sample_posterior(
         n_evaluations=ens.n_evaluations,
         config=config,
     )
+
+
+def _from_description(run, likelihood, sampler, rng):
+    """The model, sections, seed and prior overrides of a run description (the
+    sections and seed given to ``sample_posterior`` win)."""
+    if not isinstance(run, RunDescription):
+        raise TypeError(f"model must be a LinearModel or a run description (RunConfig, "
+                        f"bayesmodal.runs.load_config), got {type(run).__name__}")
+    return (run.make_model(),
+            run.likelihood_spec() if likelihood is None else likelihood,
+            run.sampler_spec() if sampler is None else sampler,
+            run.seed if rng is None else rng,
+            run.prior_overrides())
 
 
 def _likelihood(exps, model: LinearModel, spec: LikelihoodSpec, start):

@@ -21,13 +21,14 @@ number of parameters) happen in ``sample_posterior``.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from .._errors import ConfigError
 
-__all__ = ["LikelihoodSpec", "SamplerSpec", "with_settings", "put_settings", "burn_in_steps",
-           "INIT_METHODS", "INITIAL_STATES"]
+__all__ = ["LikelihoodSpec", "SamplerSpec", "RunDescription", "with_settings",
+           "put_settings", "burn_in_steps", "INIT_METHODS", "INITIAL_STATES"]
 
 #: How the walkers start (``SamplerSpec.init``).
 INIT_METHODS = ("ball", "laplace")
@@ -88,7 +89,7 @@ class SamplerSpec:
     thin : int or None
         Keep every ``thin``-th step after burn-in (None: about 1000 retained draws).
     moves : emcee move, list of (move, weight), or None
-        None: differential evolution 0.8, snooker 0.2 (``inference.moves.default_moves``).
+        None: differential evolution alone (``inference.moves.default_moves``).
     init : {"ball", "laplace"}
         A small ball around the start, or draws of the Laplace approximation there.
     init_scale : float
@@ -139,6 +140,46 @@ class SamplerSpec:
     def burn_steps(self) -> int:
         """The burn-in in steps, the default resolved."""
         return int(self.n_steps) // 5 if self.burn is None else int(self.burn)
+
+
+@runtime_checkable
+class RunDescription(Protocol):
+    """What a run description gives the functions that run it (``sample_posterior``,
+    ``crossval``, ``diagnose``).
+
+    ``bayesmodal.runs.RunConfig`` (built from a run's TOML file or from a command's flags)
+    is the one implementation; the functions read it through these methods, so the layers
+    below the runs do not import the TOML layer.
+    """
+
+    def make_model(self):
+        """The ``LinearModel`` of the rig and damping."""
+
+    def likelihood_spec(self) -> LikelihoodSpec:
+        """The ``[likelihood]``, ``[records]`` and effects as a ``LikelihoodSpec``."""
+
+    def sampler_spec(self) -> SamplerSpec:
+        """The ``[sampler]`` section as a ``SamplerSpec``."""
+
+    def prior_overrides(self) -> dict:
+        """Per-parameter priors replacing the defaults, name -> ``Prior``."""
+
+    def crossval_spec(self):
+        """The leave-one-record-out study (``bayesmodal.inference.crossval.CrossvalSpec``)."""
+
+    def diagnose_spec(self, n_train: int = 1):
+        """What ``diagnose`` reads (``bayesmodal.discrepancy.diagnosis.DiagnoseSpec``)."""
+
+    def make_rig(self):
+        """The ``Rig``."""
+
+    @property
+    def seed(self) -> int:
+        """The sampler's seed."""
+
+    @property
+    def diagnosis_seed(self) -> int:
+        """The diagnosis' seed (null data sets)."""
 
 
 def burn_in_steps(restart, prune, burn: int) -> tuple[int | None, int | None]:

@@ -36,6 +36,8 @@ problem in a file is collected and reported at once, each naming the file and th
                                 # ar:auto or process (docs/reference/noise.md)
     temperature = 1.0           # optional: generalised posterior L^(1/T), or "loro":
                                 # calibrated by leave-one-record-out coverage
+    initial_state = "rest"      # optional: "estimate" samples each record's initial
+                                # positions and velocities (decays released by hand)
 
     [records]                   # optional: several records, one physical system
     per_record = { g_v = "hierarchical", v0 = "hierarchical" }   # or "independent"
@@ -159,7 +161,7 @@ _SCHEMA: dict[str, dict[str, type | tuple]] = {
             "springs": list, "dampers": dict, "drive": dict, "sensors": list},
     "model": {"damping": str, "extensions": list},
     "priors": {},  # free keys, checked against parameter names later
-    "likelihood": {"noise": str, "temperature": (int, float, str)},
+    "likelihood": {"noise": str, "temperature": (int, float, str), "initial_state": str},
     "records": {"per_record": dict, "noise_per_record": bool, "noise_scale": str},
     "crossval": {"enabled": bool, "draws": int, "walkers": int, "steps": int},
     "sampler": {"walkers": int, "steps": int, "burn": int, "thin": int, "seed": int,

@@ -17,7 +17,7 @@ from ..data import in_data_root
 from ..inference.moves import move_spec
 from ..inference.noise_spec import accepted_noise, parse_noise
 from ..inference.record_scale import NOISE_SCALES
-from ..inference.spec import INIT_METHODS
+from ..inference.spec import INIT_METHODS, INITIAL_STATES
 from ..inference.threads import resolve_threads
 from ..model.effects import EXTENSIONS
 from ..model.rigs import PRESETS, load_rig, rig_from_dict, rig_to_dict
@@ -199,6 +199,11 @@ def _parse_likelihood(raw, values, kw, err, files) -> None:
         if not temp > 0:
             err("likelihood.temperature", f"must be > 0, got {temp!r}")
         kw["temperature"] = float(temp)
+    state = values.get(("likelihood", "initial_state"))
+    if state is not None:
+        if state not in INITIAL_STATES:
+            err("likelihood.initial_state", f"must be one of {INITIAL_STATES}, got {state!r}")
+        kw["initial_state"] = state
     per = values.get(("records", "per_record"))
     if per is not None:
         for pname, kind in per.items():
@@ -399,6 +404,9 @@ def _noise_alias(name: str) -> str:
 
 def _parse_identify(table, err, kw) -> None:
     """``[identify]``: the workflow's options (types are checked by ``_SCHEMA``)."""
+    if isinstance(table, dict) and "enabled" not in table and table:
+        err("identify.enabled", "is missing, so the other [identify] options would be "
+            "ignored; set enabled = true to run the workflow (false to keep the table off)")
     if not isinstance(table, dict) or not table.get("enabled", False):
         return
     opts = {k: v for k, v in table.items() if k != "enabled"}

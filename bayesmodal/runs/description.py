@@ -23,16 +23,19 @@ from pathlib import Path
 
 from .._errors import ConfigError
 from ..data import ECP_M_PER_COUNT
+from ..discrepancy.diagnosis.spec import DiagnoseSpec
 from ..inference.crossval import CrossvalSpec
-from ..inference.moves import MOVE_REVISIONS
+from ..inference.moves import MOVE_REVISIONS, parse_moves
 from ..inference.noise_spec import parse_noise
+from ..inference.priors import LogUniform, Uniform
 from ..inference.record_layout import RecordLayout
-from ..inference.spec import SamplerSpec
+from ..inference.spec import LikelihoodSpec, SamplerSpec
 from ..model.effects import extension_revisions
 from ..model.rigs import rig_from_dict
-from ..model.system import ECP210_SPRINGS_N_M, Rig
+from ..model.system import ECP210_SPRINGS_N_M, LinearModel, Rig
 from ..reading import ReadOptions
 from .config_sections import DEFAULT_BURN, PriorOverride
+from .identify_spec import IDENTIFY_DIAGNOSIS_KEYS, DiagnosisSpec
 
 __all__ = ["RunConfig", "DataSection", "ModelSection", "RecordsSection",
            "LikelihoodSection", "SamplerSection", "CrossvalSection", "OutputsSection",
@@ -149,10 +152,14 @@ class LikelihoodSection:
         Noise model (``bayesmodal.inference.noise_spec.parse_noise``).
     temperature : float or "loro"
         Generalised posterior exponent 1/T, or calibrated by leave-one-record-out.
+    initial_state : {"rest", "estimate"}
+        ``"estimate"`` samples each record's initial positions and velocities (free
+        decays released by hand).
     """
 
-    noise: str = "ar1"
-    temperature: float | str = 1.0
+    noise: str = LikelihoodSpec.noise
+    temperature: float | str = LikelihoodSpec.temperature
+    initial_state: str = LikelihoodSpec.initial_state
 
 
 @dataclass(frozen=True)
@@ -175,16 +182,16 @@ class SamplerSection:
         Threads evaluating the walkers (execution only: the chain is the same).
     """
 
-    walkers: int = 32
-    steps: int = 5000
+    walkers: int = SamplerSpec.n_walkers
+    steps: int = SamplerSpec.n_steps
     burn: int = DEFAULT_BURN
     thin: int = 5
     seed: int = 1
     moves: str = "de"
     restart: int | None = None
     prune: int | None = None
-    init: str = "ball"
-    threads: int = 1
+    init: str = SamplerSpec.init
+    threads: int = SamplerSpec.threads
 
     def spec(self, moves, *, progress: bool = False, warn: bool = True) -> SamplerSpec:
         """The ``SamplerSpec`` of this section, with ``moves`` parsed
@@ -286,6 +293,7 @@ FLAT_NAMES: dict[str, tuple[str, str]] = {
     "noise_per_record": ("records", "noise_per_record"),
     "noise_scale": ("records", "noise_scale"),
     "temperature": ("likelihood", "temperature"),
+    "initial_state": ("likelihood", "initial_state"),
     "crossval": ("crossval", "enabled"), "crossval_draws": ("crossval", "draws"),
     "crossval_walkers": ("crossval", "walkers"), "crossval_steps": ("crossval", "steps"),
     "columns": ("data", "columns"), "input_scale": ("data", "input_scale"),
@@ -308,7 +316,7 @@ _NEW_DEFAULTS = {"per_record": {}, "noise_per_record": False, "noise_scale": "no
                  "crossval_steps": None, "columns": None, "input_scale": 1.0,
                  "time_scale": 1.0, "time_base": "auto", "init": "ball", "prune": None,
                  "t_start": None, "t_end": None, "rest_offset": "none",
-                 "identify": None}
+                 "identify": None, "initial_state": "rest"}
 
 #: Flat fields that do not change the result (left out of the hash).
 _EXECUTION_ONLY = ("source", "name", "out_dir", "plots", "report", "ema",
@@ -379,6 +387,82 @@ class RunConfig:
     def make_rig(self) -> Rig:
         """The ``Rig``: the description of ``[rig]``, else the chain of springs."""
         return self.model.make_rig(where=f"{self.source}: [rig]")
+
+    # ------------------------------------------------ what the library functions read
+    # (``bayesmodal.inference.spec.RunDescription``: sample_posterior, crossval, diagnose)
+    def make_model(self) -> LinearModel:
+        """The ``LinearModel`` of ``[rig]`` with the ``[model] damping``."""
+        return LinearModel(self.make_rig(), self.model.damping)
+
+    @property
+    def seed(self) -> int:
+        """The ``[sampler] seed``."""
+        return self.sampler.seed
+
+    def likelihood_spec(self, *, noise=None, temperature: float | None = None
+                        ) -> LikelihoodSpec:
+        """``[likelihood]``, ``[records]`` and ``[model] extensions`` as a ``LikelihoodSpec``.
+
+        Parameters
+        ----------
+        noise : str or NoiseSpec, optional
+            In place of ``[likelihood] noise`` (e.g. the AR orders that ``"ar:auto"``
+            chose).
+        temperature : float, optional
+            In place of ``[likelihood] temperature`` (needed when it is ``"loro"``, which
+            a run calibrates first; 1 otherwise).
+        """
+        if temperature is None:
+            temp = self.likelihood.temperature
+            temperature = 1.0 if temp == "loro" else float(temp)
+        return LikelihoodSpec(noise=self.likelihood.noise if noise is None else noise,
+                              extension=self.model.extension, layout=self.layout,
+                              temperature=temperature,
+                              initial_state=self.likelihood.initial_state)
+
+    def sampler_spec(self, *, progress: bool = False, warn: bool = True) -> SamplerSpec:
+        """``[sampler]`` as a ``SamplerSpec`` (moves parsed).
+
+        Parameters
+        ----------
+        progress : bool
+            A progress bar.
+        warn : bool
+            Warn when the chain has not converged.
+        """
+        try:
+            moves = parse_moves(self.sampler.moves)
+        except ConfigError as exc:
+            raise ConfigError(f"{self.source}: {exc}") from exc
+        return self.sampler.spec(moves, progress=progress, warn=warn)
+
+    @property
+    def diagnosis(self) -> DiagnosisSpec:
+        """The diagnosis options of the ``[identify]`` table (its defaults without one)."""
+        opts = self.identify or {}
+        return DiagnosisSpec(**{IDENTIFY_DIAGNOSIS_KEYS[k]: v for k, v in opts.items()
+                                if k in IDENTIFY_DIAGNOSIS_KEYS})
+
+    @property
+    def diagnosis_seed(self) -> int:
+        """The ``[identify] seed`` of the diagnosis' null data sets."""
+        return self.diagnosis.seed
+
+    def diagnose_spec(self, n_train: int = 1) -> DiagnoseSpec:
+        """What ``diagnose`` reads of this description: the ``[identify]`` diagnosis
+        options on the rig, with the found model's posterior sampled at the end.
+
+        Parameters
+        ----------
+        n_train : int
+            Training records (``weights = "auto"`` depends on it).
+        """
+        return self.diagnosis.diagnose_spec(self.make_rig(), n_train)
+
+    def prior_overrides(self) -> dict:
+        """``[priors]`` as ``{name: Uniform or LogUniform}``."""
+        return {name: LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
+                for name, ov in self.model.priors.items()}
 
     @property
     def layout(self) -> RecordLayout | None:

@@ -36,8 +36,6 @@ import numpy as np
 
 from .._json import to_jsonable
 from ..discrepancy.diagnosis import (
-    DEFAULT_CANDIDATES,
-    DiagnoseSpec,
     diagnose,
     require_diagnosable,
 )
@@ -47,7 +45,7 @@ from ..model.system import LinearModel, param_kinds
 from ..segments import split_at_rest, split_records
 from .config import RunConfig
 from .folder import RunFolder, atomic_write_json, now_iso
-from .identify_spec import IDENTIFY_DIAGNOSIS_KEYS, IDENTIFY_FINAL_KEYS, DiagnosisSpec, FinalSpec
+from .identify_spec import IDENTIFY_FINAL_KEYS, DiagnosisSpec, FinalSpec
 from .identify_summary import summarize, write_identify_report
 from .runner import execute_run, prepare_run
 
@@ -169,15 +167,6 @@ def _driven_output(rig) -> int:
     return int(hits[0]) if len(hits) else 0
 
 
-def _candidates(rig, spec: DiagnosisSpec) -> list[str]:
-    if spec.candidates is not None:
-        return list(spec.candidates)
-    out = list(DEFAULT_CANDIDATES)
-    if "end_stop" not in out and EXTENSIONS["end_stop"].unsupported(rig) is None:
-        out.append("end_stop")
-    return out
-
-
 def sampled_effects(effects) -> tuple[str, ...]:
     """The effects the posterior samples for the diagnosis' ``effects``: each replaced by
     its ``sampled_as`` twin where it has one (stick-slip friction by LuGre friction).
@@ -278,10 +267,8 @@ def spec_from_config(config: RunConfig) -> IdentifySpec:
     opts = dict(config.identify or {})
     if "burn" in opts and "prune" not in opts:  # stranded walkers pruned within the burn-in
         opts["prune"] = min(FinalSpec.prune, opts["burn"] // 2) or None
-    diag = DiagnosisSpec(**{IDENTIFY_DIAGNOSIS_KEYS[k]: v for k, v in opts.items()
-                            if k in IDENTIFY_DIAGNOSIS_KEYS})
     final = FinalSpec(**{k: v for k, v in opts.items() if k in IDENTIFY_FINAL_KEYS})
-    return IdentifySpec(replace(config, identify=None), diag, final)
+    return IdentifySpec(replace(config, identify=None), config.diagnosis, final)
 
 
 def _final_prepared(spec: IdentifySpec, effects: tuple[str, ...]):
@@ -307,15 +294,12 @@ def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> di
     rig = prep.model.rig
     d = spec.diagnosis
     exps, train, cut = diagnosis_records(prep.experiments, rig, d)
-    weights = d.weights if d.weights != "auto" else ("spread" if len(train) > 1 else "none")
+    dspec = d.diagnose_spec(rig, len(train), posterior=False)
     t0 = time.perf_counter()
-    res = diagnose(exps, DiagnoseSpec(
-        candidates=_candidates(rig, d), n_null=d.n_null, posterior=False,
-        n_starts=d.n_starts, max_effects=d.max_effects, global_search=d.global_search,
-        weights=weights), rig=rig, train=train, rng=d.seed, progress=progress)
+    res = diagnose(exps, dspec, rig=rig, train=train, rng=d.seed, progress=progress)
     out = {"key": key, "finished": now_iso(), "elapsed_s": time.perf_counter() - t0,
-           "split_at_rest": cut, "weights": weights,
-           "candidates": _candidates(rig, d), "diagnosis": res.as_dict()}
+           "split_at_rest": cut, "weights": d.resolved_weights(len(train)),
+           "candidates": list(dspec.candidates), "diagnosis": res.as_dict()}
     atomic_write_json(path, to_jsonable(out))
     return out
 

@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from .._errors import ConfigError
+from ..discrepancy.diagnosis import DEFAULT_CANDIDATES, DiagnoseSpec
+from ..model.effects import EXTENSIONS
 
 __all__ = ["DiagnosisSpec", "FinalSpec", "identify_problems", "IDENTIFY_DIAGNOSIS_KEYS",
            "IDENTIFY_FINAL_KEYS"]
@@ -105,6 +107,51 @@ class DiagnosisSpec:
     def __post_init__(self) -> None:
         _refuse(identify_problems({k: getattr(self, f)
                                    for k, f in IDENTIFY_DIAGNOSIS_KEYS.items()}))
+
+    def candidate_names(self, rig) -> list[str]:
+        """The effects tried on ``rig``: ``candidates``, or ``DEFAULT_CANDIDATES`` plus the
+        end stop of the driven cart where ``rig`` has exactly one.
+
+        Parameters
+        ----------
+        rig : Rig
+        """
+        if self.candidates is not None:
+            return list(self.candidates)
+        out = list(DEFAULT_CANDIDATES)
+        if "end_stop" not in out and EXTENSIONS["end_stop"].unsupported(rig) is None:
+            out.append("end_stop")
+        return out
+
+    def resolved_weights(self, n_train: int) -> str:
+        """``weights`` with ``"auto"`` resolved: ``"spread"`` for several training records.
+
+        Parameters
+        ----------
+        n_train : int
+            Training records of the diagnosis.
+        """
+        return self.weights if self.weights != "auto" else (
+            "spread" if n_train > 1 else "none")
+
+    def diagnose_spec(self, rig, n_train: int, *, posterior: bool = True) -> DiagnoseSpec:
+        """The ``DiagnoseSpec`` of these options on ``rig`` with ``n_train`` training records.
+
+        Parameters
+        ----------
+        rig : Rig
+        n_train : int
+            Training records of the diagnosis (``"auto"`` weights depend on it).
+        posterior : bool
+            Sample the found model's posterior at the end of the diagnosis (the workflow
+            samples it in its own stage).
+        """
+        return DiagnoseSpec(candidates=self.candidate_names(rig), n_null=self.n_null,
+                            posterior=posterior, n_starts=self.n_starts,
+                            max_effects=self.max_effects,
+                            global_search=self.global_search,
+                            weights=None if self.resolved_weights(n_train) == "none"
+                            else self.resolved_weights(n_train))
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,8 @@ from .._errors import ConfigError, DataError
 from .._window import motion_at_start, offset_at_rest
 from ..data import Experiment, check_identifiable, load_experiment, options_for_rig
 from ..fit.lsq import fit_lsq
-from ..inference import LogUniform, Uniform, default_priors
+from ..inference import default_priors
 from ..inference.likelihood import Likelihood
-from ..inference.moves import parse_moves
 from ..inference.noise_choice import choose_noise
 from ..inference.noise_spec import parse_noise
 from ..inference.record_priors import record_priors
@@ -59,11 +58,6 @@ class PreparedRun:
 
 
 
-def _prior(ov):
-    return LogUniform(ov.lo, ov.hi) if ov.scale == "log" else Uniform(ov.lo, ov.hi)
-
-
-
 def _check_window_rest(e: Experiment) -> None:
     why = motion_at_start(e.y_m, e.v_volt, e.dt)
     if why:
@@ -90,10 +84,11 @@ def _load(files, cfg: RunConfig, key: str, *, fitted: bool = True) -> tuple[Expe
             if cfg.model.rig is not None:  # the rig's sensors say what each column holds
                 opts = options_for_rig(opts, cfg.make_rig(), f)
             out.append(load_experiment(Path(f), m_per_count=cfg.data.m_per_count, options=opts))
+            at_rest = cfg.likelihood.initial_state == "rest"   # else the start is sampled
             if fitted:
-                if cfg.data.t_start is not None:  # a run starts every record from rest
+                if cfg.data.t_start is not None and at_rest:  # every record from rest
                     _check_window_rest(out[-1])
-                if cfg.data.rest_offset == "none":
+                if cfg.data.rest_offset == "none" and at_rest:
                     _check_offset(out[-1])
                 check_identifiable(out[-1])
         except (DataError, OSError, ValueError) as exc:
@@ -153,23 +148,28 @@ def prepare_run(config: RunConfig) -> PreparedRun:
             raise ConfigError(f"{src}: [likelihood.noise] 'ar:auto' is built for the linear "
                               "model; give the orders, e.g. 'ar4'")
         noise = choose_noise(exps, model, fit_lsq(list(exps), model)).name
+    estimate = cfg.likelihood.initial_state == "estimate"
+    if estimate and layout is not None:
+        raise ConfigError(f"{src}: [likelihood.initial_state] estimated initial states are "
+                          "built for white or AR(1) noise with every parameter shared; drop "
+                          "[records] or use noise \"white\" or \"ar1\"")
     if layout is None:
+        names = (Likelihood(model, exps, noise, extension, initial_state="estimate")
+                 .initial_state_names if estimate else ())
         base = default_priors(model, noise=noise, n_outputs=model.n_carts,
-                              extension=extension)
+                              extension=extension, initial_states=names)
     else:
         try:
             base = record_priors(Likelihood(model, exps, noise, extension, layout))
         except ValueError as exc:
             raise ConfigError(f"{src}: [records] {exc}") from exc
-    overrides = {}
-    for name, ov in cfg.model.priors.items():
+    for name in cfg.model.priors:
         if name not in base.names:
             raise ConfigError(
                 f"{src}: [priors.{name}] the sampler samples {list(base.names)}; "
                 "remove this entry")
-        overrides[name] = _prior(ov)
     try:
-        priors = base.replace(overrides)
+        priors = base.replace(cfg.prior_overrides())
     except ConfigError as exc:
         raise ConfigError(f"{src}: [priors] {exc}") from exc
     n_par = priors.n_params
@@ -178,10 +178,7 @@ def prepare_run(config: RunConfig) -> PreparedRun:
             f"{src}: [sampler.walkers] must be even and at least 2 x {n_par} parameters = "
             f"{2 * n_par} for {cfg.model.damping} damping with {cfg.likelihood.noise} noise, "
             f"got {cfg.sampler.walkers}")
-    try:
-        moves = parse_moves(cfg.sampler.moves)
-    except ConfigError as exc:
-        raise ConfigError(f"{src}: {exc}") from exc
+    moves = cfg.sampler_spec().moves
     return PreparedRun(cfg, exps, held, model, priors, moves, extension, noise)
 
 

@@ -36,7 +36,6 @@ from ..inference import (
 )
 from ..inference.crossval import crossval
 from ..inference.moves import parse_moves
-from ..inference.spec import LikelihoodSpec
 from ..inference.temperature import calibrate_loro
 from ..metrics import fit_percent
 from ..plots.runs import plot_residual_acf, plot_residuals
@@ -362,12 +361,10 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
                      cfg.sampler.walkers, cfg.sampler.steps, steps_before, cfg.sampler.seed)
             temperature, calibration, study = _temperature(prep, folder)
             run = sample_posterior(
-                list(prep.experiments), prep.model,
-                LikelihoodSpec(noise=prep.noise or cfg.likelihood.noise,
-                               extension=prep.extension, layout=cfg.layout,
-                               temperature=temperature),
-                cfg.sampler.spec(prep.moves, progress=progress, warn=False),
-                priors=prep.priors, start=start, rng=cfg.sampler.seed, backend=backend)
+                list(prep.experiments), cfg,
+                cfg.likelihood_spec(noise=prep.noise, temperature=temperature),
+                cfg.sampler_spec(progress=progress, warn=False),
+                priors=prep.priors, start=start, backend=backend)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):

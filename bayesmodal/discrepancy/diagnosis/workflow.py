@@ -38,6 +38,7 @@ from ..._progress import announce, progress_bar
 from ...data import Experiment
 from ...fit.lsq import fit_lsq
 from ...identified import require_identified
+from ...inference.spec import RunDescription
 from ...metrics import fit_percent
 from ...model.effects import EXTENSIONS, Extension, default_candidates, get_extension
 from ...model.simulate import simulate_linear
@@ -116,9 +117,20 @@ def require_diagnosable(rig: Rig, what: str = "diagnose") -> None:
                          "list the rig's [[sensors]] that way")
 
 
+def _read_description(run, experiments, rig, train, rng):
+    """The spec, rig and seed of a run description given to ``diagnose``."""
+    if not isinstance(run, RunDescription):
+        raise TypeError(f"spec must be a DiagnoseSpec or a run description (RunConfig), "
+                        f"got {type(run).__name__}")
+    n = 1 if isinstance(experiments, Experiment) else len(experiments)
+    return (run.diagnose_spec(len(_train_indices(train, n))),
+            run.make_rig() if rig is None else rig,
+            run.diagnosis_seed if rng is None else rng)
+
+
 def diagnose(
     experiments: Experiment | Sequence[Experiment],
-    spec: DiagnoseSpec | None = None,
+    spec: DiagnoseSpec | RunDescription | None = None,
     *,
     rig: Rig | None = None,
     train: int | Sequence[int] = 0,
@@ -137,7 +149,10 @@ def diagnose(
         candidates, the null calibration (``n_null``, ``alpha``), the fits (``n_starts``,
         ``max_nfev``, ``max_fits``, ``weights``), forward selection (``max_effects``,
         ``global_search``), the posterior (``posterior``, ``posterior_options``) and the
-        encoder resolution (``quantum_m``).  Default ``DiagnoseSpec()``.
+        encoder resolution (``quantum_m``).  Default ``DiagnoseSpec()``.  Or a run
+        description (``bayesmodal.runs.RunConfig``): the diagnosis options of its
+        ``[identify]`` table, its rig (where ``rig`` is not given) and that table's seed
+        (where ``rng`` is not given).
     rig : Rig, optional
         Default ``Rig()`` (ECP 210 springs).
     train : int or sequence of int
@@ -186,6 +201,8 @@ def diagnose(
     ...     d.cause
     'coulomb_friction'
     """
+    if spec is not None and not isinstance(spec, DiagnoseSpec):
+        spec, rig, rng = _read_description(spec, experiments, rig, train, rng)
     spec = with_diagnose_settings(spec, settings)
     exps, rig = _checked_records(experiments, rig)
     tr = _train_indices(train, len(exps))
