@@ -15,7 +15,9 @@ only its sensor's noise, and the response rings down.  The classical processing:
   (:func:`find_impacts`).
 
 The FRF is H1, H2 or Hv averaged over the hits, in the sensor's form (receptance,
-mobility or accelerance per newton).
+mobility or accelerance per newton).  ``frf_from_experiment`` and ``identify`` take it
+(without an exponential window) for a force input of isolated hits
+(:func:`~.excitation.is_impact_train`).
 """
 
 from __future__ import annotations
