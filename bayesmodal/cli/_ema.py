@@ -7,8 +7,7 @@ import warnings
 import numpy as np
 
 from .._errors import DataError
-from ..ema import METHODS, identify
-from ..ema.frf import FRF_METHODS
+from ..ema import FRF_METHODS, METHODS, identify
 from ..plots.ema import save_ema_figures
 from ._common import add_data_args, add_rig_argument, load_args, load_rig, print_json
 
@@ -17,9 +16,11 @@ def register(sub) -> None:
     p = sub.add_parser(
         "ema",
         help="experimental modal analysis (LSCE, circle fit, multi-mode fit, tfest)",
-        description="Modal parameters from the FRF of motor volts to cart positions (m/V); "
-        "mode shapes normalised to cart 1.  Exit code 2 with a one-line error when no "
-        "mode is identified.",
+        description="Modal parameters from the FRF of the input to the outputs (motor "
+        "volts to cart positions, m/V; with --rig in the rig's sensor form and input, e.g. "
+        "m/s^2/N for accelerometers under a measured force, a hammer test's hits found and "
+        "force-windowed); mode shapes normalised to cart 1.  Exit code 2 with a one-line "
+        "error when no mode is identified.",
     )
     add_data_args(p)
     add_rig_argument(p)  # (the FRF is model-free: the rig sets the sensors and scale)
@@ -33,9 +34,9 @@ def register(sub) -> None:
     p.add_argument("--band", type=float, nargs=2, metavar=("LO", "HI"), default=None,
                    help="frequency band, rad/s (default: around the FRF peaks)")
     p.add_argument("--frf", choices=FRF_METHODS, default="auto",
-                   help="FRF estimate: pulse train segments, step increments, Welch, or the "
-                   "whole record as one transient (default %(default)s: pulse, step or "
-                   "welch from the input)")
+                   help="FRF estimate: pulse train segments, step increments, hammer hits "
+                   "(force-windowed), Welch, or the whole record as one transient (default "
+                   "%(default)s: from the input; impact needs a force input, --rig)")
     p.add_argument("--json", action="store_true", help="print a JSON object")
     p.add_argument("--plots", metavar="DIR", default=None,
                    help="write the FRF, Nyquist and stabilisation figures (PNG) into DIR "
@@ -84,7 +85,8 @@ def run(args) -> int:
         print_json(summary)
         return 0
     print(f"{exp.name}: {args.method}, band {res.band[0]:.4g}..{res.band[1]:.4g} rad/s, "
-          f"FRF in {res.frf.units} ({res.frf.estimator}, {res.frf.n_averages} average(s))")
+          f"{res.frf_method} FRF in {res.frf.units} ({res.frf.estimator}, "
+          f"{res.frf.n_averages} average(s))")
     stated = bool(np.any(np.isfinite(est.omega_se[found])))
     print(" mode  omega (rad/s)   zeta     shape (cart 1 = 1)" if not stated else
           " mode  omega (rad/s) +- se         zeta +- se            shape (cart 1 = 1)")

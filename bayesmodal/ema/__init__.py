@@ -8,8 +8,10 @@ FRF estimation (:mod:`.frf`; the signal tools in :mod:`.excitation`, :mod:`.irf`
 
 - :func:`welch_frf` -- H1/H2 and coherence from Welch-averaged spectra;
 - :func:`pulse_frf` -- the same over the pulse-to-pulse transients of a pulse train;
-- :func:`frf_from_experiment` -- chooses between them for an ``Experiment`` (m/V); step
-  records through their increments (:func:`step_increments`);
+- :func:`frf_from_experiment` -- chooses between them and :func:`impact_frf` for an
+  ``Experiment`` (:mod:`.record_frf`, :func:`choose_frf_method`: a hammer test when the
+  input is a force of isolated hits, :func:`is_impact_train`); step records through their
+  increments (:func:`step_increments`);
 - :func:`impulse_response` -- IRF by inverse FFT; :func:`free_decay_segments`;
 - :func:`spectrum`, :func:`spectrogram`, :func:`band_coherence`, :func:`peak_prominence`.
 
@@ -44,6 +46,7 @@ from .circle import CircleFit, CircleFitModes, circle_fit, circle_fit_modes, fit
 from .examples import LECTURE_POLES, LECTURE_SHAPES, ModalSystem, lecture_irfs, lecture_system
 from .excitation import (
     free_decay_segments,
+    is_impact_train,
     is_pulse_train,
     is_step_input,
     pulse_segments,
@@ -53,7 +56,6 @@ from .forms import FRF_FORMS, form_units, orders_of, receptance_estimate, to_rec
 from .frf import (
     FRF,
     band_coherence,
-    frf_from_experiment,
     peak_prominence,
     pulse_frf,
     welch_frf,
@@ -79,6 +81,7 @@ from .lsce import (
 from .mac import mac, mac_estimates
 from .multimode import MultiModeFit, modal_basis, multimode_fit
 from .peaks import Peaks, mode_indicator, pick_peaks
+from .record_frf import FRF_METHODS, choose_frf_method, frf_from_experiment
 from .result import ModalEstimate, match_modes, modal_estimate, normalise_shapes
 from .spectra import Spectrogram, Spectrum, spectrogram, spectrum
 from .tfest import TFEstimate, tfest
@@ -108,8 +111,11 @@ __all__ = [
     "band_coherence",
     "free_decay_segments",
     "frequency_grid",
+    "FRF_METHODS",
+    "choose_frf_method",
     "frf_from_experiment",
     "impulse_response",
+    "is_impact_train",
     "is_pulse_train",
     "is_step_input",
     "peak_prominence",

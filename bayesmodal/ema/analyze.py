@@ -34,13 +34,14 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..data import check_identifiable
 from .circle import circle_fit_modes
-from .excitation import free_decay_segments, is_pulse_train, is_step_input, step_increments
+from .excitation import free_decay_segments, is_pulse_train, step_increments
 from .forms import form_units, orders_of, receptance_estimate
-from .frf import FRF, frf_from_experiment, peak_prominence
+from .frf import FRF, peak_prominence
 from .irf import impulse_response
 from .lsce import StabilizationDiagram, lsce, lsce_frf, stabilization_diagram
 from .multimode import _linear, modal_basis, multimode_fit
 from .peaks import pick_peaks
+from .record_frf import choose_frf_method, frf_from_experiment
 from .result import ModalEstimate
 from .tfest import tfest
 
@@ -67,6 +68,9 @@ class EMAResult:
         ``LSCEResult``).
     stabilization : StabilizationDiagram or None
         LSCE fits over a range of orders (only when requested).
+    frf_method : str or None
+        How the FRF was estimated (``"pulse"``, ``"step"``, ``"impact"``, ``"welch"`` or
+        ``"transient"``, what ``"auto"`` chose); None for an FRF given to ``identify``.
     """
 
     estimate: ModalEstimate
@@ -75,12 +79,14 @@ class EMAResult:
     band: np.ndarray
     details: object
     stabilization: StabilizationDiagram | None = None
+    frf_method: str | None = None
 
     def as_dict(self) -> dict:
         """JSON-ready summary: the estimate plus the band and FRF settings."""
         out = self.estimate.as_dict()
         out.update({
             "band_rad_s": self.band.tolist(),
+            "frf_method": self.frf_method,
             "frf_units": self.frf.units,
             "frf_estimator": self.frf.estimator,
             "frf_averages": int(self.frf.n_averages),
@@ -261,10 +267,12 @@ def identify(
         Output the mode shapes are normalised on (0 = cart 1).
     stabilization_orders : sequence of int, optional
         With ``method="lsce"``, also fit these orders for a stabilisation diagram.
-    frf_method : {"auto", "pulse", "step", "welch", "transient"}
-        How the FRF is estimated (``frf_from_experiment``).  A step record (``"step"``,
-        or ``"transient"`` ending at another input level) is analysed through its
-        increments: each step is an impulse and LSCE fits the decays after the steps.
+    frf_method : {"auto", "pulse", "step", "impact", "welch", "transient"}
+        How the FRF is estimated (``frf_from_experiment``; ``"auto"``:
+        ``choose_frf_method``, which takes ``"impact"`` for a hammer test when
+        ``input_kind`` is ``"force"``).  A step record (``"step"``, or ``"transient"``
+        ending at another input level) is analysed through its increments: each step is
+        an impulse and LSCE fits the decays after the steps.
     output_kinds : sequence of str, optional
         Sensor kind of each output (``Rig.output_kinds``): the FRF is read in the
         sensors' form (receptance, mobility or accelerance when they share one kind) and
@@ -272,7 +280,8 @@ def identify(
         (``forms.receptance_estimate``), so that mode shapes from mixed sensors compare.
         Default: every output a position.
     input_kind : {"voltage", "force"}
-        What the input is (``Rig.input``), for the FRF's units (per V or per N).
+        What the input is (``Rig.input``): the FRF's units (per V or per N), and only a
+        force's hits are read as a hammer test.
 
     Notes
     -----
@@ -294,19 +303,22 @@ def identify(
     if n_modes < 1 or (order is not None and order < 1):
         raise ConfigError(f"n_modes and order must be >= 1, got {n_modes}, {order}")
     u, y = experiment.v_volt, experiment.y_m
-    if frf_method in ("step", "transient") or (frf_method == "auto" and is_step_input(u)):
-        if frf_method != "transient" or u[-1] != u[0]:
-            u, y = step_increments(u, y)
+    chosen = (choose_frf_method(u, input_kind=input_kind) if frf_method == "auto"
+              else frf_method)
+    if chosen == "step" or (chosen == "transient" and u[-1] != u[0]):
+        u, y = step_increments(u, y)
     orders = None if output_kinds is None else orders_of(output_kinds)
     if orders is not None and orders.size != y.shape[1]:
         raise ConfigError(f"output_kinds lists {orders.size} kinds for {y.shape[1]} outputs; "
                           "give one per output (Rig.output_kinds)")
     if frf is None:
         check_identifiable(experiment)
-        frf = frf_from_experiment(experiment, method=frf_method)
+        frf = frf_from_experiment(experiment, method=chosen, input_kind=input_kind)
         if orders is not None and np.all(orders == orders[0]):
             frf = replace(frf, derivative_order=int(orders[0]),
                           units=form_units(int(orders[0]), input_kind))
+    else:
+        chosen = None  # an FRF given: how it was estimated is not known here
     full = frf
     frf = full.reliable()
     pre_notes = []
@@ -351,7 +363,7 @@ def identify(
         pre_notes.append("residues in receptance units: each output's divided by "
                          f"lambda^p, p = {orders.tolist()} (its sensor's derivative order)")
     est = replace(est, notes=tuple(pre_notes) + est.notes)
-    return EMAResult(est, frf, fitted, np.array(band), det, stab)
+    return EMAResult(est, frf, fitted, np.array(band), det, stab, chosen)
 
 
 def _stride(stride: int | None, dt: float, band, shortest: int, n: int) -> int:

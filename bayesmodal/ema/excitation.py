@@ -1,10 +1,13 @@
-"""The excitation a record holds: a pulse train or steps, and the segments between them.
+"""The excitation a record holds: a pulse train, steps or hammer hits, and the segments
+between them.
 
 The impulse records hold a train of short pulses on a zero background, each followed by a
 free decay; :func:`pulse_segments` cuts them pulse to pulse (the averages of
 ``pulse_frf``) and :func:`free_decay_segments` keeps the decays (the records of LSCE).  A
 step record becomes an impulse train through its increments (:func:`step_increments`).
-:func:`is_pulse_train` and :func:`is_step_input` tell the kinds apart.
+:func:`is_pulse_train`, :func:`is_step_input` and :func:`is_impact_train` tell the kinds
+apart; the last looks at a measured force, whose sensor noise never leaves it at zero
+between the hits.
 """
 
 from __future__ import annotations
@@ -13,8 +16,11 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["free_decay_segments", "is_pulse_train", "is_step_input", "pulse_segments",
-           "step_increments"]
+__all__ = ["IMPACT_THRESHOLD", "free_decay_segments", "is_impact_train", "is_pulse_train",
+           "is_step_input", "pulse_segments", "step_increments"]
+
+#: Force above which a sample belongs to a hammer hit, relative to the largest force.
+IMPACT_THRESHOLD = 0.05
 
 
 def pulse_segments(u, *, min_gap: int = 20, drop_truncated: bool = True) -> np.ndarray:
@@ -71,6 +77,50 @@ def is_pulse_train(u, *, max_duty: float = 0.1) -> bool:
     """True if the input is zero on all but a fraction ``max_duty`` of the samples."""
     u = np.asarray(u, dtype=float)
     return bool(np.any(u != 0) and np.mean(u != 0) <= max_duty)
+
+
+def is_impact_train(force, *, threshold: float = IMPACT_THRESHOLD,
+                    max_duty: float = 0.1) -> bool:
+    """True for a hammer test: isolated hits, each followed by a long quiet stretch.
+
+    The samples where ``|force|`` exceeds ``threshold`` times its largest value are the
+    hits; the sensor's noise between them stays below (a load cell's noise is a small
+    fraction of a hit's peak).  Those samples, the rest set to zero, must form a pulse
+    train (:func:`is_pulse_train` with ``max_duty``), and each hit must take at most the
+    fraction ``max_duty`` of its segment from its start to the next hit's (or the record's
+    end, :func:`pulse_segments`), i.e. be followed by at least nine times its own length
+    of quiet.  A shaker's sweep or random force exceeds the threshold on most samples; a
+    hit at the end of the record, with no time to ring down, fails the second test.
+
+    Parameters
+    ----------
+    force : ndarray, shape (N,)
+        Measured force, N.
+    threshold : float
+        A sample belongs to a hit when ``|force|`` exceeds this fraction of the largest
+        (as in :func:`~bayesmodal.ema.impact.find_impacts`).
+    max_duty : float
+        Largest fraction of the record, and of each hit's segment, the hits may take.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> f = rng.normal(0.0, 0.02, 3000); f[100:103] += 60.0; f[1600:1603] += 55.0
+    >>> is_impact_train(f), is_impact_train(rng.normal(0.0, 1.0, 3000))
+    (True, False)
+    """
+    f = np.abs(np.asarray(force, dtype=float))
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or not np.any(f > 0):
+        return False
+    hits = np.where(f > threshold * f.max(), f, 0.0)
+    if not is_pulse_train(hits, max_duty=max_duty):
+        return False
+    seg = pulse_segments(hits, drop_truncated=False)
+    return bool(np.all(seg[:, 1] - seg[:, 0] <= max_duty * (seg[:, 2] - seg[:, 0])))
 
 
 def is_step_input(u, *, max_changes: float = 0.01) -> bool:

@@ -21,7 +21,9 @@ serve as the averages of H1/H2.
 
 The signal tools around the FRF live beside it and are importable from here too: the
 record's excitation and its segments (:mod:`.excitation`), impulse responses by inverse
-FFT (:mod:`.irf`) and the spectra of single signals (:mod:`.spectra`).
+FFT (:mod:`.irf`) and the spectra of single signals (:mod:`.spectra`).  Hammer tests have
+their own estimator (:mod:`.impact`), and :mod:`.record_frf` chooses the estimator for
+an ``Experiment`` from what its input holds.
 """
 
 from __future__ import annotations
@@ -53,8 +55,6 @@ __all__ = [
     "pulse_frf",
     "pulse_segments",
     "free_decay_segments",
-    "frf_from_experiment",
-    "FRF_METHODS",
     "is_pulse_train",
     "is_step_input",
     "step_increments",
@@ -471,49 +471,6 @@ def pulse_frf(
     power = Suu[keep] / np.max(Suu[keep])
     return FRF(w, np.nan_to_num(H), coh if n_avg > 1 else None, estimator, units, n_avg, dt, 0,
                power, zoh_divided=bool(zoh))
-
-
-FRF_METHODS = ("auto", "pulse", "step", "welch", "transient")
-
-
-def frf_from_experiment(experiment, *, method: str = "auto", **kwargs) -> FRF:
-    """FRF of an Experiment (motor volts to cart positions, m/V).
-
-    Parameters
-    ----------
-    experiment : bayesmodal.data.Experiment
-    method : {"auto", "pulse", "step", "welch", "transient"}
-        ``"pulse"``: segment a pulse train (``pulse_frf``); ``"step"``: the same on the
-        increments of a step record (``step_increments``: each step an impulse, each
-        segment from one step to the next); ``"welch"``: Welch averaging;
-        ``"transient"``: one segment spanning the whole record (increments when the
-        input ends at another level than it starts, e.g. a single step);
-        ``"auto"`` picks ``"pulse"`` for a pulse train, ``"step"`` for steps and
-        ``"welch"`` otherwise.
-    **kwargs
-        Passed to ``pulse_frf`` or ``welch_frf``.
-
-    Returns
-    -------
-    FRF
-    """
-    u, y, dt = experiment.v_volt, experiment.y_m, experiment.dt
-    if method not in FRF_METHODS:
-        raise DataError(f"FRF method must be one of {FRF_METHODS}, got {method!r}")
-    if method == "auto":
-        method = "pulse" if is_pulse_train(u) else "step" if is_step_input(u) else "welch"
-    if method == "pulse":
-        return pulse_frf(u, y, dt, **kwargs)
-    if method == "step":
-        du, dy = step_increments(u, y)
-        kwargs.setdefault("baseline", False)
-        return pulse_frf(du, dy, dt, **kwargs)
-    if method == "transient":
-        if u[-1] != u[0]:
-            u, y = step_increments(u, y)
-            kwargs.setdefault("baseline", False)
-        return pulse_frf(u, y, dt, segments=np.array([[0, u.size]]), **kwargs)
-    return welch_frf(u, y, dt, **kwargs)
 
 
 # --------------------------------------------------------------------------- checks

@@ -15,7 +15,9 @@ only its sensor's noise, and the response rings down.  The classical processing:
   (:func:`find_impacts`).
 
 The FRF is H1, H2 or Hv averaged over the hits, in the sensor's form (receptance,
-mobility or accelerance per newton).
+mobility or accelerance per newton).  ``frf_from_experiment`` and ``identify`` take it
+(without an exponential window) for a force input of isolated hits
+(:func:`~.excitation.is_impact_train`).
 """
 
 from __future__ import annotations
@@ -25,14 +27,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._errors import DataError
+from .excitation import IMPACT_THRESHOLD
 from .frf import ESTIMATORS, FRF, _check_io, _estimate, summed_spectra, zoh_factor
 from .result import ModalEstimate
 
-__all__ = ["Impacts", "correct_exponential_window", "find_impacts", "force_window",
-           "impact_frf"]
-
-#: Force above which a sample belongs to a hit, relative to the largest force.
-IMPACT_THRESHOLD = 0.05
+__all__ = ["IMPACT_THRESHOLD", "Impacts", "correct_exponential_window", "find_impacts",
+           "force_window", "impact_frf"]
 
 #: Two pulses closer than this are one bouncing hit (a double impact), s.
 DOUBLE_IMPACT_GAP_S = 0.05
