@@ -19,7 +19,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..kernels import linear_input_run, zoh
-from ._linear import linear_parts
+from ._linear import linear_parts, sensor_map
 
 
 def split_delay(delay_s, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -80,8 +80,9 @@ def lagged_system(rig, theta_lin: np.ndarray, tau: np.ndarray | None):
     return A, B
 
 
-def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None):
-    """Positions of the linear rig under per-lane inputs, with optional lag and delay.
+def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None, outputs=None):
+    """Positions (or sensors' readings) of the linear rig under per-lane inputs, with
+    optional lag and delay.
 
     Parameters
     ----------
@@ -98,11 +99,14 @@ def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None):
         Motor lag time constants, s (>= 0).
     delay_s : ndarray, shape (nb,), optional
         Input delays, s (>= 0).
+    outputs : ndarray of int, shape (n_out, 2), optional
+        Sensors to read (``_linear.sensor_spec``); default every cart's position.
 
     Returns
     -------
-    ndarray, shape (nb, N, n)
-        Cart positions, m.
+    ndarray, shape (nb, N, n) or (nb, N, n_out)
+        Cart positions, m, in kernel order; or with ``outputs`` each sensor's reading in
+        SI (m, m/s, m/s^2; an acceleration at the sample with the input held from it).
     """
     n = rig.n_carts
     nb = theta_lin.shape[0]
@@ -110,14 +114,41 @@ def linear_lanes_run(rig, theta_lin, v, dt, x0, *, tau=None, delay_s=None):
     s = A.shape[1]
     z0 = np.zeros((nb, s))
     z0[:, : 2 * n] = x0
+    phi = None if delay_s is None else split_delay(delay_s, dt)[1]
+    out_map = None if outputs is None else input_sensor_map(A, B, outputs, n, phi)
     if delay_s is None:
         Ad, Bd = zoh(A, B[..., None], dt)
-        return linear_input_run(Ad, np.zeros((nb, s)), Bd[..., 0], v, z0, n)
+        return linear_input_run(Ad, np.zeros((nb, s)), Bd[..., 0], v, z0, n, out_map=out_map)
     m, phi = split_delay(delay_s, dt)
     A1, G1 = zoh(A, B[..., None], phi * dt)
     A2, G2 = zoh(A, B[..., None], (1.0 - phi) * dt)
     B1 = np.einsum("bij,bj->bi", A2, G1[..., 0])
-    return linear_input_run(A2 @ A1, B1, G2[..., 0], v, z0, n, shift=m)
+    return linear_input_run(A2 @ A1, B1, G2[..., 0], v, z0, n, shift=m, out_map=out_map)
+
+
+def input_sensor_map(A, B, outputs, n: int, phi=None):
+    """``(C, D1, D2)`` of ``linear_input_run`` for the sensors ``outputs``.
+
+    The input acting just after sample ``k`` is ``v[k - m - 1]`` when the delay has a
+    fraction ``phi > 0`` of a sample (the earlier input is still arriving), else
+    ``v[k - m]``: the acceleration's feedthrough goes to that one.
+
+    Parameters
+    ----------
+    A : ndarray, shape (nb, s, s)
+    B : ndarray, shape (nb, s)
+    outputs : ndarray of int, shape (n_out, 2)
+        ``_linear.sensor_spec``.
+    n : int
+        Degrees of freedom.
+    phi : ndarray, shape (nb,), optional
+        Fraction of the delay beyond whole samples (``split_delay``); None: no delay.
+    """
+    C, D, _ = sensor_map(A, B, outputs, n)
+    if phi is None:
+        return C, np.zeros_like(D), D
+    early = (np.asarray(phi) > 0.0)[:, None]
+    return C, np.where(early, D, 0.0), np.where(early, 0.0, D)
 
 
 def held_average(v: np.ndarray, dt: float, nb: int, *, tau=None, delay_s=None) -> np.ndarray:

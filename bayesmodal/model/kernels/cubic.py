@@ -60,21 +60,45 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0,
     return lines
 
 
+def _mapped_output_lines(P: _Rows, X: _Rows, n: int, n_out: int, stop: int, springs
+                         ) -> list[str]:
+    """Kernel lines (in the lane loop of ``_head``) writing each sensor's reading ``C x +
+    D u + E f`` at the sample, ``f`` the spring (and stop) forces at the sample's state
+    (rows ``oc``, ``od``, ``oe``: ``effects._linear.sensor_map``)."""
+    s, t = 2 * n, "            "
+    L = [f"{t}x{r} = {X('x', r)}" for r in range(s)]
+    L += [f"{t}k3_{i} = {P('k3', i)}" for i in range(len(springs))]
+    if stop:
+        L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
+    L += _cubic_force_lines(t, n, "x", "f", stop, springs)
+    for o in range(n_out):
+        prods = ([(P('oc', o * s + r), f"x{r}") for r in range(s)]
+                 + [(P('oe', o * n + j), f"f{j}") for j in range(n)])
+        L.append(f"{t}Y[yo + {o * P.width} + b] = {_fma_sum(P('od', o) + ' * uk', prods)}")
+    return L
+
+
 @functools.lru_cache(maxsize=16)
 def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
-                 springs: tuple[tuple[int, int], ...] | None = None):
+                 springs: tuple[tuple[int, int], ...] | None = None, mapped: int = 0):
     """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``;
     ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``);
-    ``springs``: the springs' ends (``cubic_run``), default the chain's."""
+    ``springs``: the springs' ends (``cubic_run``), default the chain's; ``mapped``: the
+    number of sensors read through an output map (``_mapped_output_lines``), 0 for the
+    cart positions."""
     stop = checked_side(stop) if stop else 0
     chain = springs is None or tuple(springs) == chain_springs(n)
     springs = chain_springs(n) if chain else checked_springs(springs, n)
     s, w, q = 2 * n, width, len(springs)
     R, C = range(s), range(n)
     rows = [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", q)]
-    P = _Rows("P", w, rows + ([("xq", 1), ("kq", 1)] if stop else []))
+    rows += [("xq", 1), ("kq", 1)] if stop else []
+    rows += [("oc", mapped * s), ("od", mapped), ("oe", mapped * n)] if mapped else []
+    P = _Rows("P", w, rows)
     X = _Rows("X", w, [("x", s)])
-    L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
+    L = _head("P, X, u, n_sub, Y", mapped or n, w, X, per_lane)
+    if mapped:
+        L = L[:-mapped] + _mapped_output_lines(P, X, n, mapped, stop, springs)
     L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
     t = "                "
     L += [f"{t}x{r} = {X('x', r)}" for r in R]
@@ -92,12 +116,13 @@ def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
         L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
     tag = f" stop{stop:+d}" if stop else ""
     tag += "" if chain else " springs=" + ",".join(f"{a}:{b}" for a, b in springs)
+    tag += f" mapped={mapped}" if mapped else ""
     if per_lane:
         return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane{tag}>")
     return _compile(L, f"<bayesmodal cubic n={n} w={w}{tag}>")
 
 
-def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None):
+def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, out_map=None):
     """Cubic spring forces ``k3_i d_i^3`` by the exponential Runge-Kutta scheme ETD2RK.
 
     Predictor with the force held over the sub-step (``F0h``), corrector with the force
@@ -121,10 +146,15 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None):
     springs : tuple of (int, int), optional
         Ends ``(a, b)`` of each spring (carts ``0..n-1``, ``-1`` for the frame), its
         extension ``x_b - x_a``; default the chain's (``chain_springs``).
+    out_map : tuple of ndarray, optional
+        ``(C, D, E)`` of shapes (nb, n_out, s), (nb, n_out), (nb, n_out, n): the outputs
+        are ``C x[k] + D u[k] + E f(x[k])`` with ``f`` the spring and stop forces on the
+        carts at the sample (``effects._linear.sensor_map``: sensors of any kind).
+        Default: the cart positions.
 
     Returns
     -------
-    ndarray, shape (nb, N, n)
+    ndarray, shape (nb, N, n) or (nb, N, n_out)
     """
     n = x0.shape[1] // 2
     params = [Ah, Bh, F0h, F1h, k3]
@@ -135,4 +165,9 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None):
         side, xq, kq = stop
         params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
         kernel = functools.partial(kernel, stop=checked_side(side))
-    return run_batched(kernel, params, [x0], u, n, int(n_sub))
+    n_out = n
+    if out_map is not None:
+        n_out = out_map[0].shape[1]
+        params += list(out_map)
+        kernel = functools.partial(kernel, mapped=n_out)
+    return run_batched(kernel, params, [x0], u, n_out, int(n_sub))

@@ -19,15 +19,20 @@ from ._codegen import (
 
 @functools.lru_cache(maxsize=32)
 def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, clipped: bool,
-                        per_lane: bool = False):
+                        per_lane: bool = False, mapped: bool = False):
     """Compiled ``kernel(P, X, up, shift, Y)`` for the recursion (see ``linear_input_run``).
 
     Without ``shifted`` every lane reads the same input sample (and ``B1`` is not used);
     without ``clipped`` the input is not clipped.  With ``per_lane`` ``up`` is a flat
-    ``(N_padded, width)`` block, one input column per lane.
+    ``(N_padded, width)`` block, one input column per lane.  With ``mapped`` the outputs
+    are ``C x + D1 ua + D2 ub`` (rows ``oc``, ``od1``, ``od2``: sensors of any kind),
+    else the first ``n_out`` states.
     """
     s, w = n_states, width
-    P = _Rows("P", w, [("A", s * s), ("B1", s), ("B2", s), ("lo", 1), ("hi", 1)])
+    rows = [("A", s * s), ("B1", s), ("B2", s), ("lo", 1), ("hi", 1)]
+    if mapped:
+        rows += [("oc", n_out * s), ("od1", n_out), ("od2", n_out)]
+    P = _Rows("P", w, rows)
     X = _Rows("X", w, [("x", s)])
 
     def clip(v):
@@ -55,17 +60,25 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
     else:
         L += [f"            ub = {clip('uk')}"]
     L += [f"            x{i} = {X('x', i)}" for i in range(s)]
-    L += [f"            Y[yo + {i * w} + b] = x{i}" for i in range(n_out)]
+    if mapped:
+        for i in range(n_out):
+            prods = [(P('oc', i * s + j), f"x{j}") for j in range(s)]
+            if shifted:
+                prods.insert(0, (P('od1', i), "ua"))
+            L.append(f"            Y[yo + {i * w} + b] = "
+                     f"{_fma_sum(P('od2', i) + ' * ub', prods)}")
+    else:
+        L += [f"            Y[yo + {i * w} + b] = x{i}" for i in range(n_out)]
     for i in range(s):
         prods = [(P('A', i * s + j), f"x{j}") for j in range(s)]
         if shifted:
             prods.insert(0, (P('B1', i), "ua"))
         L.append(f"            {X('x', i)} = {_fma_sum(P('B2', i) + ' * ub', prods)}")
     return _compile(L, f"<bayesmodal linear-input s={s} o={n_out} w={w} "
-                       f"shift={shifted} clip={clipped} per_lane={per_lane}>")
+                       f"shift={shifted} clip={clipped} per_lane={per_lane} mapped={mapped}>")
 
 
-def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
+def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None, out_map=None):
     """Batched ``x[k+1] = Ad x[k] + B1 v[k - m - 1] + B2 v[k - m]``, ``v = clip(u, +-level)``.
 
     Parameters
@@ -81,6 +94,11 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
         Whole-sample delay ``m >= 0`` of each lane (default 0).
     level : ndarray, shape (nb,), optional
         Clip level of each lane (default: no clipping).
+    out_map : tuple of ndarray, optional
+        ``(C, D1, D2)`` of shapes (nb, n_out, s), (nb, n_out), (nb, n_out): the outputs are
+        ``y[k] = C x[k] + D1 v[k - m - 1] + D2 v[k - m]`` (sensors of any kind,
+        ``effects._linear.sensor_map``); ``n_out`` is then ``C.shape[1]``.  Default: the
+        first ``n_out`` states.
 
     Returns
     -------
@@ -98,12 +116,17 @@ def linear_input_run(Ad, B1, B2, u, x0, n_out, *, shift=None, level=None):
     up = np.concatenate([np.zeros(u.shape[:-1] + (pad,)), u], axis=-1)
     width = padded_width(nb)
     n_chunks = -(-nb // width)
-    kernel = linear_input_kernel(s, n_out, width, shifted, clipped, per_lane)
+    mapped = out_map is not None
+    params = [Ad, B1, B2, -lvl, lvl]
+    if mapped:
+        n_out = out_map[0].shape[1]
+        params += list(out_map)
+    kernel = linear_input_kernel(s, n_out, width, shifted, clipped, per_lane, mapped)
     Y = aligned_empty(n_chunks * N * n_out * width).reshape(n_chunks, N, n_out, width)
     for c in range(n_chunks):
         lanes = np.arange(c * width, (c + 1) * width)
         lanes = np.where(lanes < nb, lanes, nb - 1)
-        P = _pack([Ad, B1, B2, -lvl, lvl], lanes)
+        P = _pack(params, lanes)
         X = _pack([x0], lanes)
         kernel(P, X, _pack_input(up, lanes), np.ascontiguousarray(pad - 1 - m[lanes]),
                Y[c].reshape(-1))
