@@ -151,7 +151,8 @@ def input_sensor_map(A, B, outputs, n: int, phi=None):
     return C, np.where(early, D, 0.0), np.where(early, 0.0, D)
 
 
-def held_average(v: np.ndarray, dt: float, nb: int, *, tau=None, delay_s=None) -> np.ndarray:
+def held_average(v: np.ndarray, dt: float, nb: int, *, tau=None, delay_s=None,
+                 with_start: bool = False):
     """The delayed and lagged input as one held value per sample: its mean over each interval.
 
     A nonlinear plant's kernel takes an input held over each sample.  A delayed input
@@ -177,30 +178,39 @@ def held_average(v: np.ndarray, dt: float, nb: int, *, tau=None, delay_s=None) -
         Number of parameter sets (lanes).
     tau, delay_s : ndarray, shape (nb,), optional
         Lag time constants and delays, s (>= 0).
+    with_start : bool
+        Also return the signal just after each sample (``v[k-m-1]`` if ``phi > 0``, else
+        ``v[k-m]``; the lagged force ``f[k]`` of the same recursion): what an
+        acceleration at the sample feels, where the mean is what moves the carts.
 
     Returns
     -------
     ndarray, shape (nb, N)
+        The means, V; with ``with_start`` a pair (means, values at the samples).
     """
     w = np.array(np.broadcast_to(v, (nb, np.shape(v)[-1])), dtype=float)
+    start = w
     N = w.shape[1]
     if delay_s is not None:
         m, phi = split_delay(delay_s, dt)
         pad = np.concatenate([np.zeros((nb, int(m.max()) + 1)), w], axis=1)
         k = np.arange(N)
         rows = np.arange(nb)[:, None]
-        start = pad.shape[1] - N  # pad[start + j] = w[j]
-        late = pad[rows, start + k[None] - m[:, None]]
-        early = pad[rows, start + k[None] - m[:, None] - 1]
+        first = pad.shape[1] - N  # pad[first + j] = w[j]
+        late = pad[rows, first + k[None] - m[:, None]]
+        early = pad[rows, first + k[None] - m[:, None] - 1]
         w = phi[:, None] * early + (1.0 - phi[:, None]) * late
+        start = np.where(phi[:, None] > 0.0, early, late)
     if tau is None:
-        return w
+        return (w, start) if with_start else w
     tau = np.asarray(tau, dtype=float)
     out = w.copy()
+    start = start.copy()
     for b in np.flatnonzero(tau > 0.0):
         a = np.exp(-dt / tau[b])
         c = tau[b] * (1.0 - a) / dt
         # f[k] before the interval: f[k+1] = a f[k] + (1 - a) w[k], f[0] = 0
         f = lfilter([0.0, 1.0 - a], [1.0, -a], w[b])
         out[b] = w[b] + (f - w[b]) * c
-    return out
+        start[b] = f
+    return (out, start) if with_start else out

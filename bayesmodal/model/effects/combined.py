@@ -44,7 +44,7 @@ from ..._errors import ModelError
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec
 from ._input import held_average, linear_lanes_run
-from ._linear import ALL_KINDS
+from ._linear import ALL_KINDS, linear_parts
 from .end_stop import STOP_KERNELS
 
 #: Input-side effects that are linear filters handled by the linear plant recursion.
@@ -232,8 +232,16 @@ class Combined(Extension):
             return plant._simulate(rig, theta_lin, own[plant.name], v, dt, x0, **extra)
         n = int(self.n_hold)
         h = dt / n
-        w = held_average(np.repeat(v, n, axis=-1), h, theta_lin.shape[0], **filters)
-        return plant._simulate(rig, theta_lin, own[plant.name], w, h, x0, **extra)[:, ::n]
+        w, w0 = held_average(np.repeat(v, n, axis=-1), h, theta_lin.shape[0],
+                             with_start=True, **filters)
+        y = plant._simulate(rig, theta_lin, own[plant.name], w, h, x0, **extra)[:, ::n]
+        if outputs is None or not np.any(outputs[:, 1] == 2):
+            return y
+        # an acceleration feels the lagged or delayed force at the sample, not its mean
+        # over the first hold interval, which the kernel took as its input there
+        feed = linear_parts(rig, theta_lin).B[:, rig.n_carts + outputs[:, 0]]  # (nb, n_out)
+        jump = (w0 - w)[:, ::n]  # (nb, N)
+        return y + np.where(outputs[:, 1] == 2, feed, 0.0)[:, None, :] * jump[:, :, None]
 
     # ------------------------------------------------------------------ location
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
