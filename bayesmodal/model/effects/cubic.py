@@ -78,7 +78,7 @@ class CubicStiffness(Extension):
         out_map = None if outputs is None else sensor_map(p.A, p.B, outputs, rig.n_carts,
                                                           p.force_inputs)
         return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0, stop=stop,
-                         springs=kernel_order(rig).springs, out_map=out_map)
+                         springs=kernel_order(rig).springs, outputs=outputs, out_map=out_map)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The spring with the largest relative cubic stiffness ``|k3_i| / k_i``."""

@@ -103,7 +103,7 @@ class EndStop(Extension):
         out_map = None if outputs is None else sensor_map(p.A, p.B, outputs, rig.n_carts,
                                                           p.force_inputs)
         return cubic_run(Ah, Bh, F0h, F1h, k3, u, int(self.n_sub), x0,
-                         stop=self.stop_args(theta_ext), out_map=out_map)
+                         stop=self.stop_args(theta_ext), outputs=outputs, out_map=out_map)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The driven cart, at the end of its travel on the stop's side; strength

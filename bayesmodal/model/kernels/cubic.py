@@ -13,7 +13,10 @@ from ._codegen import (
     _head,
     _lane_inputs,
     _Rows,
+    acceleration_rows,
+    checked_outputs,
     run_batched,
+    sensor_lines,
 )
 from .stop import checked_side, stop_force_lines
 
@@ -60,32 +63,15 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0,
     return lines
 
 
-def _mapped_output_lines(P: _Rows, X: _Rows, n: int, n_out: int, stop: int, springs
-                         ) -> list[str]:
-    """Kernel lines (in the lane loop of ``_head``) writing each sensor's reading ``C x +
-    D u + E f`` at the sample, ``f`` the spring (and stop) forces at the sample's state
-    (rows ``oc``, ``od``, ``oe``: ``effects._linear.sensor_map``)."""
-    s, t = 2 * n, "            "
-    L = [f"{t}x{r} = {X('x', r)}" for r in range(s)]
-    L += [f"{t}k3_{i} = {P('k3', i)}" for i in range(len(springs))]
-    if stop:
-        L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
-    L += _cubic_force_lines(t, n, "x", "f", stop, springs)
-    for o in range(n_out):
-        prods = ([(P('oc', o * s + r), f"x{r}") for r in range(s)]
-                 + [(P('oe', o * n + j), f"f{j}") for j in range(n)])
-        L.append(f"{t}Y[yo + {o * P.width} + b] = {_fma_sum(P('od', o) + ' * uk', prods)}")
-    return L
-
-
 @functools.lru_cache(maxsize=16)
 def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
-                 springs: tuple[tuple[int, int], ...] | None = None, mapped: int = 0):
+                 springs: tuple[tuple[int, int], ...] | None = None,
+                 outputs: tuple[tuple[int, int], ...] | None = None):
     """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``;
     ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``);
-    ``springs``: the springs' ends (``cubic_run``), default the chain's; ``mapped``: the
-    number of sensors read through an output map (``_mapped_output_lines``), 0 for the
-    cart positions."""
+    ``springs``: the springs' ends (``cubic_run``), default the chain's; ``outputs``: the
+    sensors ``(k, order)`` read at each sample (``sensor_lines``: rows ``oc``, ``od``,
+    ``oe`` of the acceleration sensors), default the cart positions."""
     stop = checked_side(stop) if stop else 0
     chain = springs is None or tuple(springs) == chain_springs(n)
     springs = chain_springs(n) if chain else checked_springs(springs, n)
@@ -93,36 +79,52 @@ def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
     R, C = range(s), range(n)
     rows = [("A", s * s), ("bh", s), ("p", s * n), ("q", s * n), ("k3", q)]
     rows += [("xq", 1), ("kq", 1)] if stop else []
-    rows += [("oc", mapped * s), ("od", mapped), ("oe", mapped * n)] if mapped else []
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        n_acc = sum(order == 2 for _, order in outputs)
+        rows += [("oc", n_acc * s), ("od", n_acc), ("oe", n_acc)] if n_acc else []
     P = _Rows("P", w, rows)
     X = _Rows("X", w, [("x", s)])
-    L = _head("P, X, u, n_sub, Y", mapped or n, w, X, per_lane)
-    if mapped:
-        L = L[:-mapped] + _mapped_output_lines(P, X, n, mapped, stop, springs)
-    L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
-    t = "                "
-    L += [f"{t}x{r} = {X('x', r)}" for r in R]
-    L += [f"{t}k3_{i} = {P('k3', i)}" for i in range(q)]
-    if stop:
-        L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
-    L += _cubic_force_lines(t, n, "x", "f", stop, springs)
-    for r in R:
-        prods = ([(P('A', r * s + j), f"x{j}") for j in R]
-                 + [(P('p', r * n + j), f"f{j}") for j in C])
-        L.append(f"{t}y{r} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
-    L += _cubic_force_lines(t, n, "y", "g", stop, springs)
-    for r in R:
-        prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
-        L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
+
+    def step(t: str, read: bool) -> list[str]:
+        # one ETD2RK sub-step of a lane; with ``read`` each sensor is read at its start,
+        # from the state and the forces the predictor evaluates there anyway
+        L = [f"{t}x{r} = {X('x', r)}" for r in R]
+        L += [f"{t}k3_{i} = {P('k3', i)}" for i in range(q)]
+        if stop:
+            L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
+        L += _cubic_force_lines(t, n, "x", "f", stop, springs)
+        if read:
+            L += sensor_lines(t, outputs, n, s, P, [("od", "uk")], force="f")
+        for r in R:
+            prods = ([(P('A', r * s + j), f"x{j}") for j in R]
+                     + [(P('p', r * n + j), f"f{j}") for j in C])
+            L.append(f"{t}y{r} = {_fma_sum(P('bh', r) + ' * uk', prods)}")
+        L += _cubic_force_lines(t, n, "y", "g", stop, springs)
+        for r in R:
+            prods = [(P('q', r * n + j), f"(g{j} - f{j})") for j in C]
+            L.append(f"{t}{X('x', r)} = {_fma_sum(f'y{r}', prods)}")
+        return L
+
+    if outputs is None:
+        L = _head("P, X, u, n_sub, Y", n, w, X, per_lane)
+        L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
+        L += step("                ", False)
+    else:  # the first sub-step reads the sensors: the head's own loop is left out
+        L = _head("P, X, u, n_sub, Y", len(outputs), w, X, per_lane)[: -len(outputs)]
+        L += step("            ", True)
+        L += ["        for sub in range(1, n_sub):", f"            for b in range({w}):"]
+        L += step("                ", False)
     tag = f" stop{stop:+d}" if stop else ""
     tag += "" if chain else " springs=" + ",".join(f"{a}:{b}" for a, b in springs)
-    tag += f" mapped={mapped}" if mapped else ""
+    tag += "" if outputs is None else " outputs=" + ",".join(f"{k}:{o}" for k, o in outputs)
     if per_lane:
         return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane{tag}>")
     return _compile(L, f"<bayesmodal cubic n={n} w={w}{tag}>")
 
 
-def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, out_map=None):
+def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, outputs=None,
+              out_map=None):
     """Cubic spring forces ``k3_i d_i^3`` by the exponential Runge-Kutta scheme ETD2RK.
 
     Predictor with the force held over the sub-step (``F0h``), corrector with the force
@@ -146,11 +148,13 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, out_m
     springs : tuple of (int, int), optional
         Ends ``(a, b)`` of each spring (carts ``0..n-1``, ``-1`` for the frame), its
         extension ``x_b - x_a``; default the chain's (``chain_springs``).
-    out_map : tuple of ndarray, optional
-        ``(C, D, E)`` of shapes (nb, n_out, s), (nb, n_out), (nb, n_out, n): the outputs
+    outputs : ndarray of int, shape (n_out, 2), optional
+        Sensors ``(k, order)`` to read (``effects._linear.sensor_spec``), with
+    out_map : tuple of ndarray
+        ``(C, D, E)`` of shapes (nb, n_out, s), (nb, n_out), (nb, n_out, n): the readings
         are ``C x[k] + D u[k] + E f(x[k])`` with ``f`` the spring and stop forces on the
-        carts at the sample (``effects._linear.sensor_map``: sensors of any kind).
-        Default: the cart positions.
+        carts at the sample (``effects._linear.sensor_map``).  Default: the cart
+        positions.
 
     Returns
     -------
@@ -166,8 +170,9 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, out_m
         params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
         kernel = functools.partial(kernel, stop=checked_side(side))
     n_out = n
-    if out_map is not None:
-        n_out = out_map[0].shape[1]
-        params += list(out_map)
-        kernel = functools.partial(kernel, mapped=n_out)
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        n_out = len(outputs)
+        params += acceleration_rows(outputs, *out_map)
+        kernel = functools.partial(kernel, outputs=outputs)
     return run_batched(kernel, params, [x0], u, n_out, int(n_sub))
