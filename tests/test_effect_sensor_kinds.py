@@ -27,6 +27,7 @@ from conftest import EPS, zoh_rtol
 
 from bayesmodal._errors import ModelError
 from bayesmodal.model.effects import EXTENSIONS, get_extension
+from bayesmodal.model.effects._input import sensor_coordinates
 from bayesmodal.model.simulate import simulate_linear
 from bayesmodal.model.system import Cart, Drive, LinearModel, Rig, Sensor, Spring
 
@@ -38,6 +39,11 @@ THETA = np.array([6.2, 1.5, 1.4, 2.0, 1.5, 0.5])
 #: in g, one mounted backwards
 SENSORS = (Sensor("2", "mm"), Sensor("1", "g"), Sensor("2", "m/s"),
            Sensor("2", "m/s^2", sign=-1), Sensor("1", "m/s"), Sensor("1", "count", 4.4e-6))
+#: fewer sensors than states: the linear recursion runs in sensor coordinates
+#: (``effects._input.sensor_coordinates``), where the set above takes the output rows
+SETS = {"every kind": SENSORS,
+        "encoder and accelerometer": (Sensor("1", "count", 4.4e-6), Sensor("2", "g")),
+        "accelerometers": (Sensor("2", "m/s^2"), Sensor("1", "m/s^2", sign=-1))}
 KIND = np.array([s.order for s in SENSORS])
 CART = np.array([int(s.cart) for s in SENSORS])
 POSITIONS = (Sensor("1", "m"), Sensor("2", "m"))
@@ -92,19 +98,20 @@ def derivatives(x_fine, r: int, order: int, step: int, n_points: int = 8):
     return np.einsum("j,kjc->kc", forward_weights(n_points, order), x_fine[idx]) / h**order
 
 
+@pytest.mark.parametrize("sensors", sorted(SETS))
 @pytest.mark.parametrize("drive", ["1", "2"])
 @pytest.mark.parametrize("name", sorted(set(EXTENSIONS) - set(REFUSED)) + [
     "cubic_stiffness+motor_lag", "end_stop+input_delay+input_offset"])
-def test_null_parameters_read_as_the_linear_model(name, drive):
+def test_null_parameters_read_as_the_linear_model(name, drive, sensors):
     ext = get_extension(name)
-    rig = rig_with(SENSORS, drive)
+    rig = rig_with(SETS[sensors], drive)
     if ext.unsupported(rig):  # effects at the driven cart need the motor on one cart
         pytest.skip(ext.unsupported(rig))
     u = np.random.default_rng(4).normal(size=600)
     y = ext.simulate(rig, ext.null_theta(rig, THETA), u, DT)
     model = LinearModel(rig, "free")
     y_lin = simulate_linear(model, THETA, u, DT)
-    assert y.shape == y_lin.shape == (600, len(SENSORS))
+    assert y.shape == y_lin.shape == (600, len(SETS[sensors]))
     # two exact holds of one linear system: each within the hold's rounding bound of the
     # exact answer, relative to each output's own size; an acceleration's feedthrough
     # adds the rounding of D u
@@ -138,16 +145,37 @@ def smooth_after(name, theta, x_fine, r: int, n_points: int = 8) -> np.ndarray:
     return np.all(window, axis=1) | ~np.any(window, axis=1)
 
 
-def _active(name, drive="1"):
+def _active(name, sensors=SENSORS):
     ext = get_extension(name)
-    rig = rig_with(SENSORS, drive)
-    theta = np.r_[THETA, ACTIVE[name]]
+    rig = rig_with(sensors)
+    n_gains = len(sensors) - 1
+    theta = np.r_[THETA, ACTIVE[name][:n_gains] if name == "sensor_gain" else ACTIVE[name]]
     return ext, rig, theta
 
 
+def test_sensor_coordinates_where_the_readings_are_independent_states():
+    from bayesmodal.model.effects._input import input_sensor_map, lagged_system
+    from bayesmodal.model.effects._linear import sensor_spec
+
+    for sensors, independent in ((SENSORS, False), (SETS["accelerometers"], True),
+                                 (SETS["encoder and accelerometer"], True)):
+        rig = rig_with(sensors)
+        A, B = lagged_system(rig, THETA[None], np.array([0.01]))
+        C, _, _ = input_sensor_map(A, B, sensor_spec(rig), 2)
+        T, scale = sensor_coordinates(C, 2)
+        assert (T is not None) == independent
+        if independent:  # the first states of T z are the readings, scaled
+            z = np.random.default_rng(1).normal(size=A.shape[-1])
+            np.testing.assert_allclose((T[0] @ z)[: len(sensors)] * scale[0], C[0] @ z,
+                                       rtol=8 * EPS * np.linalg.cond(T[0]))
+
+
+@pytest.mark.parametrize("sensors", sorted(SETS))
 @pytest.mark.parametrize("name", sorted(ACTIVE))
-def test_rates_are_derivatives_of_the_positions_of_a_finer_run(name):
-    ext, rig, theta = _active(name)
+def test_rates_are_derivatives_of_the_positions_of_a_finer_run(name, sensors):
+    ext, rig, theta = _active(name, SETS[sensors])
+    kind = np.array([s.order for s in SETS[sensors]])
+    cart = np.array([int(s.cart) for s in SETS[sensors]])
     r = 32
     u = raised_cosine(N)
     y = ext.simulate(rig, theta, u, DT)
@@ -155,10 +183,10 @@ def test_rates_are_derivatives_of_the_positions_of_a_finer_run(name):
     if name == "sensor_gain":  # sensor j reads s_j times the linear rig's motion
         x_fine = simulate_linear(LinearModel(rig_with(POSITIONS), "free"), THETA, u_fine,
                                  DT / r)
-        gain = np.r_[1.0, ACTIVE[name]]
+        gain = np.r_[1.0, theta[THETA.size:]]
     else:
         x_fine = ext.simulate(rig_with(POSITIONS), theta, u_fine, DT / r)
-        gain = np.ones(len(SENSORS))
+        gain = np.ones(kind.size)
     y_fine = ext.simulate(rig, theta, u_fine, DT / r)[::r]
     # the effect must act: its readings differ from the linear model's
     y_lin = simulate_linear(LinearModel(rig, "free"), THETA, u, DT)
@@ -168,8 +196,8 @@ def test_rates_are_derivatives_of_the_positions_of_a_finer_run(name):
     for order in (1, 2):
         d1 = derivatives(x_fine, r, order, 1)[ok]
         d2 = derivatives(x_fine, r, order, 2)[ok]
-        for j in np.flatnonzero(KIND == order):
-            c = CART[j] - 1
+        for j in np.flatnonzero(kind == order):
+            c = cart[j] - 1
             exact = y[: N - 1, j][ok] / gain[j]
             truncation = np.abs(d1[:, c] - d2[:, c]).max()
             own = np.abs(y[: N - 1, j] - y_fine[: N - 1, j]).max() / gain[j]

@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import linear_input_run, zoh
+from ..kernels import zoh
 from ..system import Rig
 from ._base import Extension, ParamSpec
-from ._input import input_sensor_map, split_delay
+from ._input import input_sensor_map, sensors_run, split_delay
 from ._linear import ALL_KINDS, linear_parts
 
 
@@ -59,7 +59,7 @@ class InputDelay(Extension):
         A2, G2 = _blocks_variable_step(p.A, p.B, (1.0 - phi) * dt)
         B1 = np.einsum("bij,bj->bi", A2, G1)
         out_map = None if outputs is None else input_sensor_map(p.A, p.B, outputs, n, phi)
-        return linear_input_run(A2 @ A1, B1, G2, u, x0, n, shift=m, out_map=out_map)
+        return sensors_run(A2 @ A1, B1, G2, u, x0, n, out_map, shift=m)
 
 
 def _blocks_variable_step(A, B, steps):

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import linear_input_run, zoh
+from ..kernels import zoh
 from ..system import Rig
 from ._base import Extension, ParamSpec
-from ._input import input_sensor_map
+from ._input import input_sensor_map, sensors_run
 from ._linear import ALL_KINDS, linear_parts
 
 
@@ -57,8 +57,8 @@ class InputSaturation(Extension):
         p = linear_parts(rig, theta_lin)
         Ad, Bd = zoh(p.A, p.B[..., None], dt)
         out_map = None if outputs is None else input_sensor_map(p.A, p.B, outputs, n)
-        return linear_input_run(Ad, np.zeros_like(Bd[..., 0]), Bd[..., 0], u, x0, n,
-                                level=theta_ext[:, 0], out_map=out_map)
+        return sensors_run(Ad, np.zeros_like(Bd[..., 0]), Bd[..., 0], u, x0, n, out_map,
+                           level=theta_ext[:, 0])
 
     def opt_bounds(self, rig):
         return np.array([1e-3]), np.array([np.inf])
