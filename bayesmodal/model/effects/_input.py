@@ -166,8 +166,27 @@ def sensor_coordinates(C: np.ndarray, n: int):
         return None, None
     rows = C / scale[..., None]
     eye = np.eye(s)
-    # unit rows that add a direction to the first lane's rows (Gram-Schmidt)
-    Q, _ = np.linalg.qr(rows[0].T)
+    key = ((rows[0] != 0.0).tobytes(), n_out, s, n)
+    chosen = _COMPLEMENTS.get(key)
+    if chosen is None:
+        chosen = _COMPLEMENTS[key] = _complement(rows[0], n)
+    if n_out + len(chosen) < s:
+        return None, None
+    T = np.concatenate([rows, np.broadcast_to(eye[chosen], (nb, len(chosen), s))], axis=1)
+    return T, scale
+
+
+#: ``_complement`` of each pattern of nonzero output rows: the readings of a rig have the
+#: same structure from call to call (``sensors_run`` checks each lane's ``T``).
+_COMPLEMENTS: dict[tuple, list[int]] = {}
+
+
+def _complement(rows: np.ndarray, n: int) -> list[int]:
+    """Unit rows (state indices) that complete the output rows (n_out, s) to a basis,
+    velocities first (Gram-Schmidt)."""
+    s = rows.shape[1]
+    eye = np.eye(s)
+    Q, _ = np.linalg.qr(rows.T)
     chosen: list[int] = []
     for i in [*range(n, 2 * n), *range(n), *range(2 * n, s)]:
         if Q.shape[1] == s:
@@ -176,10 +195,7 @@ def sensor_coordinates(C: np.ndarray, n: int):
         if np.linalg.norm(r) > 1e-6:
             Q = np.column_stack([Q, r / np.linalg.norm(r)])
             chosen.append(i)
-    if n_out + len(chosen) < s:
-        return None, None
-    T = np.concatenate([rows, np.broadcast_to(eye[chosen], (nb, len(chosen), s))], axis=1)
-    return T, scale
+    return chosen
 
 
 def sensors_run(Ad, B1, B2, v, z0, n: int, out_map, **kw):

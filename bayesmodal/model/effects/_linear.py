@@ -225,3 +225,29 @@ def sensor_map(A: np.ndarray, B: np.ndarray, spec: np.ndarray, n: int,
         if E is not None:
             E[:, o] = force_inputs[:, n + k]
     return C, D, E
+
+
+@functools.lru_cache(maxsize=64)
+def _coupling(rig: Rig) -> tuple[np.ndarray, np.ndarray]:
+    """Which carts each cart's springs and dampers join it to: the nonzero patterns of
+    ``K`` and ``C`` (n, n) in kernel order, from the matrices at unit parameters (every
+    element present, none cancelling: diagonal entries are sums of positive values)."""
+    p = linear_parts(rig, np.ones((1, LinearModel(rig, "free").n_params)))
+    return p.K[0] != 0.0, p.C[0] != 0.0
+
+
+def acceleration_columns(rig: Rig, spec: np.ndarray) -> tuple[tuple[int, ...], ...]:
+    """The states each acceleration sensor's row of the state matrix can involve: the
+    positions and velocities of the carts its springs and dampers join, in kernel order
+    (a compiled kernel then reads those entries only).
+
+    Parameters
+    ----------
+    rig : Rig
+    spec : ndarray of int, shape (n_out, 2)
+        ``sensor_spec``.
+    """
+    K, C = _coupling(rig)
+    n = K.shape[0]
+    return tuple(tuple(np.flatnonzero(K[k]).tolist() + (n + np.flatnonzero(C[k])).tolist())
+                 for k, order in spec if order == 2)

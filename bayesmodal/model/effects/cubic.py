@@ -18,7 +18,7 @@ import numpy as np
 from ..kernels import cubic_run, zoh
 from ..system import FRAME, Rig
 from ._base import EffectLocation, Extension, ParamSpec
-from ._linear import ALL_KINDS, kernel_order, linear_parts, sensor_map
+from ._linear import ALL_KINDS, acceleration_columns, kernel_order, linear_parts, sensor_map
 
 
 def spring_label(rig: Rig, i: int) -> str:
@@ -78,7 +78,8 @@ class CubicStiffness(Extension):
         out_map = None if outputs is None else sensor_map(p.A, p.B, outputs, rig.n_carts,
                                                           p.force_inputs)
         return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0, stop=stop,
-                         springs=kernel_order(rig).springs, outputs=outputs, out_map=out_map)
+                         springs=kernel_order(rig).springs, outputs=outputs, out_map=out_map,
+                         columns=None if outputs is None else acceleration_columns(rig, outputs))
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The spring with the largest relative cubic stiffness ``|k3_i| / k_i``."""

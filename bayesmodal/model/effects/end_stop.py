@@ -31,7 +31,7 @@ from ..kernels import cubic_run, zoh
 from ..kernels.stop import checked_side
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
-from ._linear import ALL_KINDS, kernel_order, linear_parts, sensor_map
+from ._linear import ALL_KINDS, acceleration_columns, kernel_order, linear_parts, sensor_map
 
 #: Plant-side effects whose kernels take the end stop's force next to their own.
 STOP_KERNELS = ("coulomb_friction", "coulomb_directional", "lugre_friction",
@@ -103,7 +103,8 @@ class EndStop(Extension):
         out_map = None if outputs is None else sensor_map(p.A, p.B, outputs, rig.n_carts,
                                                           p.force_inputs)
         return cubic_run(Ah, Bh, F0h, F1h, k3, u, int(self.n_sub), x0,
-                         stop=self.stop_args(theta_ext), outputs=outputs, out_map=out_map)
+                         stop=self.stop_args(theta_ext), outputs=outputs, out_map=out_map,
+                         columns=None if outputs is None else acceleration_columns(rig, outputs))
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The driven cart, at the end of its travel on the stop's side; strength

@@ -14,6 +14,7 @@ from ._codegen import (
     _lane_inputs,
     _Rows,
     acceleration_rows,
+    checked_columns,
     checked_outputs,
     run_batched,
     sensor_lines,
@@ -66,12 +67,14 @@ def _cubic_force_lines(t: str, n: int, src: str, dst: str, stop: int = 0,
 @functools.lru_cache(maxsize=16)
 def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
                  springs: tuple[tuple[int, int], ...] | None = None,
-                 outputs: tuple[tuple[int, int], ...] | None = None):
+                 outputs: tuple[tuple[int, int], ...] | None = None,
+                 columns: tuple[tuple[int, ...], ...] | None = None):
     """Compiled cubic-spring kernel (see ``cubic_run``); ``per_lane``: see ``_lane_inputs``;
     ``stop`` (+1 or -1): with the end stop of that side on cart 1 (rows ``xq``, ``kq``);
     ``springs``: the springs' ends (``cubic_run``), default the chain's; ``outputs``: the
     sensors ``(k, order)`` read at each sample (``sensor_lines``: rows ``oc``, ``od``,
-    ``oe`` of the acceleration sensors), default the cart positions."""
+    ``oe`` of the acceleration sensors), default the cart positions; ``columns``: the
+    states each acceleration row involves (``sensor_lines``)."""
     stop = checked_side(stop) if stop else 0
     chain = springs is None or tuple(springs) == chain_springs(n)
     springs = chain_springs(n) if chain else checked_springs(springs, n)
@@ -82,7 +85,9 @@ def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
     if outputs is not None:
         outputs = checked_outputs(outputs, n)
         n_acc = sum(order == 2 for _, order in outputs)
-        rows += [("oc", n_acc * s), ("od", n_acc), ("oe", n_acc)] if n_acc else []
+        columns = None if columns is None else checked_columns(columns, n_acc, s)
+        n_c = n_acc * s if columns is None else sum(map(len, columns))
+        rows += [("oc", n_c), ("od", n_acc), ("oe", n_acc)] if n_acc else []
     P = _Rows("P", w, rows)
     X = _Rows("X", w, [("x", s)])
 
@@ -95,7 +100,8 @@ def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
             L += [f"{t}xq = {P('xq')}", f"{t}kq = {P('kq')}"]
         L += _cubic_force_lines(t, n, "x", "f", stop, springs)
         if read:
-            L += sensor_lines(t, outputs, n, s, P, [("od", "uk")], force="f")
+            L += sensor_lines(t, outputs, n, s, P, [("od", "uk")], force="f",
+                              columns=columns)
         for r in R:
             prods = ([(P('A', r * s + j), f"x{j}") for j in R]
                      + [(P('p', r * n + j), f"f{j}") for j in C])
@@ -118,13 +124,14 @@ def cubic_kernel(n: int, width: int, per_lane: bool = False, stop: int = 0,
     tag = f" stop{stop:+d}" if stop else ""
     tag += "" if chain else " springs=" + ",".join(f"{a}:{b}" for a, b in springs)
     tag += "" if outputs is None else " outputs=" + ",".join(f"{k}:{o}" for k, o in outputs)
+    tag += "" if columns is None else f" columns={columns}"
     if per_lane:
         return _compile(_lane_inputs(L, w), f"<bayesmodal cubic n={n} w={w} per-lane{tag}>")
     return _compile(L, f"<bayesmodal cubic n={n} w={w}{tag}>")
 
 
 def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, outputs=None,
-              out_map=None):
+              out_map=None, columns=None):
     """Cubic spring forces ``k3_i d_i^3`` by the exponential Runge-Kutta scheme ETD2RK.
 
     Predictor with the force held over the sub-step (``F0h``), corrector with the force
@@ -155,6 +162,9 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, outpu
         are ``C x[k] + D u[k] + E f(x[k])`` with ``f`` the spring and stop forces on the
         carts at the sample (``effects._linear.sensor_map``).  Default: the cart
         positions.
+    columns : tuple of tuple of int, optional
+        The states each acceleration sensor's row of ``C`` can involve (the rig's
+        structure, ``effects._linear.acceleration_columns``); default all.
 
     Returns
     -------
@@ -173,6 +183,6 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, outpu
     if outputs is not None:
         outputs = checked_outputs(outputs, n)
         n_out = len(outputs)
-        params += acceleration_rows(outputs, *out_map)
-        kernel = functools.partial(kernel, outputs=outputs)
+        params += acceleration_rows(outputs, *out_map, columns=columns)
+        kernel = functools.partial(kernel, outputs=outputs, columns=columns)
     return run_batched(kernel, params, [x0], u, n_out, int(n_sub))
