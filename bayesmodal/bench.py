@@ -25,7 +25,9 @@ figures the project tracks: the Coulomb friction kernel on the rig-like input (a
 ``sensor_kinds``: the linear simulator with an accelerometer on every cart (modal
 recursion read through ``lambda^2`` gains, plus the input's feedthrough) against the same
 simulator with an encoder on every cart, in the same run; at most
-``ACCELERATION_MAX_RATIO``.
+``ACCELERATION_MAX_RATIO``.  ``effect_sensor_kinds``: the same pair through effects'
+simulators (``EFFECT_KINDS``: a plant kernel reading the forces at the sample, and the
+motor lag's linear recursion).
 """
 
 from __future__ import annotations
@@ -39,11 +41,12 @@ import scipy.signal
 
 from .model.effects import EXTENSIONS, get_extension
 from .model.simulate import LinearSimulator, simulate_linear, step_groups
-from .model.system import LinearModel, Rig
+from .model.system import LinearModel, Rig, Sensor
 
 __all__ = ["ACCELERATION_MAX_RATIO", "BEST_COMBINED", "BUSY_LOAD_PER_CORE", "COMBINED",
            "COMBINED_MAX_RATIO", "EXTENSION_MAX_RATIO", "bench_extensions", "bench_linear",
-           "bench_sensor_kinds", "extension_theta", "headline", "machine_load", "rig_input",
+           "bench_effect_sensor_kinds", "bench_sensor_kinds", "EFFECT_KINDS",
+           "extension_theta", "headline", "machine_load", "rig_input",
            "time_per_call"]
 
 #: Report Table 3 (free damping), the centre of the benchmark parameter cloud.
@@ -350,6 +353,69 @@ def bench_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0, dt: flo
         "target": ACCELERATION_MAX_RATIO,
         "meets_target": bool(ratio <= ACCELERATION_MAX_RATIO),
     }
+
+
+#: Effects whose acceleration outputs ``bench_effect_sensor_kinds`` times: a plant kernel
+#: (cubic springs, their forces read at each sample in the kernel) and the motor lag (the
+#: linear recursion with a lag state).
+EFFECT_KINDS = ("cubic_stiffness", "motor_lag")
+
+
+def bench_effect_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0,
+                              dt: float = 0.005, quick: bool = False, rounds: int = 3,
+                              names: tuple[str, ...] = EFFECT_KINDS) -> dict:
+    """Time effects' acceleration outputs against their position outputs.
+
+    ``Extension.simulate`` of each effect (its benchmark parameters, ``extension_theta``)
+    on the three-cart rig read by an accelerometer on every cart, against the same rig
+    read by an encoder on every cart: the benchmark's parameter cloud and rig-like input
+    (``rig_input``), alternating rounds in CPU time of the process.
+
+    Parameters
+    ----------
+    n_samples : int
+        Record length N.
+    batch : int
+        Parameter sets per call.
+    rng : int or numpy.random.Generator
+        Seed for the parameter cloud.
+    dt : float
+        Sample interval, s.
+    quick : bool
+        Shorter timing (for tests).
+    rounds : int
+        Alternating rounds; each ratio is their median.
+    names : tuple of str
+        Effects (or ``+``-joined combinations) to time.
+
+    Returns
+    -------
+    dict
+        Per effect: ``us_per_eval_position``, ``us_per_eval_acceleration`` (per
+        parameter set, medians), ``ratio`` (acceleration / position, median over rounds),
+        ``ratio_per_round``, ``target`` (``ACCELERATION_MAX_RATIO``), ``meets_target``.
+    """
+    _, theta, _ = _bench_problem(n_samples, batch, rng)
+    u = rig_input(n_samples, dt)
+    carts = [c.name for c in Rig().carts]
+    rigs = [Rig(sensors=tuple(Sensor(c, unit) for c in carts)) for unit in ("m", "m/s^2")]
+    min_time = 0.2 if quick else 1.0
+    out = {}
+    for name in names:
+        ext, th = get_extension(name), extension_theta(theta, name)
+        times = np.zeros((rounds, 2))
+        for r, j in np.ndindex(rounds, 2):
+            def call(rig=rigs[j], ext=ext, th=th):
+                return ext.simulate(rig, th, u, dt)
+            times[r, j] = time_per_call(call, min_time_s=min_time, clock=time.process_time)
+        ratios = times[:, 1] / times[:, 0]
+        ratio = float(np.median(ratios))
+        out[name] = {"us_per_eval_position": float(np.median(times[:, 0])) / batch * 1e6,
+                     "us_per_eval_acceleration": float(np.median(times[:, 1])) / batch * 1e6,
+                     "ratio": ratio, "ratio_per_round": [float(x) for x in ratios],
+                     "target": ACCELERATION_MAX_RATIO,
+                     "meets_target": bool(ratio <= ACCELERATION_MAX_RATIO)}
+    return out
 
 
 def _bench_problem(n_samples: int, batch: int, rng):

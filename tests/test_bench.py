@@ -11,7 +11,9 @@ from bayesmodal.bench import (
     BUSY_LOAD_PER_CORE,
     COMBINED,
     COMBINED_MAX_RATIO,
+    EFFECT_KINDS,
     EXTENSION_MAX_RATIO,
+    bench_effect_sensor_kinds,
     bench_extensions,
     bench_sensor_kinds,
     headline,
@@ -58,6 +60,7 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
     st = out["stamps"]
     assert st["n_distinct_steps"] >= 2 and st["target"] == 1.5
     assert out["sensor_kinds"]["target"] == ACCELERATION_MAX_RATIO
+    assert set(out["effect_sensor_kinds"]) == set(EFFECT_KINDS)
     assert st["meets_target"] == (st["ratio"] <= st["target"])
     s = out["sampler"]
     assert s["n_samples"] == 300
@@ -76,6 +79,7 @@ def test_bench_cli_json_keeps_linear_keys_and_adds_extensions(capsys):
                  "--no-extensions", "--no-sampler"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert "extensions" not in out and "sampler" not in out
+    assert "effect_sensor_kinds" not in out
 
 
 def test_bench_sensor_kinds_reports_the_median_ratio_of_paired_rounds():
@@ -85,6 +89,16 @@ def test_bench_sensor_kinds_reports_the_median_ratio_of_paired_rounds():
     assert out["ratio"] == np.median(out["ratio_per_round"])
     assert out["target"] == ACCELERATION_MAX_RATIO == 1.3
     assert out["meets_target"] == (out["ratio"] <= 1.3)
+
+
+def test_bench_effect_sensor_kinds_times_each_effect_in_paired_rounds():
+    out = bench_effect_sensor_kinds(n_samples=300, batch=4, quick=True, rounds=3)
+    assert set(out) == set(EFFECT_KINDS) == {"cubic_stiffness", "motor_lag"}
+    for r in out.values():
+        assert r["us_per_eval_position"] > 0 and r["us_per_eval_acceleration"] > 0
+        assert len(r["ratio_per_round"]) == 3
+        assert r["ratio"] == np.median(r["ratio_per_round"])
+        assert r["meets_target"] == (r["ratio"] <= ACCELERATION_MAX_RATIO)
 
 
 def test_rig_input_has_pulses_steps_and_a_sweep():

@@ -102,11 +102,12 @@ def test_unknown_sensor_key_is_refused():
         two_cart([{"cart": "1", "unit": "g", "scale": 2.0}])
 
 
-def test_effects_refuse_non_position_sensors():
+def test_friction_refuses_non_position_sensors():
+    # (the effects that read every kind: tests/test_effect_sensor_kinds.py)
     rig = Rig(carts=(Cart("1"), Cart("2")),
               springs=(Spring("1", "2", 774.0), Spring("2", "frame", 770.0)),
               drive=(Drive("1"),), sensors=(Sensor("1", "g"), Sensor("2", "g")))
-    ext = get_extension("cubic_stiffness")
+    ext = get_extension("coulomb_friction")
     why = ext.unsupported(rig)
     assert why is not None and "position sensors only" in why and "fit_lsq" in why
     assert "\n" not in why

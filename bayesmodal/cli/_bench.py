@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..bench import (
     COMBINED_MAX_RATIO,
     EXTENSION_MAX_RATIO,
+    bench_effect_sensor_kinds,
     bench_extensions,
     bench_linear,
     bench_sensor_kinds,
@@ -47,6 +48,9 @@ def run(args) -> int:
            "stamps": bench_stamps(args.samples, args.batch, quick=args.quick),
            "sensor_kinds": bench_sensor_kinds(args.samples, args.batch, quick=args.quick)}
     if not args.no_extensions:
+        out["effect_sensor_kinds"] = bench_effect_sensor_kinds(args.samples, args.batch,
+                                                               quick=args.quick)
+    if not args.no_extensions:
         names = None if args.extensions is None else tuple(
             n.strip() for n in args.extensions.split(",") if n.strip())
         out["extensions"] = bench_extensions(args.samples, args.batch, quick=args.quick,
@@ -77,6 +81,10 @@ def run(args) -> int:
         print(f"acceleration outputs: {sk['us_per_eval_acceleration']:.1f} us/eval, "
               f"{sk['ratio']:.2f}x position outputs (target <= {sk['target']:g}x: "
               f"{'met' if sk['meets_target'] else 'NOT MET'})")
+        for name, r in out.get("effect_sensor_kinds", {}).items():
+            print(f"  through {name}: {r['us_per_eval_acceleration']:.1f} us/eval, "
+                  f"{r['ratio']:.2f}x its position outputs "
+                  f"({'met' if r['meets_target'] else 'NOT MET'})")
         if "extensions" in out:
             print(f"model extensions (cost per evaluation vs the linear simulator, median of "
                   f"rounds; target <= {EXTENSION_MAX_RATIO:g}x, combinations "

@@ -9,6 +9,7 @@ its matrices directly).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ class _Layout:
     outputs: np.ndarray | None  # sensor DOF indices, None when every DOF in order
 
 
+@functools.lru_cache(maxsize=64)  # a rig is immutable; its layout is read, never written
 def _layout(rig: Rig, damping: str) -> _Layout:
     n = rig.n_carts
     free = rig.free_carts

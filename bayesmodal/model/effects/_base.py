@@ -15,7 +15,7 @@ import numpy as np
 
 from ..._errors import DataError, ModelError
 from ..system import LinearModel, Rig
-from ._linear import kernel_order, outputs_from_kernel, state_to_kernel
+from ._linear import kernel_order, outputs_from_kernel, sensor_spec, state_to_kernel
 
 __all__ = ["ParamSpec", "EffectLocation", "Extension", "cart_numbers"]
 
@@ -146,14 +146,18 @@ class Extension(ABC):
     #: one cart: every input-side effect needs one) or ``"one_drive"`` (a motor on exactly one cart:
     #: the effects at the driven cart, its end stop, backlash and lagged motor force).
     needs: str = ""
+    #: Sensor kinds the simulator reads (``Rig.output_kinds``): ``_simulate`` takes
+    #: ``outputs`` (``_linear.sensor_spec``) when it reads more than positions.
+    sensor_kinds: tuple[str, ...] = ("position",)
 
     def unsupported(self, rig: Rig) -> str | None:
         """Why the effect cannot act on ``rig`` (one line with the fix), None if it can."""
-        if not rig.positions_only:
-            kinds = sorted({k for k in rig.output_kinds if k != "position"})
-            return (f"{self.name}: the effects simulate position sensors only (m, mm, "
-                    f"count), this rig has {' and '.join(kinds)} sensors; fit the linear "
-                    "model (fit_lsq, sample_posterior), which simulates every sensor kind")
+        kinds = sorted(set(rig.output_kinds) - set(self.sensor_kinds))
+        if kinds:
+            return (f"{self.name}: simulates position sensors only (m, mm, count), this "
+                    f"rig has {' and '.join(kinds)} sensors; the input-side effects, "
+                    "cubic_stiffness and end_stop simulate every sensor kind, as does the "
+                    "linear model (fit_lsq, sample_posterior)")
         driven = [d.cart for d in rig.drive if d.share != 0.0]
         if (self.needs == "drive" or self.side == "input") and not driven:
             return (f"{self.name} acts on the motor input, and this rig has no drive; "
@@ -283,8 +287,11 @@ class Extension(ABC):
 
         Returns
         -------
-        y : ndarray, shape (N, n) or (nb, N, n)
-            Cart positions, m.
+        y : ndarray, shape (N, n_outputs) or (nb, N, n_outputs)
+            What each sensor reads (``rig.sensors``), in SI along +x as
+            ``simulate_linear``: position m, velocity m/s, acceleration m/s^2 (at the
+            sample, with the input held from it and the nonlinear forces at the sample's
+            state: their feedthrough included).
 
         Raises
         ------
@@ -316,9 +323,14 @@ class Extension(ABC):
             x0b = np.ascontiguousarray(np.broadcast_to(x0, (nb, s)))
         lin, ext = self.split(rig, theta)
         order = kernel_order(rig)
-        y = self._simulate(rig, np.ascontiguousarray(lin), np.ascontiguousarray(ext), u, dt,
-                           state_to_kernel(order, x0b))
-        y = self.transform_output(rig, ext, outputs_from_kernel(order, y))
+        args = (rig, np.ascontiguousarray(lin), np.ascontiguousarray(ext), u, dt,
+                state_to_kernel(order, x0b))
+        spec = sensor_spec(rig)
+        if spec is None:
+            y = outputs_from_kernel(order, self._simulate(*args))
+        else:  # velocity or acceleration sensors: each read in the kernel, sensor order
+            y = self._simulate(*args, outputs=spec)
+        y = self.transform_output(rig, ext, y)
         return y[0] if single else y
 
     def transform_output(self, rig: Rig, theta_ext: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -345,7 +357,9 @@ class Extension(ABC):
         ``x0`` and the returned positions are in the kernels' order of the degrees of
         freedom (``_linear.kernel_order``: the driven cart first), ``theta_lin`` and
         ``theta_ext`` in the rig's; per-cart parameters are reordered with
-        ``_linear.to_kernel``.
+        ``_linear.to_kernel``.  An effect whose ``sensor_kinds`` go beyond positions also
+        takes ``outputs`` (``_linear.sensor_spec``, kernel degrees of freedom) and then
+        returns each sensor's reading, shape (nb, N, n_outputs), in sensor order.
         """
 
     # ------------------------------------------------------------------ location

@@ -158,3 +158,96 @@ def parts_from(M, C, K, b, A=None, B=None) -> LinearParts:
     F[:, n:, :] = inv_m[:, :, None] * np.eye(n)
     G = np.concatenate([-K, -C], axis=-1)
     return LinearParts(M, C, K, b, A, B, F, np.ascontiguousarray(G))
+
+
+#: Every sensor kind (``Rig.output_kinds``).
+ALL_KINDS = ("position", "velocity", "acceleration")
+
+
+def sensor_spec(rig: Rig) -> np.ndarray | None:
+    """Kernel degree of freedom and time derivative of each sensor, in sensor order.
+
+    Returns
+    -------
+    ndarray of int, shape (n_outputs, 2), or None
+        ``(k, order)``: kernel degree of freedom ``k`` (``kernel_order``) and 0 position,
+        1 velocity, 2 acceleration; None when every sensor reads a position (the kernels
+        then return positions, mapped by ``outputs_from_kernel``).
+    """
+    if rig.positions_only:
+        return None
+    inverse = kernel_order(rig).inverse
+    free = rig.free_carts
+    return np.array([(int(inverse[free.index(s.cart)]), s.order) for s in rig.sensors],
+                    dtype=np.int64)
+
+
+def sensor_map(A: np.ndarray, B: np.ndarray, spec: np.ndarray, n: int,
+               force_inputs: np.ndarray | None = None):
+    """Each sensor's reading as a row of the state, the held input and the plant forces.
+
+    A sensor reads ``y = C z + D u + E f`` at the sample: a position or a velocity is a
+    state; an acceleration is a velocity row of ``z' = A z + B u + F f``, with ``u`` the
+    input held from the sample (its feedthrough) and ``f`` the nonlinear forces on the
+    carts at the sample's state.
+
+    Parameters
+    ----------
+    A : ndarray, shape (nb, s, s)
+        State matrix; the first ``2 n`` states are ``(x, x')`` in kernel order (more states,
+        e.g. a lagged motor force, after them).
+    B : ndarray, shape (nb, s)
+        Input vector, per input unit.
+    spec : ndarray of int, shape (n_out, 2)
+        ``sensor_spec``.
+    n : int
+        Degrees of freedom.
+    force_inputs : ndarray, shape (nb, s, n), optional
+        How a force on each cart enters ``z'`` (``LinearParts.force_inputs``); None when
+        there are no plant forces.
+
+    Returns
+    -------
+    C : ndarray, shape (nb, n_out, s)
+    D : ndarray, shape (nb, n_out)
+    E : ndarray, shape (nb, n_out, n), or None without ``force_inputs``
+    """
+    nb, s = B.shape
+    C = np.zeros((nb, len(spec), s))
+    D = np.zeros((nb, len(spec)))
+    E = None if force_inputs is None else np.zeros((nb, len(spec), n))
+    for o, (k, order) in enumerate(spec):
+        if order < 2:
+            C[:, o, order * n + k] = 1.0
+            continue
+        C[:, o] = A[:, n + k]
+        D[:, o] = B[:, n + k]
+        if E is not None:
+            E[:, o] = force_inputs[:, n + k]
+    return C, D, E
+
+
+@functools.lru_cache(maxsize=64)
+def _coupling(rig: Rig) -> tuple[np.ndarray, np.ndarray]:
+    """Which carts each cart's springs and dampers join it to: the nonzero patterns of
+    ``K`` and ``C`` (n, n) in kernel order, from the matrices at unit parameters (every
+    element present, none cancelling: diagonal entries are sums of positive values)."""
+    p = linear_parts(rig, np.ones((1, LinearModel(rig, "free").n_params)))
+    return p.K[0] != 0.0, p.C[0] != 0.0
+
+
+def acceleration_columns(rig: Rig, spec: np.ndarray) -> tuple[tuple[int, ...], ...]:
+    """The states each acceleration sensor's row of the state matrix can involve: the
+    positions and velocities of the carts its springs and dampers join, in kernel order
+    (a compiled kernel then reads those entries only).
+
+    Parameters
+    ----------
+    rig : Rig
+    spec : ndarray of int, shape (n_out, 2)
+        ``sensor_spec``.
+    """
+    K, C = _coupling(rig)
+    n = K.shape[0]
+    return tuple(tuple(np.flatnonzero(K[k]).tolist() + (n + np.flatnonzero(C[k])).tolist())
+                 for k, order in spec if order == 2)

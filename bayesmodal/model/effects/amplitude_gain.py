@@ -18,6 +18,7 @@ import numpy as np
 from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
+from ._linear import ALL_KINDS
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,7 @@ class AmplitudeGain(Extension):
     typical = (0.02,)
     description = "drive gain g_v (1 + kappa |v|) growing or falling with the voltage"
     exact = True
+    sensor_kinds = ALL_KINDS
     validity_rule = "linear part admissible, |kappa_per_V| <= 0.05 (a monotone drive up to 10 V)"
     side = "input"
     input_stage = 2.5
@@ -53,8 +55,9 @@ class AmplitudeGain(Extension):
         v = np.atleast_2d(v)
         return v * (1.0 + theta_ext[:, :1] * np.abs(v))
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
-        return linear_lanes_run(rig, theta_lin, self.transform_input(u, theta_ext), dt, x0)
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
+        return linear_lanes_run(rig, theta_lin, self.transform_input(u, theta_ext), dt, x0,
+                                outputs=outputs)
 
     def opt_bounds(self, rig):
         return np.array([-0.05]), np.array([0.05])

@@ -44,6 +44,7 @@ from ..._errors import ModelError
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec
 from ._input import held_average, linear_lanes_run
+from ._linear import ALL_KINDS, linear_parts
 from .end_stop import STOP_KERNELS
 
 #: Input-side effects that are linear filters handled by the linear plant recursion.
@@ -189,7 +190,12 @@ class Combined(Extension):
         return ok
 
     # ------------------------------------------------------------------ simulation
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    @property
+    def sensor_kinds(self) -> tuple[str, ...]:  # type: ignore[override]
+        """The sensor kinds every one of the effects simulates."""
+        return tuple(k for k in ALL_KINDS if all(k in e.sensor_kinds for e in self.effects))
+
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
         own = {e.name: np.ascontiguousarray(theta_ext[:, sl])
                for e, sl in zip(self.effects, self._slices(rig), strict=True)}
         inputs = sorted((e for e in self.effects if e.side == "input"),
@@ -197,6 +203,8 @@ class Combined(Extension):
         plant = self.plant
         force = self.plant_force
         extra = {} if force is None else {"stop": force.stop_args(own[force.name])}
+        if outputs is not None:  # sensors of other kinds (``sensor_kinds``)
+            extra["outputs"] = outputs
         kinds = [_kernel_stage(e) for e in inputs]
         if (plant is not None and getattr(plant, "fuses_input_stages", False)
                 and u.ndim == 1 and None not in kinds):
@@ -205,7 +213,7 @@ class Combined(Extension):
             stages = tuple((k, own[e.name][:, 0]) for k, e in zip(kinds, inputs, strict=True))
             return plant._simulate(rig, theta_lin, own[plant.name], u, dt, x0,
                                    input_stages=stages, **extra)
-        if extra and getattr(plant, "stop_needs_shared_input", False):
+        if force is not None and getattr(plant, "stop_needs_shared_input", False):
             raise ModelError(f"{self.name}: {force.name} with {plant.name} takes the input "
                              "stages offset, sharp dead band, saturation and amplitude gain "
                              "only (its kernel needs one input for all lanes)")
@@ -219,13 +227,21 @@ class Combined(Extension):
         if v.ndim == 2:
             v = np.ascontiguousarray(np.broadcast_to(v, (theta_lin.shape[0], v.shape[-1])))
         if plant is None:
-            return linear_lanes_run(rig, theta_lin, v, dt, x0, **filters)
+            return linear_lanes_run(rig, theta_lin, v, dt, x0, outputs=outputs, **filters)
         if not filters:
             return plant._simulate(rig, theta_lin, own[plant.name], v, dt, x0, **extra)
         n = int(self.n_hold)
         h = dt / n
-        w = held_average(np.repeat(v, n, axis=-1), h, theta_lin.shape[0], **filters)
-        return plant._simulate(rig, theta_lin, own[plant.name], w, h, x0, **extra)[:, ::n]
+        w, w0 = held_average(np.repeat(v, n, axis=-1), h, theta_lin.shape[0],
+                             with_start=True, **filters)
+        y = plant._simulate(rig, theta_lin, own[plant.name], w, h, x0, **extra)[:, ::n]
+        if outputs is None or not np.any(outputs[:, 1] == 2):
+            return y
+        # an acceleration feels the lagged or delayed force at the sample, not its mean
+        # over the first hold interval, which the kernel took as its input there
+        feed = linear_parts(rig, theta_lin).B[:, rig.n_carts + outputs[:, 0]]  # (nb, n_out)
+        jump = (w0 - w)[:, ::n]  # (nb, N)
+        return y + np.where(outputs[:, 1] == 2, feed, 0.0)[:, None, :] * jump[:, :, None]
 
     # ------------------------------------------------------------------ location
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

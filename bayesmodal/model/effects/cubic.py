@@ -18,7 +18,7 @@ import numpy as np
 from ..kernels import cubic_run, zoh
 from ..system import FRAME, Rig
 from ._base import EffectLocation, Extension, ParamSpec
-from ._linear import kernel_order, linear_parts
+from ._linear import ALL_KINDS, acceleration_columns, kernel_order, linear_parts, sensor_map
 
 
 def spring_label(rig: Rig, i: int) -> str:
@@ -58,6 +58,7 @@ class CubicStiffness(Extension):
     description = "spring force k_i d + k3_i d^3 (hardening k3 > 0, softening k3 < 0)"
     exact = False
     validity_rule = "linear part admissible, k3_i finite (either sign)"
+    sensor_kinds = ALL_KINDS
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         return tuple(
@@ -69,13 +70,16 @@ class CubicStiffness(Extension):
     def _valid_extension(self, rig, theta_lin, theta_ext):
         return np.all(np.isfinite(theta_ext), axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, stop=None):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, stop=None, outputs=None):
         p = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, F0h, F1h = zoh(p.A, p.force_inputs, h, ramp=True)
         Bh = np.einsum("bij,bj->bi", F0h, p.b)  # the motor is a force on the carts
+        out_map = None if outputs is None else sensor_map(p.A, p.B, outputs, rig.n_carts,
+                                                          p.force_inputs)
         return cubic_run(Ah, Bh, F0h, F1h, theta_ext, u, int(self.n_sub), x0, stop=stop,
-                         springs=kernel_order(rig).springs)
+                         springs=kernel_order(rig).springs, outputs=outputs, out_map=out_map,
+                         columns=None if outputs is None else acceleration_columns(rig, outputs))
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The spring with the largest relative cubic stiffness ``|k3_i| / k_i``."""

@@ -25,6 +25,7 @@ from ..._errors import ModelError
 from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
+from ._linear import ALL_KINDS
 
 
 def deadband(v: np.ndarray, v_dead: np.ndarray, width_v: float = 0.0) -> np.ndarray:
@@ -79,6 +80,7 @@ class DriveDeadband(Extension):
     typical = (0.05,)  # below the 0.2 V sweep of the benchmark: the carts still move
     description = "no motor force below |v| = v_dead (motor static friction, cogging)"
     exact = True
+    sensor_kinds = ALL_KINDS
     side = "input"
     input_stage = 1
 
@@ -94,8 +96,9 @@ class DriveDeadband(Extension):
     def transform_input(self, v, theta_ext):
         return deadband(np.atleast_2d(v), theta_ext[:, :1], self.width_v)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
-        return linear_lanes_run(rig, theta_lin, self.transform_input(u, theta_ext), dt, x0)
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
+        return linear_lanes_run(rig, theta_lin, self.transform_input(u, theta_ext), dt, x0,
+                                outputs=outputs)
 
     def start_grid(self, rig: Rig) -> np.ndarray:
         """No dead band and thresholds 0.05 to 0.5 V."""

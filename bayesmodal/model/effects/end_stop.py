@@ -31,7 +31,7 @@ from ..kernels import cubic_run, zoh
 from ..kernels.stop import checked_side
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
-from ._linear import kernel_order, linear_parts
+from ._linear import ALL_KINDS, acceleration_columns, kernel_order, linear_parts, sensor_map
 
 #: Plant-side effects whose kernels take the end stop's force next to their own.
 STOP_KERNELS = ("coulomb_friction", "coulomb_directional", "lugre_friction",
@@ -64,6 +64,7 @@ class EndStop(Extension):
     description = "a soft one-sided end stop of the driven cart (k_stop beyond x_stop)"
     exact = False
     validity_rule = "linear part admissible, x_stop > 0, k_stop >= 0, finite"
+    sensor_kinds = ALL_KINDS
     #: a force that the kernels of ``STOP_KERNELS`` add to their own (``Combined``)
     plant_force = True
     needs = "one_drive"
@@ -93,14 +94,17 @@ class EndStop(Extension):
         return (self.side, self.side * np.ascontiguousarray(theta_ext[:, 0]),
                 np.ascontiguousarray(theta_ext[:, 1]))
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
         p = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, F0h, F1h = zoh(p.A, p.force_inputs, h, ramp=True)
         Bh = np.einsum("bij,bj->bi", F0h, p.b)  # the motor is a force on the carts
         k3 = np.zeros((theta_lin.shape[0], rig.n_carts))
+        out_map = None if outputs is None else sensor_map(p.A, p.B, outputs, rig.n_carts,
+                                                          p.force_inputs)
         return cubic_run(Ah, Bh, F0h, F1h, k3, u, int(self.n_sub), x0,
-                         stop=self.stop_args(theta_ext))
+                         stop=self.stop_args(theta_ext), outputs=outputs, out_map=out_map,
+                         columns=None if outputs is None else acceleration_columns(rig, outputs))
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The driven cart, at the end of its travel on the stop's side; strength

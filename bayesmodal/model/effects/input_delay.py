@@ -20,11 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import linear_input_run, zoh
+from ..kernels import zoh
 from ..system import Rig
 from ._base import Extension, ParamSpec
-from ._input import split_delay
-from ._linear import linear_parts
+from ._input import input_sensor_map, sensors_run, split_delay
+from ._linear import ALL_KINDS, linear_parts
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,7 @@ class InputDelay(Extension):
     typical = (0.0123,)
     description = "pure time delay delay_s of the motor input (sub-sample, exact)"
     exact = True
+    sensor_kinds = ALL_KINDS
     side = "input"
     input_stage = 4
 
@@ -49,7 +50,7 @@ class InputDelay(Extension):
         return (ParamSpec("delay_s", "s", (0.0, 0.03), 0.0,
                           "time between the commanded voltage and the motor force", 0.002),)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
         n = rig.n_carts
         m, phi = split_delay(theta_ext[:, 0], dt)
         p = linear_parts(rig, theta_lin)
@@ -57,7 +58,8 @@ class InputDelay(Extension):
         A1, G1 = _blocks_variable_step(p.A, p.B, phi * dt)
         A2, G2 = _blocks_variable_step(p.A, p.B, (1.0 - phi) * dt)
         B1 = np.einsum("bij,bj->bi", A2, G1)
-        return linear_input_run(A2 @ A1, B1, G2, u, x0, n, shift=m)
+        out_map = None if outputs is None else input_sensor_map(p.A, p.B, outputs, n, phi)
+        return sensors_run(A2 @ A1, B1, G2, u, x0, n, out_map, shift=m)
 
 
 def _blocks_variable_step(A, B, steps):

@@ -17,6 +17,7 @@ import numpy as np
 from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
+from ._linear import ALL_KINDS
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class InputOffset(Extension):
     typical = (0.15,)
     description = "constant bias v_offset added to the motor voltage (amplifier offset)"
     exact = True
+    sensor_kinds = ALL_KINDS
     validity_rule = "linear part admissible, v_offset finite (either sign)"
     side = "input"
     input_stage = 0
@@ -49,8 +51,9 @@ class InputOffset(Extension):
     def transform_input(self, v, theta_ext):
         return np.atleast_2d(v) + theta_ext[:, :1]
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
-        return linear_lanes_run(rig, theta_lin, self.transform_input(u, theta_ext), dt, x0)
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
+        return linear_lanes_run(rig, theta_lin, self.transform_input(u, theta_ext), dt, x0,
+                                outputs=outputs)
 
     def opt_bounds(self, rig):
         return np.array([-np.inf]), np.array([np.inf])

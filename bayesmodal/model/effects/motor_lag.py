@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from ..system import Rig
 from ._base import Extension, ParamSpec
 from ._input import linear_lanes_run
+from ._linear import ALL_KINDS
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class MotorLag(Extension):
     typical = (0.01,)
     description = "first-order lag tau_s between motor voltage and force"
     exact = True
+    sensor_kinds = ALL_KINDS
     side = "input"
     input_stage = 3
     needs = "one_drive"  # the lagged force acts on the driven cart
@@ -44,7 +46,8 @@ class MotorLag(Extension):
                           "time constant of the first-order lag from voltage to motor force",
                           0.005),)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
         # the lag state's system and hold are shared with the combined models
         # (``_input.linear_lanes_run``; a lag far below dt is instantaneous there)
-        return linear_lanes_run(rig, theta_lin, u, dt, x0, tau=theta_ext[:, 0])
+        return linear_lanes_run(rig, theta_lin, u, dt, x0, tau=theta_ext[:, 0],
+                                outputs=outputs)

@@ -12,10 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import linear_input_run, zoh
+from ..kernels import zoh
 from ..system import Rig
 from ._base import Extension, ParamSpec
-from ._linear import linear_parts
+from ._input import input_sensor_map, sensors_run
+from ._linear import ALL_KINDS, linear_parts
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class InputSaturation(Extension):
     typical = (2.5,)
     description = "motor voltage (force) clipped at +-v_sat"
     exact = True
+    sensor_kinds = ALL_KINDS
     validity_rule = "linear part admissible, v_sat > 0 (inf allowed)"
     side = "input"
     input_stage = 2
@@ -50,12 +52,13 @@ class InputSaturation(Extension):
         v = theta_ext[..., 0]
         return ~np.isnan(v) & (v > 0)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
         n = rig.n_carts
         p = linear_parts(rig, theta_lin)
         Ad, Bd = zoh(p.A, p.B[..., None], dt)
-        return linear_input_run(Ad, np.zeros_like(Bd[..., 0]), Bd[..., 0], u, x0, n,
-                                level=theta_ext[:, 0])
+        out_map = None if outputs is None else input_sensor_map(p.A, p.B, outputs, n)
+        return sensors_run(Ad, np.zeros_like(Bd[..., 0]), Bd[..., 0], u, x0, n, out_map,
+                           level=theta_ext[:, 0])
 
     def opt_bounds(self, rig):
         return np.array([1e-3]), np.array([np.inf])

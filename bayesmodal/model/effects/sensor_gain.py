@@ -20,6 +20,7 @@ import numpy as np
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec
 from ._input import linear_lanes_run
+from ._linear import ALL_KINDS
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,7 @@ class SensorGain(Extension):
     typical = (1.03, 0.98)
     description = "each sensor after the first reads s_j times the motion (a scale error)"
     exact = True
+    sensor_kinds = ALL_KINDS
     validity_rule = "linear part admissible, s_j finite and > 0"
     side = "output"
 
@@ -57,8 +59,8 @@ class SensorGain(Extension):
     def _valid_extension(self, rig, theta_lin, theta_ext):
         return np.all(np.isfinite(theta_ext) & (theta_ext > 0), axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
-        return linear_lanes_run(rig, theta_lin, u, dt, x0)
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
+        return linear_lanes_run(rig, theta_lin, u, dt, x0, outputs=outputs)
 
     def transform_output(self, rig, theta_ext, y):
         return np.concatenate([y[..., :1], y[..., 1:] * theta_ext[:, None, :]], axis=-1)

@@ -368,3 +368,75 @@ def interleave(blocks: list[list[str]]) -> list[str]:
 def _sum(products) -> str:
     """Code of ``sum(a * b)``."""
     return " + ".join(f"{a} * {b}" for a, b in products)
+
+
+def checked_outputs(outputs, n: int) -> tuple[tuple[int, int], ...]:
+    """Sensors ``(k, order)`` as a tuple of integer pairs, degree of freedom ``0..n-1`` and
+    order 0-2 (only these reach generated source)."""
+    out = tuple((int(k), int(o)) for k, o in outputs)
+    for k, o in out:
+        if not (0 <= k < n and 0 <= o <= 2):
+            raise ValueError(f"outputs must be (dof 0..{n - 1}, order 0..2) pairs, got "
+                             f"{(k, o)}")
+    return out
+
+
+def checked_columns(columns, n_acc: int, s: int) -> tuple[tuple[int, ...], ...]:
+    """``columns`` as ``n_acc`` tuples of distinct state indices ``0..s-1`` (only these
+    reach generated source)."""
+    out = tuple(tuple(int(j) for j in c) for c in columns)
+    if len(out) != n_acc or any(len(set(c)) != len(c) or not all(0 <= j < s for j in c)
+                                for c in out):
+        raise ValueError(f"columns must be {n_acc} tuples of distinct states 0..{s - 1}, "
+                         f"got {columns!r}")
+    return out
+
+
+def sensor_lines(t: str, outputs, n: int, s: int, P: _Rows, feed: list[tuple[str, str]],
+                 force: str | None = None, columns=None) -> list[str]:
+    """Code writing each sensor's reading at the sample into ``Y[yo + o * width + b]``.
+
+    A position or velocity sensor copies a state (``x{order * n + k}``, compile-time
+    index); the ``a``-th acceleration sensor is ``fma``-summed from its rows ``oc`` (the
+    state-matrix row, ``s`` entries), the feedthrough products ``feed`` (``(row, input)``
+    pairs, e.g. ``("od", "uk")``), and with ``force`` its cart's nonlinear force
+    ``{force}{k}`` times row ``oe`` (``1 / m_k``).  ``columns``: the states each
+    acceleration row can involve (the rig's springs and dampers at that cart, compiled
+    in), default all ``s``; ``oc`` then holds those entries only.
+    """
+    lines, a, at_c = [], 0, 0
+    for o, (k, order) in enumerate(outputs):
+        at = f"Y[yo + {o * P.width} + b]"
+        if order < 2:
+            lines.append(f"{t}{at} = x{order * n + k}")
+            continue
+        (row, inp), *more = feed
+        cols = range(s) if columns is None else columns[a]
+        prods = [(P(r, a), i) for r, i in more] + [(P("oc", at_c + c), f"x{j}")
+                                                   for c, j in enumerate(cols)]
+        at_c += len(cols)
+        if force is not None:
+            prods.append((P("oe", a), f"{force}{k}"))
+        lines.append(f"{t}{at} = {_fma_sum(f'{P(row, a)} * {inp}', prods)}")
+        a += 1
+    return lines
+
+
+def acceleration_rows(outputs, C, D, E=None, columns=None) -> list[np.ndarray]:
+    """The parameter rows of ``sensor_lines`` from an output map (``C`` (nb, n_out, s),
+    ``D`` (nb, n_out) or a list of such, ``E`` (nb, n_out, n)): the acceleration sensors'
+    rows ``oc`` (their ``columns`` only, if given), then each of ``D``, then ``oe`` (each
+    cart's own ``E`` entry)."""
+    acc = [o for o, (_, order) in enumerate(outputs) if order == 2]
+    if not acc:
+        return []
+    nb = C.shape[0]
+    if columns is None:
+        rows = [C[:, acc].reshape(nb, -1)]
+    else:
+        rows = [np.concatenate([C[:, o, list(c)] for o, c in zip(acc, columns, strict=True)],
+                               axis=1)]
+    rows += [d[:, acc] for d in (D if isinstance(D, (list, tuple)) else [D])]
+    if E is not None:
+        rows.append(np.stack([E[:, o, outputs[o][0]] for o in acc], axis=-1).reshape(nb, -1))
+    return rows
