@@ -135,12 +135,21 @@ def test_exec_sites_take_no_outside_text():
             calls = {_name(n.func) for n in ast.walk(first) if isinstance(n, ast.Call)}
             names_ok = (re.search(r"not in [A-Z_]+\b", src) is not None
                         or bool(calls & checkers))
-            # pairs of integers are allowed when turned into integers in range first
-            # (the cubic kernel's spring ends, ``checked_springs``)
-            ints_ok = "checked_springs(" in src
-            assert kinds and all(k in ("int", "bool") or (k == "tuple[str, ...]" and names_ok)
-                                 or (k == "tuple[tuple[int, int], ...] | None" and ints_ok)
-                                 for k in kinds), (f, fn.name, kinds)
+            # tuples of integers are allowed when each is turned into integers in range
+            # before any line is built (the cubic kernel's spring ends, its sensors and
+            # their states: ``checked_springs``, ``checked_outputs``, ``checked_columns``)
+            # and tuples of flags when each is turned into a bool first
+            checked = {a.arg for a in fn.args.args if any(
+                re.search(rf"{chk}\({a.arg}\b", src) for chk in (
+                    "checked_springs", "checked_outputs", "checked_columns"))}
+            flags = {a.arg for a in fn.args.args
+                     if re.search(rf"tuple\(\(?bool\(\w+\) for \w+ in {a.arg}\)", src)}
+            assert kinds and all(
+                k in ("int", "bool") or (k == "tuple[str, ...]" and names_ok)
+                or (k in ("tuple[tuple[int, int], ...] | None",
+                          "tuple[tuple[int, ...], ...] | None") and a.arg in checked)
+                or (k == "tuple[bool, ...] | None" and a.arg in flags)
+                for k, a in zip(kinds, fn.args.args, strict=True)), (f, fn.name, kinds)
 
 
 # ---------------------------------------------------------------- configurations

@@ -31,6 +31,7 @@ def linear_input_kernel(n_states: int, n_out: int, width: int, shifted: bool, cl
     output) an output flagged True is ``S x_i + D1 ua + D2 ub`` (rows ``os``, ``od1``,
     ``od2``, one entry per flagged output).
     """
+    feeds = None if feeds is None else tuple(bool(f) for f in feeds)  # flags only
     s, w = n_states, width
     rows = [("A", s * s), ("B1", s), ("B2", s), ("lo", 1), ("hi", 1)]
     if mapped:
