@@ -138,7 +138,7 @@ def test_the_command_line_builds_the_description_of_the_file(described):
                               noise_scale="none", noise="ar1", initial_state="rest",
                               walkers=20, steps=30, burn=10, thin=2, seed=5, init="ball",
                               threads=1)
-    flags = description_from_args(args, "proportional")
+    flags = description_from_args(args, Rig(), "proportional")
     # the file also sets priors, [crossval] and [identify]: take those from it
     from dataclasses import replace
     same = replace(flags, model=replace(flags.model, priors=cfg.model.priors),
@@ -147,7 +147,7 @@ def test_the_command_line_builds_the_description_of_the_file(described):
     assert flags.likelihood_spec() == cfg.likelihood_spec()
     assert flags.sampler_spec().n_walkers == cfg.sampler_spec().n_walkers
     # negative control: another seed on the command line is another run
-    other = description_from_args(argparse.Namespace(**{**vars(args), "seed": 6}),
+    other = description_from_args(argparse.Namespace(**{**vars(args), "seed": 6}), Rig(),
                                   "proportional")
     assert replace(other, model=same.model, crossval=cfg.crossval,
                    identify=cfg.identify).hash() != cfg.hash()

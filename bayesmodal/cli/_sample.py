@@ -14,7 +14,7 @@ from ..inference.noise_spec import accepted_noise
 from ..inference.record_layout import parse_layout
 from ..inference.record_scale import NOISE_SCALES
 from ..model.rigs import rig_to_dict
-from ..model.system import LinearModel
+from ..model.system import LinearModel, Rig
 from ..runs import checkpoint_iteration
 from ..runs.description import (
     DataSection,
@@ -92,7 +92,7 @@ def add_sampler_args(p) -> None:
                    "same chain, faster for a costly likelihood (default 1)")
 
 
-def description_from_args(args, damping: str) -> RunConfig:
+def description_from_args(args, rig: Rig, damping: str) -> RunConfig:
     """The run description of ``bayesmodal sample``'s flags (the same object a run's TOML
     file makes, ``bayesmodal.runs.RunConfig``).
 
@@ -100,6 +100,9 @@ def description_from_args(args, damping: str) -> RunConfig:
     ----------
     args : argparse.Namespace
         The parsed flags (``add_data_args``, ``add_rig_argument``, ``add_sampler_args``).
+    rig : Rig
+        The rig of ``--rig`` (``load_rig``); written into the description only when the
+        flag names one.
     damping : {"free", "proportional"}
         The damping model (``damping_of``).
 
@@ -114,7 +117,7 @@ def description_from_args(args, damping: str) -> RunConfig:
         name="sample", source="bayesmodal sample",
         data=DataSection(files=tuple(str(p) for p in paths)),
         model=ModelSection(
-            rig=None if getattr(args, "rig", None) is None else rig_to_dict(load_rig(args)),
+            rig=None if getattr(args, "rig", None) is None else rig_to_dict(rig),
             damping=damping),
         records=RecordsSection(per_record=dict(layout.per_record),
                                noise_scale=layout.noise_scale),
@@ -142,7 +145,7 @@ def sample_to_dir(exps, args, damping: str, out: Path):
     if getattr(args, "fresh", False) and ckpt.exists():
         ckpt.unlink()
     try:
-        run = sample_posterior(exps, description_from_args(args, damping),
+        run = sample_posterior(exps, description_from_args(args, model.rig, damping),
                                progress=not args.quiet, backend=ckpt)
     except Exception:
         # a start that failed before any step leaves no folder behind (nothing to resume)

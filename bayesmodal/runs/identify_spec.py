@@ -146,12 +146,12 @@ class DiagnosisSpec:
             Sample the found model's posterior at the end of the diagnosis (the workflow
             samples it in its own stage).
         """
+        weights = self.resolved_weights(n_train)
         return DiagnoseSpec(candidates=self.candidate_names(rig), n_null=self.n_null,
                             posterior=posterior, n_starts=self.n_starts,
                             max_effects=self.max_effects,
                             global_search=self.global_search,
-                            weights=None if self.resolved_weights(n_train) == "none"
-                            else self.resolved_weights(n_train))
+                            weights=None if weights == "none" else weights)
 
 
 @dataclass(frozen=True)

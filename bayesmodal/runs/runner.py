@@ -360,11 +360,12 @@ def _pipeline(prep: PreparedRun, folder: RunFolder, action: str, progress: bool,
             log.info("sampling %d walkers x %d steps (%d already in the checkpoint), seed %d",
                      cfg.sampler.walkers, cfg.sampler.steps, steps_before, cfg.sampler.seed)
             temperature, calibration, study = _temperature(prep, folder)
+            # the model, moves and priors prepare_run checked, not built again
             run = sample_posterior(
-                list(prep.experiments), cfg,
+                list(prep.experiments), prep.model,
                 cfg.likelihood_spec(noise=prep.noise, temperature=temperature),
-                cfg.sampler_spec(progress=progress, warn=False),
-                priors=prep.priors, start=start, backend=backend)
+                cfg.sampler.spec(prep.moves, progress=progress, warn=False),
+                priors=prep.priors, start=start, rng=cfg.seed, backend=backend)
             log.info("sampling done: %d evaluations in %.1f s", run.n_evaluations,
                      run.elapsed_s)
         with stages.stage("posterior"):
