@@ -51,7 +51,10 @@ def test_sample_writes_run_folder_and_resumes(csv_path, tmp_path, capsys):
     assert rc == 0
     again = json.loads(capsys.readouterr().out)
     assert again["parameters"] == s["parameters"]
-    assert again["performance"]["n_evaluations"] == 0
+    # the finished chain's own sampling figures, kept in its checkpoint (not 0 evaluations
+    # over the resumed call's fraction of a second)
+    assert again["performance"] == s["performance"]
+    assert s["performance"]["n_evaluations"] == 32 * (60 + 1)
 
 
 def test_compare_runs_without_evidence(csv_path, tmp_path, capsys):

@@ -181,8 +181,11 @@ def _print_text(summary: dict, out: Path, kinds: tuple[str, ...] = ()) -> None:
     print(f"diagnostics: max R-hat {dg['max_rhat']:.3f}, min ESS {dg['min_ess']:.0f}, "
           f"N/tau {dg['n_over_tau']:.0f}, acceptance {dg['acceptance']:.2f}, "
           f"converged {dg['converged']}")
-    print(f"performance: {perf['evaluations_per_s']:.0f} likelihood evaluations/s, "
-          f"{perf['ess_per_s']:.1f} effective samples/s, {perf['sampling_time_s']:.1f} s")
+    if perf["n_evaluations"] and perf["evaluations_per_s"]:
+        print(f"performance: {perf['evaluations_per_s']:.0f} likelihood evaluations/s, "
+              f"{perf['ess_per_s']:.1f} effective samples/s, {perf['sampling_time_s']:.1f} s")
+    else:  # a checkpoint finished before its sampling time was recorded
+        print("performance: not measured (the chain was read from its checkpoint)")
     if summary["lsq_outside_interval"]:
         print("LSQ outside the 90 % interval:", ", ".join(summary["lsq_outside_interval"]))
 

@@ -96,6 +96,7 @@ def run_ensemble(log_post, priors: PriorSet, centre: np.ndarray, sampler: Sample
     split = restart if restart is not None else prune  # the one step between two stages
     seed2 = restart_seed(gen, split)
     be, done = _open_backend(backend, n_walkers, n_par, chash)
+    resumed = done > 0
     moves = default_moves() if sampler.moves is None else sampler.moves
     progress = sampler.progress
     # each half-ensemble in blocks of walkers on ``threads`` threads: the same numbers
@@ -148,6 +149,14 @@ def run_ensemble(log_post, priors: PriorSet, centre: np.ndarray, sampler: Sample
                 _advance(emc, state, n_steps - split, progress, check=False)
             n_eval += n_walkers * (n_steps - split + 1)
         elapsed = time.perf_counter() - t0
+    # a resumed run reports the whole chain's sampling: the earlier parts' time and
+    # evaluations are kept in the checkpoint (a finished chain resumed adds nothing)
+    if resumed:
+        elapsed = (elapsed if n_eval else 0.0) + float(
+            _backend_attr(be, "bayesmodal_elapsed_s") or 0.0)
+        n_eval += int(_backend_attr(be, "bayesmodal_n_evaluations") or 0)
+    _set_backend_attr(be, "bayesmodal_elapsed_s", elapsed)
+    _set_backend_attr(be, "bayesmodal_n_evaluations", n_eval)
     return EnsembleRun(be, elapsed, n_eval)
 
 
