@@ -231,7 +231,8 @@ def inspect_file(path, options: ReadOptions | None = None) -> Inspection:
     >>> t = np.arange(400) * 0.005
     >>> rows = ["t,v,x1"] + [f"{a},{0.5 * (a > 0.5)},{1e-3 * (a > 0.5)}" for a in t]
     >>> p = os.path.join(tempfile.mkdtemp(), "step.csv")
-    >>> _ = open(p, "w").write("\\n".join(rows) + "\\n")
+    >>> with open(p, "w") as f:
+    ...     _ = f.write("\\n".join(rows) + "\\n")
     >>> r = inspect_file(p)
     >>> r.n_samples, r.time_base, [e.t_s for e in r.events], r.fit_command.split()[:2]
     (400, 'uniform', [0.505], ['bayesmodal', 'lsq'])

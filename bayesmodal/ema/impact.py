@@ -261,7 +261,7 @@ def correct_exponential_window(est: ModalEstimate, tau_s: float) -> ModalEstimat
     --------
     >>> from bayesmodal.ema.result import modal_estimate
     >>> est = modal_estimate("demo", [-0.1 - 0.5 + 10j], [[1.0]])
-    >>> float(correct_exponential_window(est, 2.0).poles[0].real)
+    >>> round(float(correct_exponential_window(est, 2.0).poles[0].real), 12)
     -0.1
     """
     if not (np.isfinite(tau_s) and tau_s > 0):

@@ -209,7 +209,7 @@ class RunFolder:
     >>> import tempfile
     >>> folder = RunFolder(tempfile.mkdtemp())
     >>> with folder.lock():
-    ...     folder.write_status("running", config_hash="abc")
+    ...     _ = folder.write_status("running", config_hash="abc")
     >>> folder.status()["state"]
     'running'
     """

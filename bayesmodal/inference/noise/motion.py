@@ -98,7 +98,7 @@ def quantum_of(y: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
 
     Examples
     --------
-    >>> quantum_of(np.array([[0.0, 0.1], [2e-3, 0.25], [5e-3, 0.3]])).tolist()
+    >>> quantum_of(np.array([[0.0, 0.0], [1e-3, 0.2], [4e-3, 0.5]])).tolist()
     [0.001, 0.0]
     """
     y = np.asarray(y, dtype=float)
