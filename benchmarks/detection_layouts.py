@@ -15,6 +15,9 @@ Usage::
         --out detection_layouts.json
     python benchmarks/detection_layouts.py --layouts two_frame_at_drive --cases \\
         coulomb_friction,end_stop --seeds 3 --nulls 0
+
+With ``--out``, every diagnosis is written as soon as it is done, and a run given an
+existing file keeps its rows and runs only the rest (resume after a stop).
 """
 
 from __future__ import annotations
@@ -94,24 +97,60 @@ def main(argv=None) -> int:
             for case in a.cases.split(",") if case for s in range(a.seeds)]
     jobs += [(lay, "none", SEED_OFFSET + 1000 + s, a.samples) for lay in a.layouts.split(",")
              for s in range(a.nulls)]
+    # rows already in --out are kept (a long run resumes where it stopped); each new
+    # diagnosis is written as soon as it is done
+    rows = _done_rows(a.out, a.samples)
+    done = {(r["layout"], r["case"], r["seed"]) for r in rows}
+    todo = [j for j in jobs if j[:3] not in done]
     t0 = time.perf_counter()
-    if a.workers > 1:
-        with Pool(a.workers) as pool:
-            rows = pool.map(run_one, jobs, chunksize=1)
-    else:
-        rows = [run_one(j) for j in jobs]
+    with Pool(a.workers) if a.workers > 1 else _Serial() as pool:
+        for row in pool.imap_unordered(run_one, todo, chunksize=1):
+            rows.append(row)
+            if a.out:
+                _write(a.out, rows, a.samples)
     table = summarise(rows)
     print(f"{'layout':<20} {'case':<33} {'n':>4} {'rate':>7} {'se':>6}")
     for r in table:
         print(f"{r['layout']:<20} {r['case']:<33} {r['n']:>4} {r['rate']:>7.1%} {r['se']:>6.1%}")
-    print(f"{len(rows)} diagnoses in {time.perf_counter() - t0:.0f} s")
+    print(f"{len(todo)} diagnoses in {time.perf_counter() - t0:.0f} s ({len(rows)} in the table)")
     for r in rows:
         if not r["correct"]:
             print("missed:", r["layout"], r["case"], r["seed"], r["found"], r["truth"],
                   r["error"] or "")
     if a.out:
-        a.out.write_text(json.dumps({"table": table, "rows": rows}, indent=1, default=str))
+        _write(a.out, rows, a.samples)
     return 0
+
+
+class _Serial:
+    """``Pool``'s ``imap_unordered`` in this process (``--workers 1``)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    @staticmethod
+    def imap_unordered(fn, jobs, chunksize=1):
+        return map(fn, jobs)
+
+
+def _done_rows(out: Path | None, n_samples: int) -> list[dict]:
+    """The rows of an earlier run in ``out`` (empty without one); refused when that run
+    used records of another length."""
+    if out is None or not out.exists():
+        return []
+    old = json.loads(out.read_text())
+    if old.get("samples", n_samples) != n_samples:
+        raise SystemExit(f"{out} holds diagnoses of {old['samples']}-sample records, this "
+                         f"run asks for {n_samples}; give another --out")
+    return list(old["rows"])
+
+
+def _write(out: Path, rows: list[dict], n_samples: int) -> None:
+    out.write_text(json.dumps({"samples": n_samples, "table": summarise(rows), "rows": rows},
+                              indent=1, default=str))
 
 
 if __name__ == "__main__":
