@@ -31,6 +31,7 @@ from pathlib import Path
 
 _TESTS = Path(__file__).resolve().parent.parent / "tests"
 sys.path.insert(0, str(_TESTS))
+sys.path.insert(0, str(_TESTS.parent / "docs"))  # docs/_stamp.py
 
 import numpy as np  # noqa: E402
 
@@ -149,8 +150,10 @@ def _done_rows(out: Path | None, n_samples: int) -> list[dict]:
 
 
 def _write(out: Path, rows: list[dict], n_samples: int) -> None:
-    out.write_text(json.dumps({"samples": n_samples, "table": summarise(rows), "rows": rows},
-                              indent=1, default=str))
+    from _stamp import stamp  # date, commit and machine of the output
+
+    out.write_text(json.dumps({"samples": n_samples, "table": summarise(rows), "rows": rows,
+                               "stamp": stamp()}, indent=1, default=str))
 
 
 if __name__ == "__main__":
