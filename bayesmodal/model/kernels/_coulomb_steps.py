@@ -398,3 +398,42 @@ def _split_substep(t, PP, XX, SC, n, g, asym=False) -> list[str]:
               f"{tb}{XX('st', i)} = 1.0 if st{i} else 0.0", f"{tb}{XX('d', i)} = d{i}",
               f"{tb}{XX('xs', i)} = xs{i}"]
     return L
+
+
+def _coulomb_rates(t, P, X, n, width, asym=False, stop=0) -> list[str]:
+    """Code writing a lane's positions, velocities and accelerations at the sample into
+    ``Y[yo + (order * n + i) * width + b]`` (``order`` 0, 1, 2; cart ``i``).
+
+    Read from the lane's state at the sample, before any step: the positions and the
+    velocities are the states (a stuck cart's velocity is the exact zero the steps set),
+    the acceleration is ``(F_i + f_i) / m_i`` with ``F_i`` the net force with the input
+    held from the sample, ``uk``, and ``f_i`` the friction of that state: a stuck cart
+    whose ``|F_i|`` is below ``Fs_i`` is held (an exact 0), one at or past it breaks away
+    at the sample (``-Fc`` in the direction of ``F_i``), a sliding cart feels ``-Fc_i
+    dir_i``.  With ``stop`` (+1 or -1) the stop force enters ``uk`` at the step's
+    mid-point (``kernels.stop.stop_input_lines``): it is replaced by its value at the
+    driven cart's position at the sample.  Written once a sample for every lane, the
+    lanes the kernel skips at rest included.
+    """
+    s, w = 2 * n, width
+    R, C = range(s), range(n)
+    L = [f"{t}x{r} = {X('x', r)}" for r in R]
+    if stop:
+        L += [f"{t}uk = uk + {stop:+d}.0 * {P('kq')} * pq",
+              f"{t}pq = {stop:+d}.0 * (x0 - {P('xq')})",
+              f"{t}pq = pq if pq > 0.0 else 0.0",
+              f"{t}uk = uk - {stop:+d}.0 * {P('kq')} * pq"]
+    for i in C:
+        gz = _sum((P("G", i * s + j), f"x{j}") for j in R)
+        L += [f"{t}fc{i} = {P('fc', i)}"]
+        if asym:
+            L += [f"{t}fp{i} = fc{i}", f"{t}fn{i} = {P('fn', i)}"]
+        L += [f"{t}F{i} = {P('gb', i)} * uk + {gz}",
+              f"{t}st{i} = {X('st', i)} != 0.0",
+              f"{t}hold = st{i} & (abs(F{i}) < {P('fs', i)})",
+              f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} else {X('d', i)}",
+              f"{t}Y[yo + {i * w} + b] = x{i}",
+              f"{t}Y[yo + {(n + i) * w} + b] = x{n + i}",
+              f"{t}Y[yo + {(s + i) * w} + b] = 0.0 if hold else"
+              f" (F{i} - {_kinetic(i, f'd{i}', asym)} * d{i}) * {P('mi', i)}"]
+    return L
