@@ -21,7 +21,7 @@ from ._coulomb_steps import (
     _coulomb_load,
     _coulomb_predict,
     _coulomb_quiet_step,
-    _coulomb_rates,
+    _coulomb_read,
     _coulomb_store,
     _scratch_rows,
     _split_substep,
@@ -142,9 +142,9 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     ``fc`` forwards, ``fn`` backwards); ``stages`` (of ``INPUT_STAGES``, shared input
     only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``;
     ``stop`` (+1 or -1, shared input only): an end stop of that side on the driven cart,
-    rows ``xq`` (m) and ``kq`` (``k_stop / g_v``, V/m) (``kernels.stop``); ``rates``:
-    each sample's output is every cart's position, velocity and acceleration (``3 n``
-    rows, ``_coulomb_steps._coulomb_rates``) instead of its position.
+    rows ``xq`` (m) and ``kq`` (``k_stop / g_v``, V/m) (``kernels.stop``); ``rates``: it
+    takes ``cols`` (before ``Y``) and writes those rows of the carts' positions,
+    velocities and accelerations (``_coulomb_steps._coulomb_read``), not the positions.
     """
     stages = checked_stages(stages, per_lane)
     stop = checked_side(stop) if stop else 0
@@ -158,15 +158,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
               ("fs", n)] + ([("fn", n)] if asym else [])
     p_rows += [(f"s{j}", 1) for j in range(len(stages))]
     p_rows += [("xq", 1), ("kq", 1)] if stop else []
-    tag = (f"{' asym' * asym}{''.join(' ' + k for k in stages)}"
-           + (f" stop{stop:+d}" if stop else "") + (" rates" if rates else ""))
+    tag = f"{' asym' * asym}{''.join(' ' + k for k in stages)}{f' stop{stop:+d}' * bool(stop)}"
+    tag += " rates" * rates
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
-    if rates:  # the sample's outputs read from the lane's state and forces
-        L = _head("P, X, u, n_sub, h, Y", 3 * n, w, X, per_lane)[: -3 * n]
-        L += _coulomb_rates(" " * 12, P, X, n, w, asym, stop)
-    else:
-        L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    if rates:  # the sensors' rows ``cols`` of the lane's rates, n_out a sample
+        L = [L[0].replace("h, Y", "h, cols, Y"), "    n_out = cols.shape[0]",
+             *_aligned_lines("Z", str(3 * n * w)), *L[1:-n - 2], f"        yo = k * n_out * {w}"]
     L[1:1] = ["    nref = 0", "    nrest = 0"]
 
     def corrected(t, P, X):
@@ -175,6 +174,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
                 + _coulomb_events(t, P, n, asym) + _coulomb_store(t, X, n))
 
     if not adaptive:
+        L += _coulomb_read(P, X, n, w, 0, asym, stop) if rates else []
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16, P, X)
         L += ["    return nref, nrest"]
@@ -225,6 +225,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     same = "False" if per_lane else "k > 0 and u[k] == u[k - 1]"
     L += ["        nf = 0",
           f"        same = {same}",
+          *(_coulomb_read(P, X, n, w, g, asym, stop) if rates else []),
           f"        for g0 in range(0, {w}, {g}):",
           f"            if same and rested[g0 // {g}]:",
           "                nrest += 1",
@@ -362,8 +363,9 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     outputs : ndarray of int, shape (n_out, 2), optional
         Sensors ``(k, order)`` to read (``effects._linear.sensor_spec``): cart ``k``'s
         position (0), velocity (1) or acceleration (2) at each sample.  The kernel then
-        writes every cart's three (one compiled variant for any set of sensors) and the
-        sensors' columns are taken from them.  The velocity is the state; the
+        reads every cart's three into a scratch block and copies the sensors' rows, an
+        index array given at run time (one compiled variant for any set of sensors;
+        ``_coulomb_steps._coulomb_read``).  The velocity is the state; the
         acceleration at a sample is that of the sample's own state, ``(F + f) / m``, with
         ``F`` the net force of the springs, dampers, the input held from the sample (and
         the end stop, at the sample's position) and ``f`` the friction of that state:
@@ -411,7 +413,6 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         kernel = functools.partial(kernel, stop=checked_side(side))
     if outputs is None:
         return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
-    columns = [order * n + k for k, order in checked_outputs(outputs, n)]
-    y = run_batched(functools.partial(kernel, rates=True), params, state, u, 3 * n,
-                    int(n_sub), float(h))
-    return y[:, :, columns]
+    cols = np.array([order * n + k for k, order in checked_outputs(outputs, n)], np.int64)
+    return run_batched(functools.partial(kernel, rates=True), params, state, u, cols.size,
+                       int(n_sub), float(h), cols)
