@@ -392,3 +392,23 @@ def test_friction_rates_on_other_layouts(make):
     a, size = friction_acceleration(model, lin, levels, y, u)
     np.testing.assert_array_less(np.abs(y[:, 6:] - a), 16 * EPS * size + 1e-300)
     assert (y[:, 3:6] == 0.0).sum() > 50 and (y[:, 3:6] != 0.0).sum() > 50
+
+
+def test_friction_behind_a_motor_lag_holds_its_stuck_carts_still(monkeypatch):
+    # the lag runs the friction kernel on a finer hold and adds the lagged force's jump
+    # at the sample to the accelerations; a cart that static friction holds reads 0
+    # whatever the force, so it gets none of it (the control: with the jump added, held
+    # carts read the lag's feedthrough)
+    from bayesmodal.model.effects.coulomb import CoulombFriction
+
+    ext = get_extension("coulomb_friction+motor_lag")
+    rig = rig_with(SI)
+    theta = np.r_[THETA, FRICTION["coulomb_friction"], 0.01]
+    y = ext.simulate(rig, theta, pulse(), DT)
+    still = y[:, 2:4] == 0.0
+    held = still & np.r_[still[1:], np.ones((1, 2), bool)]
+    assert held.sum() > 100
+    np.testing.assert_array_equal(y[:, 4:][held], 0.0)
+    monkeypatch.setattr(CoulombFriction, "holds_carts", False)
+    y_jump = ext.simulate(rig, theta, pulse(), DT)
+    assert np.abs(y_jump[:, 4:][held]).max() > 0.01 * np.abs(y[:, 4:]).max()
