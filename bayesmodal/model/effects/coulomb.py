@@ -16,6 +16,11 @@ Numerics: exact ZOH of the linear rig over a sample with the friction forces as 
 inputs; samples with an event are taken again in sub-steps ``h = dt / n_sub`` with the
 events located on cubic Hermite interpolants and corrected (see
 ``bayesmodal.model.kernels.coulomb_run``).
+
+Sensors of every kind: a velocity is the cart's state (an exact 0 while it is stuck), an
+acceleration is that of the sample's own state, ``(F_i + f_i) / m_i`` with the input held
+from the sample: 0 for a cart static friction holds, ``(F_i - Fc_i dir) / m_i`` for a
+sliding cart or one that breaks away at the sample.
 """
 
 from __future__ import annotations
