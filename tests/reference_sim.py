@@ -235,12 +235,13 @@ def simulate_cubic_ref(springs, theta, u, dt):
 
 
 # ---------------------------------------------------------------------------- stick-slip
-def simulate_coulomb_ref(springs, theta, u, dt):
+def simulate_coulomb_ref(springs, theta, u, dt, states=False):
     """Stick-slip friction, event-driven.
 
     Modes per cart: stuck (x' = 0 held while |F| < Fs) or sliding in direction d
     (friction -Fc d).  Events: a sliding cart's velocity reaching zero (then stick if
     |F| < Fs, else reverse) and a stuck cart's |F| reaching Fs (break away along F).
+    Returns the positions (N, n), or with ``states`` positions and velocities (N, 2n).
     """
     p = n_linear(springs)
     M, C, K, b = rig_matrices(springs, theta[:p])
@@ -250,7 +251,7 @@ def simulate_coulomb_ref(springs, theta, u, dt):
     minv = 1.0 / np.diag(M)
     N = len(u)
     t_s = np.arange(N) * dt
-    Y = np.empty((N, n))
+    Y = np.empty((N, 2 * n))
     z = np.zeros(2 * n)
     stuck = np.ones(n, bool)
     d = np.zeros(n)
@@ -292,7 +293,7 @@ def simulate_coulomb_ref(springs, theta, u, dt):
                 stuck[i] = False
                 d[i] = np.sign(F[i])
 
-    Y[0] = z[:n]
+    Y[0] = z
     for t0, t1, val in input_segments(u, dt):
         t = t0
         update_modes(z, val)
@@ -304,7 +305,7 @@ def simulate_coulomb_ref(springs, theta, u, dt):
             t_stop = sol.t[-1]
             take = mask & (t_s <= t_stop)
             if take.any():
-                Y[take] = sol.sol(t_s[take])[:n].T
+                Y[take] = sol.sol(t_s[take]).T
             z = sol.y[:, -1].copy()
             if sol.status == 1:  # an event
                 i = next(j for j, te in enumerate(sol.t_events) if len(te))
@@ -326,7 +327,7 @@ def simulate_coulomb_ref(springs, theta, u, dt):
                     if stuck[j]:
                         z[n + j] = 0.0
             t = t_stop
-    return Y
+    return Y if states else Y[:, :n]
 
 
 # ---------------------------------------------------------------------------- backlash
