@@ -66,7 +66,7 @@ ACTIVE = {
     "input_offset+drive_deadband+input_saturation+motor_lag+input_delay":
         [0.1, 0.2, 2.5, 0.01, 1.5 * DT],
 }
-REFUSED = ("coulomb_friction", "coulomb_directional", "lugre_friction", "backlash")
+REFUSED = ("coulomb_friction", "coulomb_directional")
 
 
 def rig_with(sensors, drive: str = "1") -> Rig:
