@@ -130,6 +130,10 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     states each acceleration row involves."""
     stages = checked_stages(stages, per_lane)
     stop = checked_side(stop) if stop else 0
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        columns = None if columns is None else checked_columns(
+            columns, sum(o == 2 for _, o in outputs), 2 * n)
     s, w = 2 * n, width
     R, C = range(s), range(n)
     blk = min(w, LANE_BLOCK)
@@ -143,9 +147,6 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     if outputs is None:
         L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     else:  # each sensor read from the state and the forces at the sample
-        outputs = checked_outputs(outputs, n)
-        columns = None if columns is None else checked_columns(
-            columns, sum(o == 2 for _, o in outputs), s)
         L = _head("P, X, u, n_sub, h, Y", len(outputs), w, X, per_lane)[: -len(outputs)]
         t = " " * 12
         L += [f"{t}x{r} = {X('x', r)}" for r in R]
@@ -197,7 +198,7 @@ def _sensor_rows(outputs, columns, s: int) -> list[tuple[str, int]]:
     """Parameter rows of the acceleration sensors (``sensor_lines``): ``oc`` (their rows
     of the state matrix, ``columns`` only if given), ``od`` (input) and ``oe`` (``1 /
     m_k``)."""
-    n_acc = 0 if outputs is None else sum(int(o) == 2 for _, o in outputs)
+    n_acc = 0 if outputs is None else sum(o == 2 for _, o in outputs)
     if not n_acc:
         return []
     n_c = n_acc * s if columns is None else sum(map(len, columns))
