@@ -358,8 +358,10 @@ def bench_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0, dt: flo
 #: Effects whose acceleration outputs ``bench_effect_sensor_kinds`` times: plant kernels
 #: reading their forces at each sample in the kernel (cubic springs; stick-slip friction,
 #: whose every lane reads its state and friction at each sample, the lanes it skips at
-#: rest too) and the motor lag (the linear recursion with a lag state).
-EFFECT_KINDS = ("cubic_stiffness", "coulomb_friction", "motor_lag")
+#: rest too; LuGre friction, its bristle force with an exponential per cart; backlash,
+#: the drive's mode) and the motor lag (the linear recursion with a lag state).
+EFFECT_KINDS = ("cubic_stiffness", "coulomb_friction", "lugre_friction", "backlash",
+                "motor_lag")
 
 
 def bench_effect_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0,

@@ -74,7 +74,6 @@ ACTIVE = {
     "input_offset+drive_deadband+input_saturation+motor_lag+input_delay":
         [0.1, 0.2, 2.5, 0.01, 1.5 * DT],
 }
-REFUSED = ("lugre_friction", "backlash")
 
 
 def rig_with(sensors, drive: str = "1") -> Rig:
@@ -108,7 +107,7 @@ def derivatives(x_fine, r: int, order: int, step: int, n_points: int = 8):
 
 @pytest.mark.parametrize("sensors", sorted(SETS))
 @pytest.mark.parametrize("drive", ["1", "2"])
-@pytest.mark.parametrize("name", sorted(set(EXTENSIONS) - set(REFUSED)) + [
+@pytest.mark.parametrize("name", sorted(EXTENSIONS) + [
     "cubic_stiffness+motor_lag", "end_stop+input_delay+input_offset"])
 def test_null_parameters_read_as_the_linear_model(name, drive, sensors):
     ext = get_extension(name)
@@ -250,16 +249,25 @@ def test_a_step_shows_the_feedthrough_a_difference_of_positions_misses(name):
         np.testing.assert_allclose(miss, feed / 2, rtol=0.05)
 
 
-@pytest.mark.parametrize("name", REFUSED)
-def test_friction_and_backlash_refuse_rate_sensors_naming_what_works(name):
+def test_every_registered_effect_reads_every_sensor_kind():
+    """Wherever an effect acts on a rig of position sensors, it acts on the same rig with
+    sensors of every kind (the next test is the control: a positions-only effect)."""
+    rig, positions = rig_with(SENSORS), rig_with(POSITIONS)
+    acting = [n for n, ext in EXTENSIONS.items() if ext.unsupported(positions) is None]
+    assert len(acting) > 10
+    assert {n: EXTENSIONS[n].unsupported(rig) for n in acting} == dict.fromkeys(acting)
+
+
+def test_an_effect_of_positions_only_refuses_rate_sensors_naming_what_works():
+    """An effect that declares position sensors only (the default of ``Extension``) is
+    refused on an accelerometer rig with the fix; with positions it simulates."""
+    base = type(EXTENSIONS["cubic_stiffness"])
+    ext = type("PositionsOnly", (base,), {"sensor_kinds": ("position",)})()
     rig = rig_with(SENSORS)
-    ext = EXTENSIONS[name]
     why = ext.unsupported(rig)
-    assert why is not None and "cubic_stiffness" in why and "input-side" in why
-    assert "coulomb_friction" in why
-    with pytest.raises(ModelError, match="simulate every sensor kind"):
+    assert why is not None and "every sensor kind" in why and "velocity" in why
+    with pytest.raises(ModelError, match="simulate"):
         ext.simulate(rig, ext.null_theta(rig, THETA), np.zeros(10), DT)
-    # with positions only they simulate as before
     assert ext.unsupported(rig_with(POSITIONS)) is None
 
 

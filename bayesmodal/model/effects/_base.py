@@ -155,10 +155,10 @@ class Extension(ABC):
         kinds = sorted(set(rig.output_kinds) - set(self.sensor_kinds))
         if kinds:
             return (f"{self.name}: simulates position sensors only (m, mm, count), this "
-                    f"rig has {' and '.join(kinds)} sensors; the input-side effects, "
-                    "cubic_stiffness, end_stop, coulomb_friction and coulomb_directional "
-                    "simulate every sensor kind, as does the linear model (fit_lsq, "
-                    "sample_posterior)")
+                    f"rig has {' and '.join(kinds)} sensors; every effect of the registry "
+                    "simulates every sensor kind, as does the linear model (fit_lsq, "
+                    "sample_posterior); describe the sensors as positions or use a "
+                    "registered effect")
         driven = [d.cart for d in rig.drive if d.share != 0.0]
         if (self.needs == "drive" or self.side == "input") and not driven:
             return (f"{self.name} acts on the motor input, and this rig has no drive; "

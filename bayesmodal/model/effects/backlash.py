@@ -14,6 +14,20 @@ The rig starts at rest with the pinion in the middle of the gap.  ``gap_m = 0`` 
 linear model.  Numerics: the two linear modes are stepped exactly (ZOH over sub-steps
 ``dt / n_sub``); switches are detected at sub-step boundaries and corrected to second
 order for the time since the event (see ``bayesmodal.model.kernels.backlash_run``).
+
+Sensors: every kind (``Rig.output_kinds``), read at the sample from the state there.  A
+position or velocity is the cart's state.  An acceleration is that of the mode the drive
+is in at the sample, once the first sub-step's switch checks (with the sample's input)
+are made: with the gap closed, cart 1 and the motor as one body, ``(F1 + g_v u) / m1``
+(the force transmitted through the contact included: cart 1 alone feels
+``F1 + Fcon``, ``Fcon`` as above, which is the same); with the gap open, cart 1 without
+the motor and without the drive force, ``F1 / (m1 - m_p)``.  ``F1`` is the spring and
+damper force on cart 1 and ``u`` the input held from the sample.  The other carts do not
+touch the drive: their accelerations are the linear model's rows in either mode.  The
+motor's own inertia carries no sensor (it is not a cart): with the gap open it
+accelerates at ``g_v u / m_p``, closed with cart 1.  An impact is an instantaneous
+velocity jump inside a sub-step: no sample's acceleration holds it (it shows as the
+jump of the velocity readings).
 """
 
 from __future__ import annotations
@@ -26,7 +40,14 @@ from ..._errors import ModelError
 from ..kernels import backlash_run, expm_batched, zoh
 from ..system import LinearModel, Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
-from ._linear import kernel_order, linear_parts, parts_from
+from ._linear import (
+    ALL_KINDS,
+    acceleration_columns,
+    kernel_order,
+    linear_parts,
+    parts_from,
+    sensor_map,
+)
 
 
 @dataclass(frozen=True)
@@ -50,6 +71,7 @@ class Backlash(Extension):
     name = "backlash"
     typical = (3e-4, 0.2)
     needs = "one_drive"
+    sensor_kinds = ALL_KINDS
     description = "gap gap_m in the rack-pinion drive of cart 1 (motor mass m_p, plastic contact)"
     exact = False
     validity_rule = "linear part admissible, gap_m >= 0, 0 < m_p < m1"
@@ -72,7 +94,7 @@ class Backlash(Extension):
         d = kernel_order(rig).driven
         return ok & (m_p < LinearModel(rig, "free").matrices(theta_lin)[0][..., d, d])
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, outputs=None):
         h = dt / self.n_sub
         gap = np.ascontiguousarray(theta_ext[:, 0])
         m_p = np.ascontiguousarray(theta_ext[:, 1])
@@ -83,9 +105,13 @@ class Backlash(Extension):
         M[:, 0, 0] -= m_p
         cart = parts_from(M, engaged.C, engaged.K, np.zeros_like(engaged.b))
         Adis = expm_batched(cart.A * h)
+        extra = {} if outputs is None else {
+            "outputs": outputs, "columns": acceleration_columns(rig, outputs),
+            "out_map": sensor_map(engaged.A, engaged.B, outputs, rig.n_carts,
+                                  engaged.force_inputs)}
         return backlash_run(
             Ae, Be[..., 0], Adis, engaged.net_force[:, 0, :], engaged.M[:, 0, 0], m_p,
-            engaged.b[:, 0], gap, u, int(self.n_sub), h, x0,
+            engaged.b[:, 0], gap, u, int(self.n_sub), h, x0, **extra,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -20,6 +20,13 @@ with the mid-step velocity frozen; second order (``bayesmodal.model.kernels.lugr
 explicit coupling of the bristle spring to a cart needs ``sqrt(sigma0 / m_i) h`` well
 below 1: at the prior's upper ``sigma0 = 1e5 N/m``, ``m = 1.1 kg`` and the default
 ``h = 1.25 ms`` it is 0.38.
+
+Sensors: every kind (``Rig.output_kinds``).  A position or velocity is the cart's state
+at the sample; an acceleration is ``M^-1`` times the forces at the sample: springs,
+dampers (the viscous part), the input held from the sample (its feedthrough), and the
+friction ``-(sigma0 z_i + sigma1 z_i')`` with the bristle rate of the equation above at
+the sample's velocity and deflection (not the mean force the scheme holds over a
+sub-step), and an end stop's force when combined with one.
 """
 
 from __future__ import annotations
@@ -31,7 +38,7 @@ import numpy as np
 from ..kernels import lugre_run, zoh
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
-from ._linear import linear_parts
+from ._linear import ALL_KINDS, acceleration_columns, linear_parts, sensor_map
 from .coulomb import _per_cart, cart_location
 
 
@@ -63,6 +70,7 @@ class LuGreFriction(Extension):
     #: ``_simulate`` takes ``input_stages`` (memoryless input effects applied in the
     #: kernel, ``kernels.coulomb.INPUT_STAGES``; used by ``Combined``)
     fuses_input_stages = True
+    sensor_kinds = ALL_KINDS
 
     name = "lugre_friction"
     default_candidate = False
@@ -99,7 +107,8 @@ class LuGreFriction(Extension):
         return (np.all(np.isfinite(theta_ext), axis=-1)
                 & np.all((fc >= 0) & (fs >= fc), axis=-1) & (s0 > 0) & (s1 >= 0) & (vs > 0))
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None,
+                  outputs=None):
         n = rig.n_carts
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
@@ -107,10 +116,13 @@ class LuGreFriction(Extension):
         Bh = np.einsum("bij,bj->bi", Fh, parts.b)  # the motor is a force on the carts
         e = theta_ext
         fc, fs = _per_cart(rig, e, 2)
+        extra = {} if outputs is None else {
+            "outputs": outputs, "columns": acceleration_columns(rig, outputs),
+            "out_map": sensor_map(parts.A, parts.B, outputs, n, parts.force_inputs)}
         return lugre_run(Ah, Bh, Fh, parts.net_force, parts.b, parts.inv_mass, fc,
                          fs, e[:, 2 * n], e[:, 2 * n + 1], e[:, 2 * n + 2], u,
                          int(self.n_sub), h, x0, input_stages=input_stages,
-                         stop=stop)
+                         stop=stop, **extra)
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:
         """The cart with the largest static level ``Fs_i``."""

@@ -11,24 +11,82 @@ from ._codegen import (
     _fma_sum,
     _head,
     _Rows,
+    acceleration_rows,
+    checked_columns,
+    checked_outputs,
     run_batched,
+    sensor_lines,
 )
 
 #: Newton steps for the impact time of the backlash kernel.
 IMPACT_NEWTON = 2
 
 
+def _sensors_at_sample(t: str, n: int, w: int, P, X, outputs, columns,
+                       per_lane: bool) -> list[str]:
+    """Code reading the sensors at the sample (``sensor_lines``) from the state there.
+
+    An acceleration is that of the mode the drive is in once the sample's own switch
+    checks are done, as the first sub-step makes them: the engaged rows (``oc``, ``od``:
+    cart 1 with the motor, mass ``m1``, under ``F1 + g_v u``), and while the gap is open
+    cart 1 alone, ``F1 / (m1 - m_p)``, written as the engaged row plus ``oe = 1 / m1``
+    times ``fb0 = F1 m_p / (m1 - m_p) - g_v u``.  The other carts do not touch the drive:
+    their rows are the same in both modes (``fb_k = 0``)."""
+    s = 2 * n
+    R = range(s)
+    L = [f"{t}x{r} = {X('x', r)}" for r in R]
+    if not any(o == 2 for _, o in outputs):
+        return L + sensor_lines(t, outputs, n, s, P, [("od", "uk")], columns=columns)
+    if per_lane:
+        L += [f"{t}uk = u[k * {w} + b]", f"{t}uo = u[(k - 1 if k > 0 else 0) * {w} + b]"]
+    else:
+        L += [f"{t}uo = u_prev"]
+    f1 = " + ".join(f"{P('ge', j)} * x{j}" for j in R)
+    # the opening test of the sub-step (``backlash_kernel``) on the state at the sample
+    L += [f"{t}half = {P('half')}",
+          f"{t}side = {X('side')}",
+          f"{t}fcon_prev = {X('fp')}",
+          f"{t}mp = {P('mp')}",
+          f"{t}mc = {P('mt')} - mp",
+          f"{t}imt = {P('imt')}",
+          f"{t}fm = {P('gv')} * uk",
+          f"{t}F1 = {f1}",
+          f"{t}fcon = (mc * fm - mp * F1) * imt",
+          f"{t}fcon_o = (mc * {P('gv')} * uo - mp * F1) * imt",
+          f"{t}late = half != 0.0 and side * fcon_o < 0.0 and side * fcon_prev > 0.0",
+          f"{t}free = {X('eng')} == 0.0 or (half != 0.0 and (late or side * fcon < 0.0))",
+          f"{t}fb0 = fma(F1 * mp, {P('imc')}, -fm) if free else 0.0"]
+    L += [f"{t}fb{k} = 0.0" for k in range(1, n)]
+    return L + sensor_lines(t, outputs, n, s, P, [("od", "uk")], force="fb",
+                            columns=columns)
+
+
 @functools.lru_cache(maxsize=16)
-def backlash_kernel(n: int, width: int, per_lane: bool = False):
-    """Compiled backlash kernel (see ``backlash_run``); ``per_lane``: see ``_lane_inputs``."""
+def backlash_kernel(n: int, width: int, per_lane: bool = False,
+                    outputs: tuple[tuple[int, int], ...] | None = None,
+                    columns: tuple[tuple[int, ...], ...] | None = None):
+    """Compiled backlash kernel (see ``backlash_run``); ``per_lane``: see ``_lane_inputs``;
+    ``outputs``: the sensors ``(k, order)`` read at each sample (``_sensors_at_sample``:
+    rows ``oc``, ``od``, ``oe`` of the acceleration sensors), default the cart positions;
+    ``columns``: the states each acceleration row involves (``sensor_lines``)."""
     s, w = 2 * n, width
     R = range(s)
-    P = _Rows("P", w, [("Ae", s * s), ("be", s), ("Ad", s * s), ("ge", s), ("mt", 1),
-                       ("mp", 1), ("imt", 1), ("imc", 1), ("imp", 1), ("gv", 1),
-                       ("half", 1)])
+    rows = [("Ae", s * s), ("be", s), ("Ad", s * s), ("ge", s), ("mt", 1), ("mp", 1),
+            ("imt", 1), ("imc", 1), ("imp", 1), ("gv", 1), ("half", 1)]
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        n_acc = sum(o == 2 for _, o in outputs)
+        columns = None if columns is None else checked_columns(columns, n_acc, s)
+        n_c = n_acc * s if columns is None else sum(map(len, columns))
+        rows += [("oc", n_c), ("od", n_acc), ("oe", n_acc)] if n_acc else []
+    P = _Rows("P", w, rows)
     X = _Rows("X", w, [("x", s), ("eng", 1), ("side", 1), ("xm", 1), ("vm", 1),
                        ("fp", 1)])
-    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    if outputs is None:
+        L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    else:
+        L = _head("P, X, u, n_sub, h, Y", len(outputs), w, X, per_lane)[: -len(outputs)]
+        L += _sensors_at_sample(" " * 12, n, w, P, X, outputs, columns, per_lane)
     t = "                "
     if per_lane:
         # the last sub-step's input: the previous sample's in the first sub-step
@@ -134,10 +192,14 @@ def backlash_kernel(n: int, width: int, per_lane: bool = False):
           f"{t}{X('xm')} = xm",
           f"{t}{X('vm')} = vm",
           f"{t}{X('fp')} = fcon_prev"]
-    return _compile(L, f"<bayesmodal backlash n={n} w={w}" + (" per-lane>" if per_lane else ">"))
+    tag = " per-lane" if per_lane else ""
+    tag += "" if outputs is None else " outputs=" + ",".join(f"{k}:{o}" for k, o in outputs)
+    tag += "" if columns is None else f" columns={columns}"
+    return _compile(L, f"<bayesmodal backlash n={n} w={w}{tag}>")
 
 
-def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0):
+def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0, outputs=None,
+                 out_map=None, columns=None):
     """Rack-pinion backlash with a plastic contact (see ``extensions.backlash``).
 
     Engaged (``|delta| = gap / 2`` on side ``side``): motor and cart 1 move together; the
@@ -171,10 +233,19 @@ def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0):
     h : float
         Sub-step, s.
     x0 : ndarray, shape (nb, s)
+    outputs : ndarray of int, shape (n_out, 2), optional
+        Sensors ``(k, order)`` to read (``effects._linear.sensor_spec``), with
+    out_map : tuple of ndarray
+        ``(C, D, E)`` of the engaged rig (shapes (nb, n_out, s), (nb, n_out), (nb, n_out,
+        n); ``effects._linear.sensor_map``): engaged, the readings are ``C x[k] + D
+        u[k]``; with the gap open an acceleration of cart 1 is ``F1 / (m1 - m_p)``
+        (``_sensors_at_sample``).  Default: the cart positions.
+    columns : tuple of tuple of int, optional
+        The states each acceleration sensor's row of ``C`` can involve; default all.
 
     Returns
     -------
-    ndarray, shape (nb, N, n)
+    ndarray, shape (nb, N, n) or (nb, N, n_out)
     """
     nb, s = x0.shape
     n = s // 2
@@ -183,5 +254,11 @@ def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0):
     state = [x0, engaged, np.ones(nb), x0[:, 0], x0[:, n], np.zeros(nb)]
     mc = m1 - m_p
     params = [Ae, Be, Adis, Ge, m1, m_p, 1.0 / m1, 1.0 / mc, 1.0 / m_p, g_v, 0.5 * gap]
-    return run_batched(functools.partial(backlash_kernel, n), params, state, u, n,
-                       int(n_sub), float(h))
+    kernel = functools.partial(backlash_kernel, n)
+    n_out = n
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        n_out = len(outputs)
+        params += acceleration_rows(outputs, *out_map, columns=columns)
+        kernel = functools.partial(kernel, outputs=outputs, columns=columns)
+    return run_batched(kernel, params, state, u, n_out, int(n_sub), float(h))

@@ -29,7 +29,19 @@ import functools
 
 import numpy as np
 
-from ._codegen import _compile, _fma_sum, _head, _lane_inputs, _Rows, interleave, run_batched
+from ._codegen import (
+    _compile,
+    _fma_sum,
+    _head,
+    _lane_inputs,
+    _Rows,
+    acceleration_rows,
+    checked_columns,
+    checked_outputs,
+    interleave,
+    run_batched,
+    sensor_lines,
+)
 from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
 from .stop import checked_side, stop_depth_lines
@@ -73,9 +85,35 @@ def _bristles(t: str, n: int, P) -> list[str]:
     return L
 
 
+def _friction_at_sample(t: str, n: int, P, X, stop: int) -> list[str]:
+    """Code of the force ``fo{i}`` (N) friction and the end stop put on each cart at the
+    sample, from the state there: ``-(sigma0 z + sigma1 z')`` with the bristle rate
+    ``z' = v - sigma0 |v| z / g(v)`` of the LuGre equation itself (not the mean held over a
+    sub-step), and the stop's ``-side k_stop max(0, side (x_1 - x_stop))``.
+
+    Where the friction level ``g(v)`` is zero (``Fc_i = Fs_i = 0``, the null) the bristles
+    carry no force: the sub-steps relax them at once to ``z = 0`` there, and ``z'`` of the
+    equation at the level floored to ``1e-300`` would be a ratio of two round-offs."""
+    L = [f"{t}s0 = {P('sg0')}", f"{t}s1 = {P('sg1')}"]
+    for i in range(n):
+        v, z = f"x{n + i}", f"z{i}"
+        L += [f"{t}{z} = {X('z', i)}",
+              f"{t}e{i} = {v} * {P('ivs')}", f"{t}e2{i} = e{i} * e{i}"]
+        L += exp_neg(t, f"e2{i}", f"es{i}", tag=f"_s{i}")
+        L += [f"{t}g{i} = fma({P('fx', i)}, es{i}, {P('fc', i)})",
+              f"{t}gf{i} = g{i} if g{i} > 1e-300 else 1e-300",
+              f"{t}dz{i} = {v} - s0 * abs({v}) * {z} / gf{i}",
+              f"{t}fo{i} = -fma(s1, dz{i}, s0 * {z}) if g{i} > 1e-300 else 0.0"]
+    if stop:
+        L += stop_depth_lines(t, "x0", stop, P("xq"))
+        L += [f"{t}fo0 = fo0 - {stop:+d}.0 * {P('kq')} * pq"]
+    return L
+
+
 @functools.lru_cache(maxsize=16)
 def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, ...] = (),
-                 stop: int = 0):
+                 stop: int = 0, outputs: tuple[tuple[int, int], ...] | None = None,
+                 columns: tuple[tuple[int, ...], ...] | None = None):
     """Compiled ``kernel(P, X, u, n_sub, h, Y)`` (see ``lugre_run``); ``stages`` (of
     ``kernels.coulomb.INPUT_STAGES``, shared input only) are applied to the input in the
     kernel, with parameter rows ``s0, s1, ...``; ``stop`` (+1 or -1): the end stop of that
@@ -84,9 +122,18 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     sub-step's mid-step velocity.
 
     Each lane's input of the sample (after the stages) is computed once, in the loop that
-    writes the outputs, and kept in the state row ``u`` for the sub-steps."""
+    writes the outputs, and kept in the state row ``u`` for the sub-steps.
+
+    ``outputs``: the sensors ``(k, order)`` read at each sample (``sensor_lines``: rows
+    ``oc``, ``od``, ``oe`` of the acceleration sensors, the friction and stop forces at the
+    sample from ``_friction_at_sample``), default the cart positions; ``columns``: the
+    states each acceleration row involves."""
     stages = checked_stages(stages, per_lane)
     stop = checked_side(stop) if stop else 0
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        columns = None if columns is None else checked_columns(
+            columns, sum(o == 2 for _, o in outputs), 2 * n)
     s, w = 2 * n, width
     R, C = range(s), range(n)
     blk = min(w, LANE_BLOCK)
@@ -94,9 +141,18 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     P = _Rows("P", blk, [("A", s * s), ("bh", s), ("fh", s * n), ("W", n * s), ("wb", n),
                          ("wf", n), ("fc", n), ("fx", n), ("sg0", 1), ("sg1", 1), ("ivs", 1)]
               + [(f"s{j}", 1) for j in range(len(stages))]
-              + ([("xq", 1), ("kq", 1)] if stop else []), base("po"))
+              + ([("xq", 1), ("kq", 1)] if stop else []) + _sensor_rows(outputs, columns, s),
+              base("po"))
     X = _Rows("X", blk, [("x", s), ("z", n), ("fr", n), ("u", 1)], base("xo"))
-    L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    if outputs is None:
+        L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    else:  # each sensor read from the state and the forces at the sample
+        L = _head("P, X, u, n_sub, h, Y", len(outputs), w, X, per_lane)[: -len(outputs)]
+        t = " " * 12
+        L += [f"{t}x{r} = {X('x', r)}" for r in R]
+        if any(o == 2 for _, o in outputs):
+            L += _friction_at_sample(t, n, P, X, stop)
+        L += sensor_lines(t, outputs, n, s, P, [("od", "uk")], force="fo", columns=columns)
     L[1:1] = ["    ih = 1.0 / h"]
     L.append(f"            {X('u')} = uk")
     if per_lane:
@@ -131,9 +187,22 @@ def lugre_kernel(n: int, width: int, per_lane: bool = False, stages: tuple[str, 
     L += [f"{t}{X('fr', i)} = Fc{i}" for i in C]
     kind = (" per-lane" if per_lane else "".join(" " + k for k in stages)) + (
         f" stop{stop:+d}" if stop else "")
+    kind += "" if outputs is None else " outputs=" + ",".join(f"{k}:{o}" for k, o in outputs)
+    kind += "" if columns is None else f" columns={columns}"
     if blk < w:
         L = _lane_blocks(L, w, blk, P.size, X.size)
     return _compile(L, f"<bayesmodal lugre2 n={n} w={w}{kind}>")
+
+
+def _sensor_rows(outputs, columns, s: int) -> list[tuple[str, int]]:
+    """Parameter rows of the acceleration sensors (``sensor_lines``): ``oc`` (their rows
+    of the state matrix, ``columns`` only if given), ``od`` (input) and ``oe`` (``1 /
+    m_k``)."""
+    n_acc = 0 if outputs is None else sum(o == 2 for _, o in outputs)
+    if not n_acc:
+        return []
+    n_c = n_acc * s if columns is None else sum(map(len, columns))
+    return [("oc", n_c), ("od", n_acc), ("oe", n_acc)]
 
 
 def _lane_blocks(lines: list[str], width: int, block: int, p_rows: int,
@@ -152,7 +221,7 @@ def _lane_blocks(lines: list[str], width: int, block: int, p_rows: int,
 
 
 def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_sub, h, x0,
-              input_stages=(), stop=None):
+              input_stages=(), stop=None, outputs=None, out_map=None, columns=None):
     """LuGre friction on every cart (see ``extensions.lugre``), bristles relaxed at start.
 
     Parameters
@@ -188,11 +257,21 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
     stop : tuple (side, x_stop, k_stop), optional
         An end stop on cart 1 (``kernels.stop``): side +1 or -1, ``x_stop`` (nb,) m (signed
         by the side), ``k_stop`` (nb,) N/m.
+    outputs : ndarray of int, shape (n_out, 2), optional
+        Sensors ``(k, order)`` to read (``effects._linear.sensor_spec``), with
+    out_map : tuple of ndarray
+        ``(C, D, E)`` of shapes (nb, n_out, s), (nb, n_out), (nb, n_out, n): the readings
+        are ``C x[k] + D u[k] + E f[k]`` with ``f`` the friction and stop forces on the
+        carts at the sample's state (``effects._linear.sensor_map``; ``u`` after the
+        input stages).  Default: the cart positions.
+    columns : tuple of tuple of int, optional
+        The states each acceleration sensor's row of ``C`` can involve
+        (``effects._linear.acceleration_columns``); default all.
 
     Returns
     -------
-    ndarray, shape (nb, N, n)
-        Cart positions, m (a view of the kernel's output buffer).
+    ndarray, shape (nb, N, n) or (nb, N, n_out)
+        Cart positions, m, or the sensors' readings (a view of the kernel's output buffer).
     """
     nb, s = x0.shape
     n = s // 2
@@ -214,5 +293,11 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
         side, xq, kq = stop
         params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
         kernel = functools.partial(kernel, stop=checked_side(side))
-    return run_batched(kernel, params, state, u, n, int(n_sub), float(h),
+    n_out = n
+    if outputs is not None:
+        outputs = checked_outputs(outputs, n)
+        n_out = len(outputs)
+        params += acceleration_rows(outputs, *out_map, columns=columns)
+        kernel = functools.partial(kernel, outputs=outputs, columns=columns)
+    return run_batched(kernel, params, state, u, n_out, int(n_sub), float(h),
                        lane_block=LANE_BLOCK)
