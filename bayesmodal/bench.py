@@ -26,7 +26,7 @@ figures the project tracks: the Coulomb friction kernel on the rig-like input (a
 recursion read through ``lambda^2`` gains, plus the input's feedthrough) against the same
 simulator with an encoder on every cart, in the same run; at most
 ``ACCELERATION_MAX_RATIO``.  ``effect_sensor_kinds``: the same pair through effects'
-simulators (``EFFECT_KINDS``: a plant kernel reading the forces at the sample, and the
+simulators (``EFFECT_KINDS``: plant kernels reading the forces at the sample, and the
 motor lag's linear recursion).
 """
 
@@ -355,10 +355,11 @@ def bench_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0, dt: flo
     }
 
 
-#: Effects whose acceleration outputs ``bench_effect_sensor_kinds`` times: a plant kernel
-#: (cubic springs, their forces read at each sample in the kernel) and the motor lag (the
-#: linear recursion with a lag state).
-EFFECT_KINDS = ("cubic_stiffness", "motor_lag")
+#: Effects whose acceleration outputs ``bench_effect_sensor_kinds`` times: plant kernels
+#: reading their forces at each sample in the kernel (cubic springs; stick-slip friction,
+#: whose every lane reads its state and friction at each sample, the lanes it skips at
+#: rest too) and the motor lag (the linear recursion with a lag state).
+EFFECT_KINDS = ("cubic_stiffness", "coulomb_friction", "motor_lag")
 
 
 def bench_effect_sensor_kinds(n_samples: int = 8000, batch: int = 64, *, rng=0,

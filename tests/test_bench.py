@@ -93,7 +93,8 @@ def test_bench_sensor_kinds_reports_the_median_ratio_of_paired_rounds():
 
 def test_bench_effect_sensor_kinds_times_each_effect_in_paired_rounds():
     out = bench_effect_sensor_kinds(n_samples=300, batch=4, quick=True, rounds=3)
-    assert set(out) == set(EFFECT_KINDS) == {"cubic_stiffness", "motor_lag"}
+    assert set(out) == set(EFFECT_KINDS) == {"cubic_stiffness", "coulomb_friction",
+                                               "motor_lag"}
     for r in out.values():
         assert r["us_per_eval_position"] > 0 and r["us_per_eval_acceleration"] > 0
         assert len(r["ratio_per_round"]) == 3

@@ -66,7 +66,7 @@ ACTIVE = {
     "input_offset+drive_deadband+input_saturation+motor_lag+input_delay":
         [0.1, 0.2, 2.5, 0.01, 1.5 * DT],
 }
-REFUSED = ("coulomb_friction", "coulomb_directional", "lugre_friction", "backlash")
+REFUSED = ("lugre_friction", "backlash")
 
 
 def rig_with(sensors, drive: str = "1") -> Rig:
@@ -248,7 +248,147 @@ def test_friction_and_backlash_refuse_rate_sensors_naming_what_works(name):
     ext = EXTENSIONS[name]
     why = ext.unsupported(rig)
     assert why is not None and "cubic_stiffness" in why and "input-side" in why
+    assert "coulomb_friction" in why
     with pytest.raises(ModelError, match="simulate every sensor kind"):
         ext.simulate(rig, ext.null_theta(rig, THETA), np.zeros(10), DT)
     # with positions only they simulate as before
     assert ext.unsupported(rig_with(POSITIONS)) is None
+
+
+# ---------------------------------------------------------------- stick-slip friction
+#: Friction levels (N, rig order) that stick both carts between the pulses of ``PULSE``:
+#: Fc1, Fc2, Fs1, Fs2; Fcp1, Fcp2, Fcn1, Fcn2, Fs1, Fs2 (directional).
+FRICTION = {"coulomb_friction": [1.5, 1.2, 2.5, 2.0],
+            "coulomb_directional": [1.2, 1.0, 1.5, 1.3, 2.5, 2.0]}
+#: Every kind of every cart in SI, positions first (the readings are the carts' states).
+SI = tuple(Sensor(c, unit) for unit in ("m", "m/s", "m/s^2") for c in ("1", "2"))
+
+
+def pulse(n: int = N) -> np.ndarray:
+    """0 V, 1 V held over 90 samples, 0 V again: the carts break away at both edges and
+    stick between them, the input held while they rest (both of the kernel's shortcuts
+    past samples at rest)."""
+    k = np.arange(n)
+    return np.where((k >= 20) & (k < 110), 1.0, 0.0)
+
+
+def friction_acceleration(model: LinearModel, theta_lin, levels, y, u, with_friction=True):
+    """``M^-1 (b u - C v - K x - f)`` at every sample from the SI readings ``y``
+    (positions, velocities, accelerations of the n free carts): ``f`` is ``Fc(d) d`` on a
+    sliding cart (``v != 0``, ``d = sign v``), the static balance (acceleration 0) on a
+    stuck cart with ``|F| < Fs`` and ``Fc(d) d`` with ``d = sign F`` on one that breaks
+    away at the sample.  Returns the accelerations (N, n) and the sum of the sizes of the
+    terms of each (for the rounding bound)."""
+    M, C, K, b = model.matrices(theta_lin)
+    n = b.size
+    levels = np.asarray(levels, float)
+    fwd, bwd, fs = (levels[:n], levels[:n], levels[n:]) if levels.size == 2 * n else (
+        levels[:n], levels[n : 2 * n], levels[2 * n :])
+    x, v = y[:, :n], y[:, n : 2 * n]
+    F = u[:, None] * b - x @ K.T - v @ C.T
+    size = np.abs(u)[:, None] * np.abs(b) + np.abs(x) @ np.abs(K).T + np.abs(v) @ np.abs(C).T
+    stuck = v == 0.0
+    d = np.where(stuck, np.sign(F), np.sign(v))
+    f = np.where(d > 0, fwd, bwd) * d if with_friction else 0.0
+    held = stuck & (np.abs(F) < fs)
+    m = np.diag(M)
+    return np.where(held, 0.0, (F - f) / m), (size + np.where(d > 0, fwd, bwd)) / m
+
+
+@pytest.mark.parametrize("name", sorted(FRICTION))
+def test_friction_rates_are_the_states_and_forces_at_the_sample(name):
+    ext = get_extension(name)
+    rig = rig_with(SI)
+    model = LinearModel(rig, "free")
+    u = pulse()
+    theta = np.r_[THETA, FRICTION[name]]
+    y = ext.simulate(rig, theta, u, DT)
+    # the positions are those of the position-only kernel, bit for bit
+    np.testing.assert_array_equal(y[:, :2], ext.simulate(rig_with(POSITIONS), theta, u, DT))
+    # velocities: the kernel's own state.  Its whole state at a sample is a function of
+    # the positions and velocities (stuck <=> v = 0, direction = sign v, a stuck cart
+    # where it is), so a run restarted from the readings of a sample continues the record
+    # bit for bit, stuck, sliding or just stopped; the velocities differenced from the
+    # positions (the negative control) do not
+    starts = (25, 60, 100, 115, 150)
+    for k in starts:
+        again = ext.simulate(rig, theta, u[k:], DT, x0=y[k, :4])
+        np.testing.assert_array_equal(again, y[k:])
+        v_diff = (y[k + 1, :2] - y[k - 1, :2]) / (2 * DT)
+        if np.any(y[k, 2:4] != 0.0):
+            off = ext.simulate(rig_with(POSITIONS), theta, u[k:], DT,
+                               x0=np.r_[y[k, :2], v_diff])
+            assert np.abs(off - y[k:, :2]).max() > 1e6 * EPS * np.abs(y[:, :2]).max()
+    # accelerations: M^-1 (b u - C v - K x - f) from the readings, to rounding (the
+    # kernel sums the same terms in another order); without the friction force they
+    # miss by Fc / m on every sliding sample
+    a, size = friction_acceleration(model, THETA, FRICTION[name], y, u)
+    tol = 16 * EPS * size
+    np.testing.assert_array_less(np.abs(y[:, 4:] - a), tol + 1e-300)
+    a_free, _ = friction_acceleration(model, THETA, FRICTION[name], y, u, with_friction=False)
+    sliding = y[:, 2:4] != 0.0
+    assert sliding.sum() > 100
+    miss = np.abs(y[:, 4:] - a_free)[sliding]
+    assert miss.min() > 1e6 * tol[sliding].max()
+    # stuck stretches (both carts still at this sample and the next) read zero rates
+    # exactly, the samples the kernel skips at rest too (the input held), and a cart
+    # breaking away at the pulse's edge reads its kinetic acceleration at once
+    still = np.all(y[:, 2:4] == 0.0, axis=1)
+    both = still & np.r_[still[1:], True]
+    assert both[:19].all() and both.sum() > 50 and both[25:110].any()
+    np.testing.assert_array_equal(y[both, 4:], 0.0)
+    assert y[20, 2] == 0.0 and y[20, 4] > 0.5 * (THETA[0] * 1.0 - 2.0) / THETA[1]
+
+
+def test_friction_batch_reads_as_its_sets_one_at_a_time():
+    # six sets in a 16-lane kernel, lanes stuck and sliding side by side; groups of lanes
+    # all at rest are skipped and must write their zero rates
+    ext = get_extension("coulomb_friction")
+    rig = rig_with(SENSORS)
+    u = pulse()
+    sets = np.array([np.r_[THETA * s, np.array(FRICTION["coulomb_friction"]) * f]
+                     for s, f in ((1.0, 1.0), (1.1, 0.5), (0.9, 2.0), (1.0, 0.7),
+                                  (1.2, 1.3), (1.0, 1.0))])
+    six = ext.simulate(rig, sets, u, DT)
+    for theta, y in zip(sets, six, strict=True):
+        np.testing.assert_array_equal(y, ext.simulate(rig, theta, u, DT))
+
+
+def _chain_reversed() -> Rig:
+    return Rig(drive=(Drive("1", -1.0),),
+               sensors=tuple(Sensor(c, unit) for unit in ("m", "m/s", "m/s^2")
+                             for c in ("1", "2", "3")))
+
+
+def _four_clamped() -> Rig:
+    carts = tuple(Cart(str(i)) for i in range(1, 5))
+    springs = (Spring("1", "frame", 800.0), Spring("1", "2", 450.0), Spring("2", "3", 400.0),
+               Spring("3", "4", 350.0), Spring("4", "frame", 600.0))
+    return Rig(carts=carts, springs=springs, drive=(Drive("2"),), clamped=("3",),
+               sensors=tuple(Sensor(c, unit) for unit in ("m", "m/s", "m/s^2")
+                             for c in ("1", "2", "4")))
+
+
+@pytest.mark.parametrize("make", [_chain_reversed, _four_clamped])
+def test_friction_rates_on_other_layouts(make):
+    # three free carts in both (one compiled kernel): the chain driven backwards, and four
+    # carts driven at cart 2 with cart 3 clamped (the kernel's order: driven cart first)
+    ext = get_extension("coulomb_friction")
+    rig = make()
+    model = LinearModel(rig, "free")
+    lin = model.as_vector(dict(zip(model.names, [1.0] * model.n_params, strict=True)))
+    lin[0], lin[1:4] = 6.2, (1.5, 1.4, 1.2)
+    u = np.r_[np.random.default_rng(4).normal(size=300), pulse(300)]
+    # null friction reads as the linear model, to the rounding of an exact hold
+    y = ext.simulate(rig, ext.null_theta(rig, lin), u, DT)
+    y_lin = simulate_linear(model, lin, u, DT)
+    A, B = model.state_space(lin)
+    tol = (2 * zoh_rtol(A, DT, n_steps=u.size) * np.abs(y_lin).max(axis=0)
+           + 4 * EPS * np.abs(B).max() * np.abs(u).max())
+    np.testing.assert_array_less(np.abs(y - y_lin).max(axis=0), tol)
+    # active friction: the accelerations are M^-1 (b u - C v - K x - f) of the readings
+    levels = [0.8, 0.6, 0.7, 1.4, 1.0, 1.2]
+    y = ext.simulate(rig, np.r_[lin, levels], u, DT)
+    a, size = friction_acceleration(model, lin, levels, y, u)
+    np.testing.assert_array_less(np.abs(y[:, 6:] - a), 16 * EPS * size + 1e-300)
+    assert (y[:, 3:6] == 0.0).sum() > 50 and (y[:, 3:6] != 0.0).sum() > 50

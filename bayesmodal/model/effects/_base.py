@@ -156,8 +156,9 @@ class Extension(ABC):
         if kinds:
             return (f"{self.name}: simulates position sensors only (m, mm, count), this "
                     f"rig has {' and '.join(kinds)} sensors; the input-side effects, "
-                    "cubic_stiffness and end_stop simulate every sensor kind, as does the "
-                    "linear model (fit_lsq, sample_posterior)")
+                    "cubic_stiffness, end_stop, coulomb_friction and coulomb_directional "
+                    "simulate every sensor kind, as does the linear model (fit_lsq, "
+                    "sample_posterior)")
         driven = [d.cart for d in rig.drive if d.share != 0.0]
         if (self.needs == "drive" or self.side == "input") and not driven:
             return (f"{self.name} acts on the motor input, and this rig has no drive; "

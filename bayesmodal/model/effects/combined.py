@@ -241,7 +241,11 @@ class Combined(Extension):
         # over the first hold interval, which the kernel took as its input there
         feed = linear_parts(rig, theta_lin).B[:, rig.n_carts + outputs[:, 0]]  # (nb, n_out)
         jump = (w0 - w)[:, ::n]  # (nb, N)
-        return y + np.where(outputs[:, 1] == 2, feed, 0.0)[:, None, :] * jump[:, :, None]
+        add = np.where(outputs[:, 1] == 2, feed, 0.0)[:, None, :] * jump[:, :, None]
+        if getattr(plant, "holds_carts", False):
+            # a cart held by static friction reads an exact 0 whatever the input
+            add = np.where(y == 0.0, 0.0, add)
+        return y + add
 
     # ------------------------------------------------------------------ location
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

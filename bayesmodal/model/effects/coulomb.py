@@ -27,7 +27,7 @@ import numpy as np
 from ..kernels import coulomb_run, zoh
 from ..system import Rig
 from ._base import EffectLocation, Extension, ParamSpec, cart_numbers
-from ._linear import kernel_order, linear_parts, to_kernel
+from ._linear import ALL_KINDS, kernel_order, linear_parts, to_kernel
 
 
 def _per_cart(rig: Rig, theta_ext: np.ndarray, k: int) -> list[np.ndarray]:
@@ -89,6 +89,11 @@ class CoulombFriction(Extension):
     #: combination with it needs one input for all lanes (``Combined``)
     stop_needs_shared_input = True
     validity_rule = "linear part admissible, 0 <= Fc_i <= Fs_i, finite"
+    #: every sensor kind read in the kernel at the sample (``kernels.coulomb_run``)
+    sensor_kinds = ALL_KINDS
+    #: a held cart's acceleration is 0 whatever the input: ``Combined`` adds no input
+    #: feedthrough to an acceleration the kernel read as exactly 0
+    holds_carts = True
 
     def specs(self, rig: Rig) -> tuple[ParamSpec, ...]:
         carts = cart_numbers(rig)
@@ -109,7 +114,8 @@ class CoulombFriction(Extension):
         fc, fs = theta_ext[..., :n], theta_ext[..., n:]
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all((fc >= 0) & (fs >= fc), axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None,
+                  outputs=None):
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, Fh, Rh = zoh(parts.A, parts.force_inputs, h, ramp=True)
@@ -120,6 +126,7 @@ class CoulombFriction(Extension):
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
             *_per_cart(rig, theta_ext, 2), u, int(self.n_sub), h, x0,
             adaptive=self.adaptive, input_stages=input_stages, stop=stop,
+            outputs=outputs,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -68,7 +68,8 @@ class DirectionalCoulombFriction(CoulombFriction):
         ok = (fp >= 0) & (fn >= 0) & (fs >= fp) & (fs >= fn)
         return np.all(np.isfinite(theta_ext), axis=-1) & np.all(ok, axis=-1)
 
-    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None):
+    def _simulate(self, rig, theta_lin, theta_ext, u, dt, x0, input_stages=(), stop=None,
+                  outputs=None):
         parts = linear_parts(rig, theta_lin)
         h = dt / self.n_sub
         Ah, Fh, Rh = zoh(parts.A, parts.force_inputs, h, ramp=True)
@@ -79,7 +80,7 @@ class DirectionalCoulombFriction(CoulombFriction):
             Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, parts.net_force, parts.b, parts.inv_mass,
             fwd, static, u, int(self.n_sub), h, x0, adaptive=self.adaptive,
             Fc_backward=bwd, input_stages=input_stages,
-            stop=stop,
+            stop=stop, outputs=outputs,
         )
 
     def location_of(self, rig: Rig, theta: np.ndarray) -> EffectLocation:

@@ -398,3 +398,70 @@ def _split_substep(t, PP, XX, SC, n, g, asym=False) -> list[str]:
               f"{tb}{XX('st', i)} = 1.0 if st{i} else 0.0", f"{tb}{XX('d', i)} = d{i}",
               f"{tb}{XX('xs', i)} = xs{i}"]
     return L
+
+
+
+def _coulomb_rates(t, P, X, n, width, asym=False, stop=0) -> list[str]:
+    """Code writing a lane's positions, velocities and accelerations at the sample into
+    the scratch rows ``Z[(order * n + i) * width + b]`` (``order`` 0, 1, 2; cart ``i``).
+
+    Read from the lane's state at the sample, before any step: the positions and the
+    velocities are the states (a stuck cart's velocity is the exact zero the steps set),
+    the acceleration is ``(F_i + f_i) / m_i`` with ``F_i`` the net force with the input
+    held from the sample, ``uk``, and ``f_i`` the friction of that state: a stuck cart
+    whose ``|F_i|`` is below ``Fs_i`` is held (an exact 0), one at or past it breaks away
+    at the sample (``-Fc`` in the direction of ``F_i``), a sliding cart feels ``-Fc_i
+    dir_i``.  With ``stop`` (+1 or -1) the stop force enters ``uk`` at the step's
+    mid-point (``kernels.stop.stop_input_lines``): it is replaced by its value at the
+    driven cart's position at the sample.
+    """
+    s, w = 2 * n, width
+    R, C = range(s), range(n)
+    L = [f"{t}x{r} = {X('x', r)}" for r in R]
+    if stop:
+        L += [f"{t}uk = uk + {stop:+d}.0 * {P('kq')} * pq",
+              f"{t}pq = {stop:+d}.0 * (x0 - {P('xq')})",
+              f"{t}pq = pq if pq > 0.0 else 0.0",
+              f"{t}uk = uk - {stop:+d}.0 * {P('kq')} * pq"]
+    for i in C:
+        gz = _sum((P("G", i * s + j), f"x{j}") for j in R)
+        L += [f"{t}fc{i} = {P('fc', i)}"]
+        if asym:
+            L += [f"{t}fp{i} = fc{i}", f"{t}fn{i} = {P('fn', i)}"]
+        L += [f"{t}F{i} = {P('gb', i)} * uk + {gz}",
+              f"{t}st{i} = {X('st', i)} != 0.0",
+              f"{t}hold = st{i} & (abs(F{i}) < {P('fs', i)})",
+              f"{t}d{i} = math.copysign(1.0, F{i}) if st{i} else {X('d', i)}",
+              f"{t}Z[{i * w} + b] = x{i}",
+              f"{t}Z[{(n + i) * w} + b] = x{n + i}",
+              f"{t}Z[{(s + i) * w} + b] = 0.0 if hold else"
+              f" (F{i} - {_kinetic(i, f'd{i}', asym)} * d{i}) * {P('mi', i)}"]
+    return L
+
+
+def _coulomb_read(P, X, n, width, group=0, asym=False, stop=0) -> list[str]:
+    """Code of a sample's reading of every lane in the sample loop: its ``3 n`` rates
+    (``_coulomb_rates``) into the scratch rows ``Z``, then the sensors' rows ``cols``
+    (an array given at run time: one compiled variant for any set of sensors) copied to
+    the output ``Y[yo + o * width + b]``.
+
+    With ``group`` (the adaptive kernel, after its ``same`` and ``rested`` are set) a
+    group of lanes that the kernel will skip at rest (all stuck and held over the last
+    sample, the input the same) reads what it read at the last sample: the same state,
+    input and forces, so the same numbers, copied instead of computed again.
+    """
+    t, w = " " * 8, width
+    copy = [f"{t}    for o in range(n_out):",
+            f"{t}        for lane in range(g0, g0 + {group or w}):",
+            f"{t}            Y[yo + o * {w} + lane] = Z[cols[o] * {w} + lane]"]
+    if not group:
+        return ([f"{t}for b in range({w}):"] + _coulomb_rates(t + "    ", P, X, n, w, asym, stop)
+                + [f"{t}g0 = 0"] + [line[4:] for line in copy])
+    return [f"{t}for g0 in range(0, {w}, {group}):",
+            f"{t}    if same and rested[g0 // {group}]:",
+            f"{t}        for o in range(n_out):",
+            f"{t}            for lane in range(g0, g0 + {group}):",
+            f"{t}                Y[yo + o * {w} + lane] = Y[yo - n_out * {w} + o * {w} + lane]",
+            f"{t}        continue",
+            f"{t}    for b in range(g0, g0 + {group}):",
+            *_coulomb_rates(t + "        ", P, X, n, w, asym, stop), *copy]

@@ -12,6 +12,7 @@ from ._codegen import (
     _head,
     _lane_inputs,
     _Rows,
+    checked_outputs,
     run_batched,
 )
 from ._coulomb_steps import (
@@ -20,6 +21,7 @@ from ._coulomb_steps import (
     _coulomb_load,
     _coulomb_predict,
     _coulomb_quiet_step,
+    _coulomb_read,
     _coulomb_store,
     _scratch_rows,
     _split_substep,
@@ -129,7 +131,8 @@ def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
 
 @functools.lru_cache(maxsize=16)
 def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
-                   asymmetric: bool = False, stages: tuple[str, ...] = (), stop: int = 0):
+                   asymmetric: bool = False, stages: tuple[str, ...] = (), stop: int = 0,
+                   rates: bool = False):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
@@ -139,13 +142,15 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     ``fc`` forwards, ``fn`` backwards); ``stages`` (of ``INPUT_STAGES``, shared input
     only) are applied to the input in the kernel, with parameter rows ``s0, s1, ...``;
     ``stop`` (+1 or -1, shared input only): an end stop of that side on the driven cart,
-    rows ``xq`` (m) and ``kq`` (``k_stop / g_v``, V/m) (``kernels.stop``).
+    rows ``xq`` (m) and ``kq`` (``k_stop / g_v``, V/m) (``kernels.stop``); ``rates``: it
+    takes ``cols`` (before ``Y``) and writes those rows of the carts' positions,
+    velocities and accelerations (``_coulomb_steps._coulomb_read``), not the positions.
     """
     stages = checked_stages(stages, per_lane)
     stop = checked_side(stop) if stop else 0
     if stop and per_lane:
         raise ValueError("the end stop needs a shared input; pass u of shape (N,)")
-    asym = bool(asymmetric)
+    asym, rates = bool(asymmetric), bool(rates)
     w = width
     s = 2 * n
     p_rows = [("A", s * s), ("bh", s), ("fh", s * n), ("rh", s * n), ("Ad", s * s), ("bd", s),
@@ -153,11 +158,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
               ("fs", n)] + ([("fn", n)] if asym else [])
     p_rows += [(f"s{j}", 1) for j in range(len(stages))]
     p_rows += [("xq", 1), ("kq", 1)] if stop else []
-    tag = (f"{' asym' * asym}{''.join(' ' + k for k in stages)}"
-           + (f" stop{stop:+d}" if stop else ""))
+    tag = f"{' asym' * asym}{''.join(' ' + k for k in stages)}{f' stop{stop:+d}' * bool(stop)}"
+    tag += " rates" * rates
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
     P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
+    if rates:  # the sensors' rows ``cols`` of the lane's rates, n_out a sample
+        L = [L[0].replace("h, Y", "h, cols, Y"), "    n_out = cols.shape[0]",
+             *_aligned_lines("Z", str(3 * n * w)), *L[1:-n - 2], f"        yo = k * n_out * {w}"]
     L[1:1] = ["    nref = 0", "    nrest = 0"]
 
     def corrected(t, P, X):
@@ -166,12 +174,12 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
                 + _coulomb_events(t, P, n, asym) + _coulomb_store(t, X, n))
 
     if not adaptive:
+        L += _coulomb_read(P, X, n, w, 0, asym, stop) if rates else []
         L += ["        for sub in range(n_sub):", f"            for b in range({w}):"]
         L += corrected(" " * 16, P, X)
         L += ["    return nref, nrest"]
         if per_lane:
-            return _compile(_lane_inputs(L, w),
-                            f"<bayesmodal coulomb n={n} w={w} per-lane{' asym' * asym}>")
+            return _compile(_lane_inputs(L, w), f"<bayesmodal coulomb n={n} w={w} per-lane{tag}>")
         if stages or stop:
             L = _staged_inputs(L, P, P, stages, None, stop=stop, n=n, X=X, XX=X)
         return _compile(L, f"<bayesmodal coulomb n={n} w={w}{tag}>")
@@ -217,6 +225,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     same = "False" if per_lane else "k > 0 and u[k] == u[k - 1]"
     L += ["        nf = 0",
           f"        same = {same}",
+          *(_coulomb_read(P, X, n, w, g, asym, stop) if rates else []),
           f"        for g0 in range(0, {w}, {g}):",
           f"            if same and rested[g0 // {g}]:",
           "                nrest += 1",
@@ -265,7 +274,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         L.insert(1, f"    UU = np.zeros({g})")
         packed_from += 1
         return _compile(_lane_inputs(L, w, packed_from=packed_from),
-                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{' asym' * asym}>")
+                        f"<bayesmodal coulomb n={n} w={w} adaptive per-lane{tag}>")
     if stages or stop:
         packed_from = next(i for i, line in enumerate(L) if "for c0 in range(0, nf" in line)
         L = _staged_inputs(L, P, PP, stages, packed_from, stop=stop, n=n, X=X, XX=XX,
@@ -274,7 +283,7 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
-                adaptive=True, Fc_backward=None, input_stages=(), stop=None):
+                adaptive=True, Fc_backward=None, input_stages=(), stop=None, outputs=None):
     """Stick-slip Coulomb friction on every cart (see ``extensions.coulomb``).
 
     A step: the friction force of each cart is decided at its start (stuck carts hold the
@@ -351,11 +360,26 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         -1, ``x_stop`` (nb,) m, ``k_stop`` (nb,) N/m.  Its force is held over each step at
         its predicted mid-step value, and lanes in or near contact take the sample in
         sub-steps.
+    outputs : ndarray of int, shape (n_out, 2), optional
+        Sensors ``(k, order)`` to read (``effects._linear.sensor_spec``): cart ``k``'s
+        position (0), velocity (1) or acceleration (2) at each sample.  The kernel then
+        reads every cart's three into a scratch block and copies the sensors' rows, an
+        index array given at run time (one compiled variant for any set of sensors;
+        ``_coulomb_steps._coulomb_read``).  The velocity is the state; the
+        acceleration at a sample is that of the sample's own state, ``(F + f) / m``, with
+        ``F`` the net force of the springs, dampers, the input held from the sample (and
+        the end stop, at the sample's position) and ``f`` the friction of that state:
+        ``-Fc dir`` for a sliding cart, the static balance ``-F`` (acceleration exactly
+        0) for a stuck cart with ``|F| < Fs``, and ``-Fc`` in the direction of ``F`` for a
+        stuck cart that breaks away at the sample (``|F| >= Fs``).  A stick or a reversal
+        inside a step shows at the next sample through that sample's state, never as a
+        difference of positions.
 
     Returns
     -------
-    ndarray, shape (nb, N, n)
-        Positions, a view of the kernel's output buffer.
+    ndarray, shape (nb, N, n) or (nb, N, n_out)
+        Positions, a view of the kernel's output buffer, or with ``outputs`` each
+        sensor's reading (m, m/s, m/s^2 along +x), in sensor order.
     """
     n = Fc.shape[1]
     v = x0[:, n:]
@@ -387,4 +411,8 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
         params += [np.asarray(xq, float).reshape(-1, 1),
                    (np.asarray(kq, float) / gb[:, 0]).reshape(-1, 1)]
         kernel = functools.partial(kernel, stop=checked_side(side))
-    return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
+    if outputs is None:
+        return run_batched(kernel, params, state, u, n, int(n_sub), float(h))
+    cols = np.array([order * n + k for k, order in checked_outputs(outputs, n)], np.int64)
+    return run_batched(functools.partial(kernel, rates=True), params, state, u, cols.size,
+                       int(n_sub), float(h), cols)
