@@ -102,12 +102,12 @@ def test_unknown_sensor_key_is_refused():
         two_cart([{"cart": "1", "unit": "g", "scale": 2.0}])
 
 
-def test_friction_refuses_non_position_sensors():
+def test_lugre_friction_refuses_non_position_sensors():
     # (the effects that read every kind: tests/test_effect_sensor_kinds.py)
     rig = Rig(carts=(Cart("1"), Cart("2")),
               springs=(Spring("1", "2", 774.0), Spring("2", "frame", 770.0)),
               drive=(Drive("1"),), sensors=(Sensor("1", "g"), Sensor("2", "g")))
-    ext = get_extension("coulomb_friction")
+    ext = get_extension("lugre_friction")
     why = ext.unsupported(rig)
     assert why is not None and "position sensors only" in why and "fit_lsq" in why
     assert "\n" not in why
@@ -164,15 +164,14 @@ def test_reader_options_check_lengths(tmp_path):
         load_experiment(path, options=ReadOptions(output_kinds=("position", "velocity")))
 
 
-def test_diagnose_refuses_accelerometer_records_with_one_line():
-    from bayesmodal.data import Experiment
-    from bayesmodal.discrepancy.diagnosis import diagnose
+def test_diagnose_takes_accelerometer_records_and_refuses_positions_out_of_order():
+    from bayesmodal.discrepancy.diagnosis import require_diagnosable
 
-    rig = two_cart([{"cart": "1", "unit": "g"}, {"cart": "2", "unit": "g"}])
-    t = np.arange(100) * 0.01
-    e = Experiment(t, np.r_[1.0, np.zeros(99)], np.zeros((100, 2)))
-    with pytest.raises(ModelError, match="diagnose: needs position sensors only") as info:
-        diagnose(e, rig=rig, posterior=False, rng=1)
+    require_diagnosable(two_cart([{"cart": "1", "unit": "g"}, {"cart": "2", "unit": "g"}]))
+    swapped = two_cart([{"cart": "2"}, {"cart": "1"}])
+    with pytest.raises(ModelError, match="diagnose needs a sensor on every moving cart, "
+                                         "in cart order") as info:
+        require_diagnosable(swapped)
     assert "\n" not in str(info.value)
 
 
