@@ -102,9 +102,12 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", type=Path)
     a = ap.parse_args(argv)
-    jobs = [(case, SEED_OFFSET + s, a.samples) for case in a.cases.split(",") if case
-            for s in range(a.seeds)]
-    jobs += [("none", SEED_OFFSET + 1000 + s, a.samples) for s in range(a.nulls)]
+    # seed by seed across the cases, so that a run stopped early has every case
+    cases = [c for c in a.cases.split(",") if c]
+    jobs = []
+    for s in range(max(a.seeds, a.nulls)):
+        jobs += [(case, SEED_OFFSET + s, a.samples) for case in cases if s < a.seeds]
+        jobs += [("none", SEED_OFFSET + 1000 + s, a.samples)] if s < a.nulls else []
     # rows already in --out are kept (a long run resumes where it stopped); each new
     # diagnosis is written as soon as it is done
     rows = _done_rows(a.out, a.samples)

@@ -61,7 +61,7 @@ from .null import (
 from .posterior import posterior_summary
 from .scoring import ar1_pointwise, criterion_for, held_out_significant, laplace_sd
 from .spec import DiagnoseSpec, with_diagnose_settings
-from .starts import best_starts
+from .starts import best_starts, linear_fit
 
 __all__ = ["diagnose", "require_diagnosable", "DEFAULT_CANDIDATES"]
 
@@ -344,7 +344,7 @@ def _null_stage(train_exps, held_exps, model, q, spec, rng, progress) -> _NullSt
     # unstable trial systems); those trials are rejected, so the warnings are noise
     announce("diagnose: least-squares fit of the linear model", enabled=progress)
     with np.errstate(all="ignore"):
-        linear = fit_lsq(train_exps, model)
+        linear = linear_fit(train_exps, model)
     require_identified(linear, train_exps, "the diagnosis")
     y_lin = [simulate_linear(model, linear.theta, e.v_volt, e.dt) for e in train_exps]
     noise = fit_noise([e.y_m - y for e, y in zip(train_exps, y_lin, strict=True)], q)
