@@ -18,17 +18,24 @@ from ...data import Experiment
 from ...fit.effects import extension_residuals, root_weights
 from ...fit.lsq import fit_lsq
 from ...model.effects import Extension
-from ...model.simulate import simulate_linear
+from ...model.simulate import simulate_state_space
 from ...model.system import LinearModel, Rig, damper_mask, default_start
 
 __all__ = ["best_start", "best_starts", "extra_starts", "linear_fit"]
 
 
-def _spring_extension(rig: Rig, theta_lin, experiments) -> np.ndarray:
+def _positions(rig: Rig, theta_lin, e: Experiment) -> np.ndarray:
+    """Every cart's position in the linear response to ``e``'s input, m, shape (N, n)
+    (from the states: the sensors may read velocities or accelerations)."""
     model = LinearModel(rig, "free")
+    A, B = model.state_space(theta_lin)
+    return simulate_state_space(A, B, e.v_volt, e.dt, 2 * rig.n_carts)[0][:, : rig.n_carts]
+
+
+def _spring_extension(rig: Rig, theta_lin, experiments) -> np.ndarray:
     d = np.zeros(rig.n_carts)
     for e in experiments:
-        y = simulate_linear(model, theta_lin, e.v_volt, e.dt)
+        y = _positions(rig, theta_lin, e)
         ext = np.column_stack([y[:, 1:] - y[:, :-1], -y[:, -1]])
         d = np.maximum(d, np.max(np.abs(ext), axis=0))
     return np.maximum(d, 1e-6)
@@ -68,6 +75,12 @@ def extra_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
                     w[i], w[n + i] = fc, ratio * fc
                     w[2 * n + i] = 1.2 * max(fc, ratio * fc)
                     out.append(w)
+    elif name == "end_stop":
+        # stops inside the driven cart's positive travel (the catalogue's grid is fixed)
+        j = int(np.flatnonzero(rig.input_vector())[0])
+        top = max(float(np.max(_positions(rig, theta_lin, e)[:, j])) for e in experiments)
+        if top > 1e-3:
+            out = [[f * top, k] for f in (0.5, 0.65, 0.8) for k in (1e3, 2.5e3)]
     elif name == "input_offset":
         out = [[x] for x in (-0.1, -0.02, 0.02, 0.1)]
     elif name in ("motor_lag", "input_delay"):
