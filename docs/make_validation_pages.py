@@ -30,6 +30,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 HERE = Path(__file__).resolve().parent
 FIGURES = HERE / "figures"
 PAGES = HERE / "validation"
@@ -178,6 +180,37 @@ def _pairs(name: str) -> Callable[[], str]:
     return render
 
 
+def _layouts() -> str:
+    """benchmarks/detection_layouts.py's rows: rate and exact one-sided 95 % bound per
+    layout and case, with what was named where the case was missed."""
+    from scipy import stats
+
+    out = _json("detection_layouts.json")
+    lines = ["| layout | case | data sets | rate | one-sided 95 % bound | named instead |",
+             "|---|---|---|---|---|---|"]
+    keys = sorted({(r["layout"], r["case"]) for r in out["rows"]},
+                  key=lambda k: (k[0], k[1] != "none", k[1]))
+    for layout, case in keys:
+        rows = [r for r in out["rows"] if (r["layout"], r["case"]) == (layout, case)]
+        n, k = len(rows), sum(bool(r["correct"]) for r in rows)
+        missed = sorted({" + ".join(f"{e}{'' if w is None else ' ' + str(w)}"
+                                    for e, w in r["found"]) or "none"
+                         for r in rows if not r["correct"]})
+        if case == "none":  # the rate of false positives and its upper bound
+            fp = n - k
+            upper = 1.0 if fp == n else float(stats.beta.ppf(0.95, fp + 1, n - fp))
+            lines.append(f"| {layout} | null data: false positives | {n} | {_pct(fp / n)} | "
+                         f"upper {_pct(upper)} | {', '.join(missed) or '-'} |")
+        else:
+            lower = 0.0 if k == 0 else float(stats.beta.ppf(0.05, k, n - k + 1))
+            lines.append(f"| {layout} | {case} | {n} | {_pct(k / n)} | lower {_pct(lower)} | "
+                         f"{', '.join(missed) or '-'} |")
+    lines.append("")
+    lines.append(f"Settings: {out['samples']} samples per record; median time per data set "
+                 f"{np.median([r['seconds'] for r in out['rows']]):.0f} s.")
+    return "\n".join(lines) + "\n\n" + stamp_line(out.get("stamp"))
+
+
 def _records_coverage() -> str:
     """benchmarks/records_coverage.py's summary: coverage of the 90 % intervals."""
     out = _json("records_coverage.json")["summary"]
@@ -284,6 +317,7 @@ BLOCKS: dict[str, Block] = {
                              ("detection_pairs_20.json",)),
     "detection-two-records": Block("detection.md", _pairs("detection_pairs_2records.json"),
                                    ("detection_pairs_2records.json",)),
+    "detection-layouts": Block("detection.md", _layouts, ("detection_layouts.json",)),
     "threads": Block("performance.md", _threads, ("threads.json",)),
     "extended-posterior": Block("performance.md", _extended_posterior,
                                 ("extended_posterior_lugre.json",)),

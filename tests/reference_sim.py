@@ -150,6 +150,14 @@ def integrate_smooth(rhs, z0, u, dt, *, delay=0.0, n_out):
     return Y
 
 
+def integrate_accelerations(rhs, z0, u, dt, n):
+    """Accelerations (N, n) of the carts at each sample from the right-hand side ``rhs``
+    evaluated at the sampled state with the input held from the sample, m/s^2 (what an
+    accelerometer reads)."""
+    Z = integrate_smooth(rhs, z0, u, dt, n_out=len(z0))
+    return np.array([rhs(z, v)[n : 2 * n] for z, v in zip(Z, u, strict=True)])
+
+
 def _linear_rhs(M, C, K, b, extra_force=None):
     minv = 1.0 / np.diag(M)
     n = M.shape[0]
@@ -165,10 +173,13 @@ def _linear_rhs(M, C, K, b, extra_force=None):
 
 
 # ---------------------------------------------------------------------------- linear
-def simulate_linear_ref(springs, theta, u, dt):
-    """The plain linear model (for checking the reference itself)."""
+def simulate_linear_ref(springs, theta, u, dt, *, accelerations=False):
+    """The plain linear model (for checking the reference itself); positions (N, n), or
+    with ``accelerations`` the accelerations (N, n)."""
     M, C, K, b = rig_matrices(springs, theta)
     n = M.shape[0]
+    if accelerations:
+        return integrate_accelerations(_linear_rhs(M, C, K, b), np.zeros(2 * n), u, dt, n)
     return integrate_smooth(_linear_rhs(M, C, K, b), np.zeros(2 * n), u, dt, n_out=n)
 
 
@@ -210,8 +221,9 @@ def simulate_saturation_ref(springs, theta, u, dt):
     return integrate_smooth(_linear_rhs(M, C, K, b), np.zeros(2 * n), uc, dt, n_out=n)
 
 
-def simulate_cubic_ref(springs, theta, u, dt):
-    """Spring i pulls with ``k_i d + k3_i d^3``, ``d`` its extension."""
+def simulate_cubic_ref(springs, theta, u, dt, *, accelerations=False):
+    """Spring i pulls with ``k_i d + k3_i d^3``, ``d`` its extension; positions (N, n), or
+    with ``accelerations`` the accelerations (N, n)."""
     p = n_linear(springs)
     M, C, K, b = rig_matrices(springs, theta[:p])
     k3 = np.asarray(theta[p:], float)
@@ -231,17 +243,21 @@ def simulate_cubic_ref(springs, theta, u, dt):
                 force[b_end] -= g
         return force
 
-    return integrate_smooth(_linear_rhs(M, C, K, b, cubic), np.zeros(2 * n), u, dt, n_out=n)
+    rhs = _linear_rhs(M, C, K, b, cubic)
+    if accelerations:
+        return integrate_accelerations(rhs, np.zeros(2 * n), u, dt, n)
+    return integrate_smooth(rhs, np.zeros(2 * n), u, dt, n_out=n)
 
 
 # ---------------------------------------------------------------------------- stick-slip
-def simulate_coulomb_ref(springs, theta, u, dt, states=False):
+def simulate_coulomb_ref(springs, theta, u, dt, *, states=False):
     """Stick-slip friction, event-driven.
 
     Modes per cart: stuck (x' = 0 held while |F| < Fs) or sliding in direction d
     (friction -Fc d).  Events: a sliding cart's velocity reaching zero (then stick if
     |F| < Fs, else reverse) and a stuck cart's |F| reaching Fs (break away along F).
-    Returns the positions (N, n), or with ``states`` positions and velocities (N, 2n).
+    Returns the positions (N, n), or with ``states`` positions and velocities (N, 2n)
+    (a held cart's velocity is exactly 0).
     """
     p = n_linear(springs)
     M, C, K, b = rig_matrices(springs, theta[:p])
@@ -251,7 +267,8 @@ def simulate_coulomb_ref(springs, theta, u, dt, states=False):
     minv = 1.0 / np.diag(M)
     N = len(u)
     t_s = np.arange(N) * dt
-    Y = np.empty((N, 2 * n))
+    n_out = 2 * n if states else n
+    Y = np.empty((N, n_out))
     z = np.zeros(2 * n)
     stuck = np.ones(n, bool)
     d = np.zeros(n)
@@ -293,7 +310,7 @@ def simulate_coulomb_ref(springs, theta, u, dt, states=False):
                 stuck[i] = False
                 d[i] = np.sign(F[i])
 
-    Y[0] = z
+    Y[0] = z[:n_out]
     for t0, t1, val in input_segments(u, dt):
         t = t0
         update_modes(z, val)
@@ -305,7 +322,7 @@ def simulate_coulomb_ref(springs, theta, u, dt, states=False):
             t_stop = sol.t[-1]
             take = mask & (t_s <= t_stop)
             if take.any():
-                Y[take] = sol.sol(t_s[take]).T
+                Y[take] = sol.sol(t_s[take])[:n_out].T
             z = sol.y[:, -1].copy()
             if sol.status == 1:  # an event
                 i = next(j for j, te in enumerate(sol.t_events) if len(te))

@@ -46,13 +46,14 @@ def _segment(rhs, t: float, t1: float, z, val: float, Y, t_s, **options):
 
 
 def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
-                              v_offset=0.0, v_dead=0.0):
+                              v_offset=0.0, v_dead=0.0, states=False):
     """Stick-slip friction on every cart (``friction``) and the end stop of cart 1,
     event-driven; the input passes an offset and a sharp dead band first.
 
     A sliding cart in direction ``d`` feels ``-Fc d``; a stuck cart stays while its net
     force is below ``Fs``; at a velocity zero it sticks if the net force is below ``Fs``
-    and otherwise slides along it.  Without ``friction`` the carts slide freely.
+    and otherwise slides along it.  Without ``friction`` the carts slide freely.  Returns
+    the positions (N, n), or with ``states`` positions and velocities (N, 2n).
     """
     p = n_linear(springs)
     M, C, K, b = rig_matrices(springs, theta[:p])
@@ -64,7 +65,7 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
     minv = 1.0 / np.diag(M)
     v_in = input_chain_ref(u, v_offset=v_offset, v_dead=v_dead)
     t_s = np.arange(len(u)) * dt
-    Y = np.empty((len(u), n))
+    Y = np.empty((len(u), 2 * n if states else n))
     z = np.zeros(2 * n)
     stuck = np.ones(n, bool) if friction else np.zeros(n, bool)
     d = np.zeros(n)
@@ -110,7 +111,7 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
             if stuck[i] and abs(F[i]) >= fs[i]:
                 stuck[i], d[i] = False, np.sign(F[i])
 
-    Y[0] = z[:n]
+    Y[0] = z[: Y.shape[1]]
     for t0, t1, val in input_segments(v_in, dt):
         t = t0
         release(z, val)
@@ -139,9 +140,10 @@ def simulate_coulomb_stop_ref(springs, theta, u, dt, *, side=1, friction=True,
     return Y
 
 
-def simulate_stop_ref(springs, theta, u, dt, *, side=1):
+def simulate_stop_ref(springs, theta, u, dt, *, side=1, states=False):
     """The linear rig with the end stop of cart 1 (no friction)."""
-    return simulate_coulomb_stop_ref(springs, theta, u, dt, side=side, friction=False)
+    return simulate_coulomb_stop_ref(springs, theta, u, dt, side=side, friction=False,
+                                     states=states)
 
 
 def simulate_lugre_stop_ref(springs, theta, u, dt, *, side=1):

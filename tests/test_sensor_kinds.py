@@ -8,16 +8,12 @@ import pytest
 
 from bayesmodal._errors import DataError, ModelError
 from bayesmodal.data import load_experiment, options_for_rig
-from bayesmodal.model.effects import get_extension
 from bayesmodal.model.rigs import load_rig, rig_from_dict, rig_from_toml, rig_to_toml
 from bayesmodal.model.system import (
     STANDARD_GRAVITY_M_S2,
-    Cart,
-    Drive,
     LinearModel,
     Rig,
     Sensor,
-    Spring,
 )
 from bayesmodal.reading import ReadOptions
 
@@ -102,19 +98,6 @@ def test_unknown_sensor_key_is_refused():
         two_cart([{"cart": "1", "unit": "g", "scale": 2.0}])
 
 
-def test_friction_refuses_non_position_sensors():
-    # (the effects that read every kind: tests/test_effect_sensor_kinds.py)
-    rig = Rig(carts=(Cart("1"), Cart("2")),
-              springs=(Spring("1", "2", 774.0), Spring("2", "frame", 770.0)),
-              drive=(Drive("1"),), sensors=(Sensor("1", "g"), Sensor("2", "g")))
-    ext = get_extension("coulomb_friction")
-    why = ext.unsupported(rig)
-    assert why is not None and "position sensors only" in why and "fit_lsq" in why
-    assert "\n" not in why
-    with pytest.raises(ModelError, match="position sensors only"):
-        ext.simulate(rig, np.ones(ext.n_params(rig)), np.zeros(10), 0.01)
-
-
 def _write_txt(path, t, cols, v):
     np.savetxt(path, np.column_stack([t, *cols, v]))
 
@@ -164,15 +147,14 @@ def test_reader_options_check_lengths(tmp_path):
         load_experiment(path, options=ReadOptions(output_kinds=("position", "velocity")))
 
 
-def test_diagnose_refuses_accelerometer_records_with_one_line():
-    from bayesmodal.data import Experiment
-    from bayesmodal.discrepancy.diagnosis import diagnose
+def test_diagnose_takes_accelerometer_records_and_refuses_positions_out_of_order():
+    from bayesmodal.discrepancy.diagnosis import require_diagnosable
 
-    rig = two_cart([{"cart": "1", "unit": "g"}, {"cart": "2", "unit": "g"}])
-    t = np.arange(100) * 0.01
-    e = Experiment(t, np.r_[1.0, np.zeros(99)], np.zeros((100, 2)))
-    with pytest.raises(ModelError, match="diagnose: needs position sensors only") as info:
-        diagnose(e, rig=rig, posterior=False, rng=1)
+    require_diagnosable(two_cart([{"cart": "1", "unit": "g"}, {"cart": "2", "unit": "g"}]))
+    swapped = two_cart([{"cart": "2"}, {"cart": "1"}])
+    with pytest.raises(ModelError, match="diagnose needs a sensor on every moving cart, "
+                                         "in cart order") as info:
+        require_diagnosable(swapped)
     assert "\n" not in str(info.value)
 
 

@@ -26,6 +26,14 @@ function                          looks for                            suggests
 
 ``RESIDUAL_DIAGNOSTICS`` lists the single-experiment ones by name, all with the signature
 ``f(res, **options) -> Diagnostic``.
+
+Sensor kinds: ``whiteness``, ``input_correlation``, ``residual_spectrum``, ``gain_error``
+and ``input_bias`` read only the residual and the prediction, each in the output's own
+units and kind (position m, velocity m/s, acceleration m/s^2), and apply to any sensor.
+The others (``NEEDS_POSITIONS``) read the measured motion as cart positions (rest,
+envelope, amplitude, differentiated positions): ``diagnostics_for(model)`` leaves them
+out unless every sensor reads a position, one per moving cart in cart order, and
+``skipped_for(model)`` says which and why.
 """
 
 from __future__ import annotations
@@ -54,11 +62,13 @@ from .whiteness import whiteness
 __all__ = [
     "Diagnostic",
     "LinearResiduals",
+    "NEEDS_POSITIONS",
     "RESIDUAL_DIAGNOSTICS",
     "amplitude_dependence",
     "constant_input_segments",
     "cross_experiment_consistency",
     "decay_envelope",
+    "diagnostics_for",
     "drive_gain_amplitude",
     "force_residual",
     "friction_signature",
@@ -71,6 +81,7 @@ __all__ = [
     "noise_level",
     "prediction_lag",
     "residual_spectrum",
+    "skipped_for",
     "smooth_derivative",
     "stick_detection",
     "whiteness",
@@ -89,3 +100,44 @@ RESIDUAL_DIAGNOSTICS = {
     "input_bias": input_bias,
     "drive_gain": drive_gain_amplitude,
 }
+
+#: Diagnostics that read the measured record as cart positions (output j: cart j).
+NEEDS_POSITIONS = frozenset({"friction_signature", "decay_envelope", "amplitude_dependence",
+                             "stick", "drive_gain"})
+
+
+def _positions_in_cart_order(model) -> bool:
+    return bool(model.rig.positions_only and model.output_index is None)
+
+
+def diagnostics_for(model) -> tuple[str, ...]:
+    """Names of the ``RESIDUAL_DIAGNOSTICS`` that apply to ``model``'s sensors.
+
+    Parameters
+    ----------
+    model : LinearModel
+
+    Returns
+    -------
+    tuple of str
+        All of them when every sensor reads a position, one per moving cart in cart
+        order; otherwise those that read only the residual (``NEEDS_POSITIONS`` out).
+    """
+    if _positions_in_cart_order(model):
+        return tuple(RESIDUAL_DIAGNOSTICS)
+    return tuple(k for k in RESIDUAL_DIAGNOSTICS if k not in NEEDS_POSITIONS)
+
+
+def skipped_for(model) -> str | None:
+    """One line naming the diagnostics ``diagnostics_for(model)`` leaves out, or None.
+
+    Parameters
+    ----------
+    model : LinearModel
+    """
+    if _positions_in_cart_order(model):
+        return None
+    kinds = sorted(set(model.rig.output_kinds))
+    left = ", ".join(k for k in RESIDUAL_DIAGNOSTICS if k in NEEDS_POSITIONS)
+    return (f"skipped on {' and '.join(kinds)} records (they read positions, one per cart): "
+            f"{left}; the others read the residual in the sensors' own units")

@@ -1,9 +1,13 @@
 """Residuals of the linear model and the signals the diagnostics derive from them.
 
 ``residual = y_measured - y_predicted`` with the prediction of a (usually least-squares
-fitted) ``LinearModel`` simulated from rest.  Velocities come from the model prediction
-(exact: the velocity states of the ZOH simulation, noise-free) and from the measurement
-(Savitzky-Golay smoothed derivative).
+fitted) ``LinearModel`` simulated from rest, each output as its sensor reads it (position
+m, velocity m/s, acceleration m/s^2: ``simulate_linear``), so the residual is in the
+output's own units.  Velocities come from the model prediction (exact: the velocity
+states of the ZOH simulation, noise-free) and from the measurement: the Savitzky-Golay
+smoothed derivative of a position record, a velocity sensor's own reading, NaN for an
+accelerometer (its record cannot be integrated to velocity reliably; the diagnostics
+that need measured motion are left out there, ``checks.diagnostics_for``).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..._errors import DataError
 from ...data import ECP_M_PER_COUNT, Experiment
-from ...model.simulate import simulate_state_space
+from ...model.simulate import simulate_linear, simulate_state_space
 from ...model.system import LinearModel
 
 __all__ = [
@@ -24,6 +28,7 @@ __all__ = [
     "smooth_derivative",
     "constant_input_segments",
     "noise_level",
+    "measured_velocity",
 ]
 
 
@@ -38,13 +43,15 @@ class LinearResiduals:
     theta : ndarray, shape (n_params,)
         Linear parameters the prediction used.
     y_pred : ndarray, shape (N, n_outputs)
-        Predicted positions of the measured carts (one column per sensor), m.
+        Predicted output of each sensor, in its units (position m, velocity m/s,
+        acceleration m/s^2).
     v_pred : ndarray, shape (N, n_outputs)
         Predicted velocities of the measured carts, m/s (exact, noise-free).
     residual : ndarray, shape (N, n)
-        ``y_measured - y_pred``, m.
+        ``y_measured - y_pred``, in each output's units.
     v_meas : ndarray, shape (N, n)
-        Smoothed derivative of the measured positions, m/s.
+        Measured velocity of each sensor's cart, m/s: the smoothed derivative of a
+        position, a velocity sensor's reading, NaN for an accelerometer.
     smooth_window : int
         Savitzky-Golay window (samples, odd) used for derivatives.
     quantum_m : float
@@ -152,7 +159,11 @@ def linear_residuals(
     states = simulate_state_space(A, B, experiment.v_volt, dt, 2 * n)[0]
     # the measured carts' positions and velocities (every cart in order on the chain)
     out = np.arange(n) if model.output_index is None else np.asarray(model.output_index)
-    y_pred = np.ascontiguousarray(states[:, out])
+    if model.output_spec is not None:  # velocity or acceleration sensors
+        out = np.asarray(model.output_spec[:, 0])
+        y_pred = np.ascontiguousarray(simulate_linear(model, theta, experiment.v_volt, dt))
+    else:
+        y_pred = np.ascontiguousarray(states[:, out])
     v_pred = np.ascontiguousarray(states[:, n + out])
     return LinearResiduals(
         experiment=experiment,
@@ -161,10 +172,38 @@ def linear_residuals(
         y_pred=y_pred,
         v_pred=v_pred,
         residual=experiment.y_m - y_pred,
-        v_meas=smooth_derivative(experiment.y_m, dt, smooth_window, deriv=1),
+        v_meas=measured_velocity(experiment.y_m, model.rig.output_kinds, dt, smooth_window),
         smooth_window=smooth_window,
         quantum_m=float(quantum_m),
     )
+
+
+def measured_velocity(y: np.ndarray, kinds, dt: float, window: int) -> np.ndarray:
+    """Velocity of each sensor's cart from its record, m/s, shape (N, n).
+
+    Parameters
+    ----------
+    y : ndarray, shape (N, n)
+        The record, each column in its sensor's SI units.
+    kinds : sequence of str, length n
+        ``"position"``, ``"velocity"`` or ``"acceleration"`` per column.
+    dt : float
+        Sample interval, s.
+    window : int
+        Savitzky-Golay window for a position's derivative, samples (odd).
+
+    Returns
+    -------
+    ndarray, shape (N, n)
+        Smoothed derivative of a position, a velocity as read, NaN for an acceleration.
+    """
+    v = np.full(y.shape, np.nan)
+    for j, kind in enumerate(kinds):
+        if kind == "position":
+            v[:, j] = smooth_derivative(y[:, j], dt, window, deriv=1)
+        elif kind == "velocity":
+            v[:, j] = y[:, j]
+    return v
 
 
 def smooth_derivative(x: np.ndarray, dt: float, window: int, *, deriv: int = 1,

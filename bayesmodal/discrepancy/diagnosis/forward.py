@@ -86,6 +86,7 @@ from ...fit.result import LSQResult
 from ...metrics import fit_percent
 from ...model.effects import EXTENSIONS, get_extension
 from ...model.system import LinearModel, Rig
+from ..checks import diagnostics_for
 from .backward import _simplify
 from .candidates import REFINES, _fit_from, _global_if_better, _input_pairs, _options, _starts
 from .gains import _in_sample, _lpd, _reference, _simulate, loro_gain
@@ -99,6 +100,11 @@ __all__ = ["Cause", "ForwardResult", "forward_select", "loro_gain", "REFINES",
 #: no model changes, and take no part in a pass check).
 RESIDUAL_BASED = ("whiteness", "input_correlation", "friction_signature",
                   "residual_spectrum", "gain_error", "input_bias", "drive_gain")
+
+
+def residual_based(model) -> tuple[str, ...]:
+    """The ``RESIDUAL_BASED`` diagnostics that apply to ``model``'s sensors."""
+    return tuple(n for n in RESIDUAL_BASED if n in diagnostics_for(model))
 
 
 @dataclass(frozen=True)
@@ -185,7 +191,7 @@ class ForwardResult:
 def _residual_tests(cal, exps, model, fit, q, outcomes):
     ys = _simulate(fit.extension, fit.rig, fit.theta, exps)
     lin = fit.theta[: model.n_params]
-    diags = [run_diagnostics(e, model, lin, quantum_m=q, y_pred=y, names=RESIDUAL_BASED)
+    diags = [run_diagnostics(e, model, lin, quantum_m=q, y_pred=y, names=residual_based(model))
              for e, y in zip(exps, ys, strict=True)]
     tests, t_max = outcomes(cal, exps, diags)
     return tests, t_max
@@ -374,7 +380,7 @@ def forward_select(
         noise = fit_noise([e.y_m - y for e, y in zip(exps, ys, strict=True)], quantum_m)
         announce(f"diagnose: recalibrating the null on {ext.name}", enabled=progress)
         cal = calibrate_null(exps, model, fit.theta[:p], noise=noise, n_null=n_null,
-                             alpha=alpha, rng=rng, names=RESIDUAL_BASED,
+                             alpha=alpha, rng=rng, names=residual_based(model),
                              refit_nfev=refit_nfev, extension_fit=fit, weights=weights)
         tests, t_max = _residual_tests(cal, exps, model, fit, quantum_m, outcomes)
         if t_max <= cal.threshold:

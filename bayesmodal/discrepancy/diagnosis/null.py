@@ -42,7 +42,13 @@ from ...fit.lsq import fit_lsq
 from ...inference.likelihood import simulate_noise
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel
-from ..checks import RESIDUAL_DIAGNOSTICS, Diagnostic, linear_residuals, smooth_derivative
+from ..checks import (
+    RESIDUAL_DIAGNOSTICS,
+    Diagnostic,
+    diagnostics_for,
+    linear_residuals,
+    smooth_derivative,
+)
 
 __all__ = [
     "NoiseModel",
@@ -166,18 +172,22 @@ def run_diagnostics(experiment: Experiment, model: LinearModel, theta: np.ndarra
                     names: Sequence[str] | None = None) -> dict[str, Diagnostic]:
     """Every single-experiment diagnostic of one experiment at ``theta``.
 
-    With ``y_pred`` (e.g. an extended model's prediction) the residuals are taken against
-    it instead of the linear simulation; the linear parameters still give M, C, K.
+    With ``y_pred`` (e.g. an extended model's prediction, in the sensors' units) the
+    residuals are taken against it instead of the linear simulation; the linear
+    parameters still give M, C, K (and, on velocity or acceleration records, the
+    predicted velocities).  ``names`` default: those that apply to the model's sensors
+    (``checks.diagnostics_for``).
     """
     q = quantum_m if quantum_m > 0 else ECP_M_PER_COUNT
     res = linear_residuals(experiment, model, theta, quantum_m=q)
     if y_pred is not None:
         from dataclasses import replace
 
-        res = replace(res, y_pred=np.ascontiguousarray(y_pred),
-                      v_pred=smooth_derivative(y_pred, experiment.dt, res.smooth_window),
+        v_pred = (smooth_derivative(y_pred, experiment.dt, res.smooth_window)
+                  if model.rig.positions_only else res.v_pred)
+        res = replace(res, y_pred=np.ascontiguousarray(y_pred), v_pred=v_pred,
                       residual=experiment.y_m - y_pred)
-    names = tuple(RESIDUAL_DIAGNOSTICS) if names is None else tuple(names)
+    names = diagnostics_for(model) if names is None else tuple(names)
     return {k: RESIDUAL_DIAGNOSTICS[k](res) for k in names}
 
 
@@ -278,7 +288,8 @@ def calibrate_null(
         Family-wise false-positive rate of the whole set of diagnostics.
     rng : numpy.random.Generator or int, optional
     names : sequence of str, optional
-        Diagnostics to calibrate (default all of ``RESIDUAL_DIAGNOSTICS``).
+        Diagnostics to calibrate (default: those of ``RESIDUAL_DIAGNOSTICS`` that apply to
+        the model's sensors, ``checks.diagnostics_for``).
     refit_nfev : int
         Evaluations allowed to each null refit.  The refit starts at the parameters that
         generated the null data, so it converges in a few steps; a refit stopped early
@@ -312,7 +323,7 @@ def calibrate_null(
     if not experiments:
         raise DataError("no experiments to calibrate on")
     rng = np.random.default_rng(rng)
-    names = tuple(RESIDUAL_DIAGNOSTICS) if names is None else tuple(names)
+    names = diagnostics_for(model) if names is None else tuple(names)
     keys = tuple((nm, i) for i in range(len(experiments)) for nm in names)
     n_null = int(n_null)
     ef = extension_fit

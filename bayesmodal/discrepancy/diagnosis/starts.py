@@ -16,18 +16,26 @@ import numpy as np
 
 from ...data import Experiment
 from ...fit.effects import extension_residuals, root_weights
+from ...fit.lsq import fit_lsq
 from ...model.effects import Extension
-from ...model.simulate import simulate_linear
-from ...model.system import LinearModel, Rig, damper_mask
+from ...model.simulate import simulate_state_space
+from ...model.system import LinearModel, Rig, damper_mask, default_start
 
-__all__ = ["best_start", "best_starts", "extra_starts"]
+__all__ = ["best_start", "best_starts", "extra_starts", "linear_fit"]
+
+
+def _positions(rig: Rig, theta_lin, e: Experiment) -> np.ndarray:
+    """Every cart's position in the linear response to ``e``'s input, m, shape (N, n)
+    (from the states: the sensors may read velocities or accelerations)."""
+    model = LinearModel(rig, "free")
+    A, B = model.state_space(theta_lin)
+    return simulate_state_space(A, B, e.v_volt, e.dt, 2 * rig.n_carts)[0][:, : rig.n_carts]
 
 
 def _spring_extension(rig: Rig, theta_lin, experiments) -> np.ndarray:
-    model = LinearModel(rig, "free")
     d = np.zeros(rig.n_carts)
     for e in experiments:
-        y = simulate_linear(model, theta_lin, e.v_volt, e.dt)
+        y = _positions(rig, theta_lin, e)
         ext = np.column_stack([y[:, 1:] - y[:, :-1], -y[:, -1]])
         d = np.maximum(d, np.max(np.abs(ext), axis=0))
     return np.maximum(d, 1e-6)
@@ -67,6 +75,12 @@ def extra_starts(ext: Extension, rig: Rig, theta_lin: np.ndarray,
                     w[i], w[n + i] = fc, ratio * fc
                     w[2 * n + i] = 1.2 * max(fc, ratio * fc)
                     out.append(w)
+    elif name == "end_stop":
+        # stops inside the driven cart's positive travel (the catalogue's grid is fixed)
+        j = int(np.flatnonzero(rig.input_vector())[0])
+        top = max(float(np.max(_positions(rig, theta_lin, e)[:, j])) for e in experiments)
+        if top > 1e-3:
+            out = [[f * top, k] for f in (0.5, 0.65, 0.8) for k in (1e3, 2.5e3)]
     elif name == "input_offset":
         out = [[x] for x in (-0.1, -0.02, 0.02, 0.1)]
     elif name in ("motor_lag", "input_delay"):
@@ -132,3 +146,39 @@ def best_start(ext: Extension, rig: Rig, theta_lin: np.ndarray,
                experiments: Sequence[Experiment]) -> np.ndarray:
     """The full parameter vector of least cost (see ``best_starts``)."""
     return best_starts(ext, rig, theta_lin, experiments, 1)[0]
+
+
+#: Scales of the default start's dampers tried by ``linear_fit`` on rate records.
+RATE_DAMPER_SCALES = (0.1, 0.3, 1.0, 3.0)
+
+
+def linear_fit(exps: Sequence[Experiment], model: LinearModel):
+    """The least-squares linear fit the diagnosis starts from.
+
+    On position records one local search from ``default_start``.  On velocity or
+    acceleration records the cost has local optima where the damping sits on the wrong
+    dampers (accelerometer records of the two-cart rig, ``tests/hidden_accel.py``: from
+    the default start 5 of 6 seeds tried ended there, at 40 to 4000 times the cost at the
+    truth), so the search starts from the default with its dampers scaled by each of
+    ``RATE_DAMPER_SCALES`` and keeps the lowest cost (the truth's optimum in all 6).
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+    model : LinearModel
+
+    Returns
+    -------
+    LSQResult
+    """
+    if model.rig.positions_only:
+        return fit_lsq(exps, model)
+    dampers = damper_mask(model)
+    best = None
+    for f in RATE_DAMPER_SCALES:
+        th = np.array(default_start(model), dtype=float)
+        th[dampers] *= f
+        fit = fit_lsq(exps, model, theta0=th)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    return best

@@ -44,6 +44,7 @@ from ...model.effects import EXTENSIONS, Extension, default_candidates, get_exte
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
 from ...structure import check_structure
+from ..checks import skipped_for
 from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
 from .candidates import REFINES
 from .forward import RESIDUAL_BASED, Cause, forward_select
@@ -60,7 +61,7 @@ from .null import (
 from .posterior import posterior_summary
 from .scoring import ar1_pointwise, criterion_for, held_out_significant, laplace_sd
 from .spec import DiagnoseSpec, with_diagnose_settings
-from .starts import best_starts
+from .starts import best_starts, linear_fit
 
 __all__ = ["diagnose", "require_diagnosable", "DEFAULT_CANDIDATES"]
 
@@ -104,17 +105,20 @@ def _fit_percent(exps, sims) -> list[list[float]]:
 def require_diagnosable(rig: Rig, what: str = "diagnose") -> None:
     """Raise ModelError (one line with the fix) unless ``diagnose`` can work on ``rig``.
 
+    Velocity and acceleration records (any sensors) are diagnosed in their own units,
+    without the checks that read positions (``checks.diagnostics_for``); position
+    records need a sensor on every moving cart, in cart order.
+
     Parameters
     ----------
     rig : Rig
     what : str
         Who asks, for the message.
     """
-    rig.require_positions(what)  # the effects simulate positions only
-    if LinearModel(rig, "free").output_index is not None:
-        # the diagnostics read output j as the position of cart j
-        raise ModelError(f"{what} needs a sensor on every moving cart, in cart order; "
-                         "list the rig's [[sensors]] that way")
+    if rig.positions_only and LinearModel(rig, "free").output_index is not None:
+        # the checks of the measured motion read output j as the position of cart j
+        raise ModelError(f"{what} needs a sensor on every moving cart, in cart order, on "
+                         "position records; list the rig's [[sensors]] that way")
 
 
 def _read_description(run, experiments, rig, train, rng):
@@ -218,7 +222,7 @@ def diagnose(
     signature = st.signature(cands)
     order = sorted(cands, key=lambda c: (-signature[c], cands.index(c)))
     gain = _gain_before(st, train_exps, held_exps)
-    notes: list[str] = []
+    notes: list[str] = [skipped_for(model)] if skipped_for(model) else []
     if skipped:
         notes.append(f"left out (this rig cannot carry them): {', '.join(skipped)}")
     base = dict(
@@ -235,7 +239,7 @@ def diagnose(
         return Diagnosis(discrepancy=False, cause="none", location=None, location_label=None,
                          explained=True, tests_after=(), ranking=ranking, parameters={},
                          linear_parameters={}, gain=gain, interval_method="none",
-                         notes=("the diagnostics do not reject the linear model",),
+                         notes=(*notes, "the diagnostics do not reject the linear model"),
                          detail={"calibration": st.cal, "linear": st.linear}, **base)
     scored, fits, after_tests = _fit_candidates(st, train_exps, rig, cands, order, signature,
                                                 spec, progress)
@@ -340,7 +344,7 @@ def _null_stage(train_exps, held_exps, model, q, spec, rng, progress) -> _NullSt
     # unstable trial systems); those trials are rejected, so the warnings are noise
     announce("diagnose: least-squares fit of the linear model", enabled=progress)
     with np.errstate(all="ignore"):
-        linear = fit_lsq(train_exps, model)
+        linear = linear_fit(train_exps, model)
     require_identified(linear, train_exps, "the diagnosis")
     y_lin = [simulate_linear(model, linear.theta, e.v_volt, e.dt) for e in train_exps]
     noise = fit_noise([e.y_m - y for e, y in zip(train_exps, y_lin, strict=True)], q)
