@@ -180,12 +180,16 @@ def _pairs(name: str) -> Callable[[], str]:
     return render
 
 
-def _layouts() -> str:
-    """benchmarks/detection_layouts.py's rows: rate and exact one-sided 95 % bound per
-    layout and case, with what was named where the case was missed."""
+def _rows_table(name: str) -> Callable[[], str]:
+    """The rows of benchmarks/detection_layouts.py or detection_accel.py: rate and exact
+    one-sided 95 % bound per layout and case, with what was named where it was missed."""
+    return lambda: _layouts(name)
+
+
+def _layouts(name: str) -> str:
     from scipy import stats
 
-    out = _json("detection_layouts.json")
+    out = _json(name)
     lines = ["| layout | case | data sets | rate | one-sided 95 % bound | named instead |",
              "|---|---|---|---|---|---|"]
     keys = sorted({(r["layout"], r["case"]) for r in out["rows"]},
@@ -317,7 +321,10 @@ BLOCKS: dict[str, Block] = {
                              ("detection_pairs_20.json",)),
     "detection-two-records": Block("detection.md", _pairs("detection_pairs_2records.json"),
                                    ("detection_pairs_2records.json",)),
-    "detection-layouts": Block("detection.md", _layouts, ("detection_layouts.json",)),
+    "detection-layouts": Block("detection.md", _rows_table("detection_layouts.json"),
+                               ("detection_layouts.json",)),
+    "detection-accel": Block("detection.md", _rows_table("detection_accel.json"),
+                             ("detection_accel.json",)),
     "threads": Block("performance.md", _threads, ("threads.json",)),
     "extended-posterior": Block("performance.md", _extended_posterior,
                                 ("extended_posterior_lugre.json",)),

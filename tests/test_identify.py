@@ -340,17 +340,28 @@ def test_first_screen_renders_in_headless_chromium(offset_run, tmp_path):
     first_screen(report, tmp_path)  # a page with text and a tinted verdict box
 
 
-def test_an_accelerometer_rig_is_refused_before_any_run(tmp_path):
-    # the diagnosis simulates position sensors only: one line naming the fix, and no
-    # posterior sampled first (the folder stays empty)
+def test_positions_out_of_cart_order_are_refused_before_any_run(tmp_path):
+    # the diagnosis reads position records as cart 1, 2, ... in order (accelerometer
+    # records it reads in any order): one line naming the fix, and no posterior sampled
+    # first (the folder stays empty)
     data = Path(__file__).resolve().parents[1] / "data"
-    p = subprocess.run([sys.executable, "-m", "bayesmodal", "identify",
-                        str(data / "accel_hammer.csv"), str(data / "accel_sweep.csv"),
-                        "--rig", str(data / "accel_rig.toml"), "--out", str(tmp_path / "o")],
+    toml = (data / "accel_rig.toml").read_text()
+    head, _, _ = toml.partition("[[sensors]]")
+    rig = tmp_path / "reversed.toml"
+    rig.write_text(head + '[[sensors]]\ncart = "2"\nunit = "m"\n'
+                          '[[sensors]]\ncart = "1"\nunit = "m"\n')
+    t = np.arange(2000) * 0.005  # a record in m, its values of no matter here
+    x = 1e-3 * np.sin(2 * np.pi * t)
+    csv = tmp_path / "r.csv"
+    np.savetxt(csv, np.column_stack([t, np.sign(x), x, 0.5 * x]), delimiter=",",
+               header="t,v,x2,x1", comments="")
+    p = subprocess.run([sys.executable, "-m", "bayesmodal", "identify", str(csv),
+                        "--rig", str(rig), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
     assert p.returncode != 0
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "identify (its diagnosis)" in lines[0], p.stderr
+    assert "cart order" in lines[0]
     assert not (tmp_path / "o" / "linear").exists()
 
 
