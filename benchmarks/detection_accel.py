@@ -22,7 +22,6 @@ existing file keeps its rows and runs only the rest (resume after a stop).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from multiprocessing import Pool
@@ -32,7 +31,7 @@ _TESTS = Path(__file__).resolve().parent.parent / "tests"
 sys.path.insert(0, str(_TESTS))
 sys.path.insert(0, str(_TESTS.parent / "docs"))  # docs/_stamp.py
 
-import numpy as np  # noqa: E402
+from detection_layouts import _done_rows, _Serial, _write, summarise  # noqa: E402
 
 SEED_OFFSET = 30_000  # benchmark seeds never coincide with the tests' seeds
 N_NULL = 19  # null sets of each diagnosis' own calibration (5 % false positives)
@@ -79,18 +78,6 @@ def run_one(args) -> dict:
             "seconds": time.perf_counter() - t0}
 
 
-def summarise(rows: list[dict]) -> list[dict]:
-    """Rate and binomial standard error per layout and case."""
-    out = []
-    keys = sorted({(r["layout"], r["case"]) for r in rows})
-    for layout, case in keys:
-        ok = np.array([r["correct"] for r in rows if (r["layout"], r["case"]) == (layout, case)])
-        p = ok.mean()
-        out.append({"layout": layout, "case": case, "n": int(ok.size), "rate": float(p),
-                    "se": float(np.sqrt(max(p * (1 - p), 1e-12) / ok.size))})
-    return out
-
-
 def main(argv=None) -> int:
     from hidden_accel import CASES
 
@@ -132,36 +119,6 @@ def main(argv=None) -> int:
         _write(a.out, rows, a.samples)
     return 0
 
-
-class _Serial:
-    """``Pool``'s ``imap_unordered`` in this process (``--workers 1``)."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    @staticmethod
-    def imap_unordered(fn, jobs, chunksize=1):
-        return map(fn, jobs)
-
-
-def _done_rows(out: Path | None, n_samples: int) -> list[dict]:
-    """The rows of an earlier run in ``out`` (empty without one); refused when that run
-    used records of another length."""
-    if out is None or not out.exists():
-        return []
-    old = json.loads(out.read_text())
-    if old.get("samples", n_samples) != n_samples:
-        raise SystemExit(f"{out} holds diagnoses of {old['samples']}-sample records, this "
-                         f"run asks for {n_samples}; give another --out")
-    return list(old["rows"])
-
-
-def _write(out: Path, rows: list[dict], n_samples: int) -> None:
-    out.write_text(json.dumps({"samples": n_samples, "table": summarise(rows), "rows": rows},
-                              indent=1, default=str))
 
 
 if __name__ == "__main__":
