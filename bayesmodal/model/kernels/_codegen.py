@@ -9,6 +9,7 @@ are described in the package docstring (``bayesmodal.model.kernels``).
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import importlib.util
 import math
@@ -440,3 +441,15 @@ def acceleration_rows(outputs, C, D, E=None, columns=None) -> list[np.ndarray]:
     if E is not None:
         rows.append(np.stack([E[:, o, outputs[o][0]] for o in acc], axis=-1).reshape(nb, -1))
     return rows
+
+
+def with_sensors(kernel, params: list, outputs, out_map, columns, n: int):
+    """A runner's kernel, parameter rows and output count for ``outputs``: the position
+    kernel and ``n`` rows without sensors; with them, the sensor map checked, the
+    acceleration rows (``acceleration_rows`` of ``out_map``) appended to ``params`` and
+    the kernel told its sensors."""
+    if outputs is None:
+        return kernel, params, n
+    outputs = checked_outputs(outputs, n)
+    params = params + acceleration_rows(outputs, *out_map, columns=columns)
+    return functools.partial(kernel, outputs=outputs, columns=columns), params, len(outputs)

@@ -11,11 +11,11 @@ from ._codegen import (
     _fma_sum,
     _head,
     _Rows,
-    acceleration_rows,
     checked_columns,
     checked_outputs,
     run_batched,
     sensor_lines,
+    with_sensors,
 )
 
 #: Newton steps for the impact time of the backlash kernel.
@@ -255,10 +255,5 @@ def backlash_run(Ae, Be, Adis, Ge, m1, m_p, g_v, gap, u, n_sub, h, x0, outputs=N
     mc = m1 - m_p
     params = [Ae, Be, Adis, Ge, m1, m_p, 1.0 / m1, 1.0 / mc, 1.0 / m_p, g_v, 0.5 * gap]
     kernel = functools.partial(backlash_kernel, n)
-    n_out = n
-    if outputs is not None:
-        outputs = checked_outputs(outputs, n)
-        n_out = len(outputs)
-        params += acceleration_rows(outputs, *out_map, columns=columns)
-        kernel = functools.partial(kernel, outputs=outputs, columns=columns)
+    kernel, params, n_out = with_sensors(kernel, params, outputs, out_map, columns, n)
     return run_batched(kernel, params, state, u, n_out, int(n_sub), float(h))

@@ -13,11 +13,11 @@ from ._codegen import (
     _head,
     _lane_inputs,
     _Rows,
-    acceleration_rows,
     checked_columns,
     checked_outputs,
     run_batched,
     sensor_lines,
+    with_sensors,
 )
 from .stop import checked_side, stop_force_lines
 
@@ -179,10 +179,5 @@ def cubic_run(Ah, Bh, F0h, F1h, k3, u, n_sub, x0, stop=None, springs=None, outpu
         side, xq, kq = stop
         params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
         kernel = functools.partial(kernel, stop=checked_side(side))
-    n_out = n
-    if outputs is not None:
-        outputs = checked_outputs(outputs, n)
-        n_out = len(outputs)
-        params += acceleration_rows(outputs, *out_map, columns=columns)
-        kernel = functools.partial(kernel, outputs=outputs, columns=columns)
+    kernel, params, n_out = with_sensors(kernel, params, outputs, out_map, columns, n)
     return run_batched(kernel, params, [x0], u, n_out, int(n_sub))

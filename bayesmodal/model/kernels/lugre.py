@@ -35,12 +35,12 @@ from ._codegen import (
     _head,
     _lane_inputs,
     _Rows,
-    acceleration_rows,
     checked_columns,
     checked_outputs,
     interleave,
     run_batched,
     sensor_lines,
+    with_sensors,
 )
 from ._exp import exp_neg, one_minus_exp
 from .coulomb import _staged_inputs, checked_stages
@@ -293,11 +293,6 @@ def lugre_run(Ah, Bh, Fh, G, gb, minv, Fc, Fs, sigma0, sigma1, v_stribeck, u, n_
         side, xq, kq = stop
         params += [np.asarray(xq, float).reshape(-1, 1), np.asarray(kq, float).reshape(-1, 1)]
         kernel = functools.partial(kernel, stop=checked_side(side))
-    n_out = n
-    if outputs is not None:
-        outputs = checked_outputs(outputs, n)
-        n_out = len(outputs)
-        params += acceleration_rows(outputs, *out_map, columns=columns)
-        kernel = functools.partial(kernel, outputs=outputs, columns=columns)
+    kernel, params, n_out = with_sensors(kernel, params, outputs, out_map, columns, n)
     return run_batched(kernel, params, state, u, n_out, int(n_sub), float(h),
                        lane_block=LANE_BLOCK)
