@@ -48,3 +48,21 @@ def test_unsupported_candidates_are_refused_or_left_out():
                               drive=(Drive("1"), Drive("2", 0.25)))
     with pytest.raises(ConfigError, match="exactly one cart"):
         diagnose(h.experiment, rig=rig, candidates=["backlash"], posterior=False, n_null=19)
+
+
+@pytest.mark.slow
+def test_a_pair_no_single_effect_explains_is_found_from_the_most_significant_one():
+    """One cart, friction with a drive dead band (the layouts benchmark's seed 20007, where
+    ``none`` was returned): friction alone and the dead band alone each leave the residual
+    statistic higher than the linear model's, so no single effect passes; forward
+    selection from the most significant one finds both, with the friction on cart 1.
+    Negative control: a record of the same rig that hides nothing ends with ``none``."""
+    h = make_layout_case("one_cart", "coulomb_friction+drive_deadband", 20007)
+    kw = dict(rig=layout_rig("one_cart"), posterior=False, n_null=19, rng=20007,
+              candidates=CANDIDATES)
+    d = diagnose(h.experiment, **kw)
+    ok, found = judge(h, d)
+    assert ok, f"truth {h.effects} {h.sizes}; found {found}; notes {d.notes}"
+    assert any(n.startswith("no single effect passes") for n in d.notes), d.notes
+    null = diagnose(make_layout_case("one_cart", "none", 20007).experiment, **kw)
+    assert null.cause == "none", null.notes
