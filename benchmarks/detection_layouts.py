@@ -62,12 +62,12 @@ def run_one(args) -> dict:
         d = diagnose(h.experiment, rig=rig, posterior=False, n_null=N_NULL, rng=seed,
                      candidates=candidates())
         ok, found = judge(h, d)
-        err = None
+        err, notes = None, list(d.notes)
     except Exception as exc:  # record, do not stop the benchmark
-        ok, found, err = False, [], f"{type(exc).__name__}: {exc}"
+        ok, found, err, notes = False, [], f"{type(exc).__name__}: {exc}", []
     return {"layout": layout, "case": case, "seed": seed, "correct": bool(ok),
             "found": [[k, v] for k, v in found], "truth": h.effects, "sizes": h.sizes,
-            "error": err, "seconds": time.perf_counter() - t0}
+            "error": err, "notes": notes, "seconds": time.perf_counter() - t0}
 
 
 def summarise(rows: list[dict]) -> list[dict]:
