@@ -146,14 +146,32 @@ def _done_rows(out: Path | None, n_samples: int) -> list[dict]:
     if old.get("samples", n_samples) != n_samples:
         raise SystemExit(f"{out} holds diagnoses of {old['samples']}-sample records, this "
                          f"run asks for {n_samples}; give another --out")
-    return list(old["rows"])
+    # rows of a run that did not record their commit take the commit of its stamp
+    earlier = (old.get("stamp") or {}).get("commit")
+    return [r if "commit" in r else {**r, "commit": earlier} for r in old["rows"]]
+
+
+def _commits(rows: list[dict], current: str | None) -> str | None:
+    """The commits that made ``rows``, in order, with their row counts when several
+    (a resumed run's rows may come from several commits)."""
+    counts: dict = {}
+    for r in rows:
+        c = r.get("commit", current)
+        counts[c] = counts.get(c, 0) + 1
+    if len(counts) <= 1:
+        return next(iter(counts), current)
+    return ", ".join(f"{c} ({n} rows)" for c, n in counts.items())
 
 
 def _write(out: Path, rows: list[dict], n_samples: int) -> None:
     from _stamp import stamp  # date, commit and machine of the output
 
+    st = stamp()
+    for r in rows:
+        r.setdefault("commit", st["commit"])
+    st["commit"] = _commits(rows, st["commit"])
     out.write_text(json.dumps({"samples": n_samples, "table": summarise(rows), "rows": rows,
-                               "stamp": stamp()}, indent=1, default=str))
+                               "stamp": st}, indent=1, default=str))
 
 
 if __name__ == "__main__":
