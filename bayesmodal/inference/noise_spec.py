@@ -71,6 +71,8 @@ NOISE_KINDS: tuple[NoiseKind, ...] = (
               "'ar:auto' (order chosen by BIC on the least-squares residuals)", None, None),
     NoiseKind("ar1:motion", r"ar1:motion", "'ar1:motion' (AR(1) whose level follows each "
               "cart's measured speed)", "motion", "MotionAR1Noise"),
+    NoiseKind("quantised", r"quantised", "'quantised' (readings rounded to the sensor's "
+              "step: the interval-censored likelihood)", "quantised", "QuantisedNoise"),
     NoiseKind("process", r"process", "'process' (a random force on each cart, Kalman filter)",
               "kalman", "ProcessNoise"),
 )

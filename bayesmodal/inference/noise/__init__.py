@@ -6,7 +6,8 @@
   starts at rest;
 - :mod:`.kalman`: process noise (a random force on each cart) through the steady-state
   Kalman filter of the linear model;
-- :mod:`.steady_filter`: that model discretised, and its steady-state filter (the DARE).
+- :mod:`.steady_filter`: that model discretised, and its steady-state filter (the DARE);
+- :mod:`.quantised`: readings rounded to a sensor's step (interval-censored likelihood).
 
 See docs/noise_models.md.
 """
@@ -20,9 +21,10 @@ from .kalman import (
     kalman_pointwise,
     simulate_process_noise,
 )
+from .quantised import QuantisedNoise
 from .steady_filter import steady_state_filter
 
 __all__ = ["NoiseModel", "WhiteNoise", "AR1Noise", "IntegratedAR1Noise", "ARpNoise",
            "OrderChoice", "burg", "choose_order", "levinson_table", "pacf_to_ar",
-           "ProcessNoise", "kalman_loglik",
+           "ProcessNoise", "QuantisedNoise", "kalman_loglik",
            "kalman_pointwise", "simulate_process_noise", "steady_state_filter"]
