@@ -326,9 +326,10 @@ def _forced_first(case, seed, first, from_truth=False):
     """Forward selection started from ``first`` (its local least-squares fit), whatever
     the first step would have chosen; ``from_truth``: that fit starts at the case's true
     linear parameters and the true sizes of ``first``."""
+    from bayesmodal.discrepancy.diagnosis.final import outcomes as _outcomes
     from bayesmodal.discrepancy.diagnosis.forward import forward_select
     from bayesmodal.discrepancy.diagnosis.location import effect_location
-    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES, _outcomes
+    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES
 
     h = make_case(case, seed, N_SAMPLES)
     rig = Rig()
@@ -383,7 +384,7 @@ def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
     is the same data with ``max_effects=1``."""
     from types import SimpleNamespace
 
-    from bayesmodal.discrepancy.diagnosis import workflow
+    from bayesmodal.discrepancy.diagnosis import final as final_stage
     from bayesmodal.discrepancy.diagnosis.forward import Cause
     from bayesmodal.metrics import fit_percent
     from bayesmodal.model.effects import get_extension
@@ -405,7 +406,7 @@ def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
                                calibration=None, tests=(), stop="stub", steps=(),
                                simplified=())
 
-    monkeypatch.setattr(workflow, "forward_select", stub)
+    monkeypatch.setattr(final_stage, "forward_select", stub)
     d = diagnose(e, posterior=False, n_null=N_NULL, rng=1, max_effects=2)
     alone = diagnose(e, posterior=False, n_null=N_NULL, rng=1, max_effects=1)
     assert d.cause == alone.cause == "input_offset"
@@ -435,7 +436,7 @@ def test_intervals_fit_and_elpd_describe_the_final_model(monkeypatch):
         return SimpleNamespace(added=(), names=("input_offset",), fit=fit, calibration=None,
                                tests=(), stop="stub", steps=(), simplified=())
 
-    monkeypatch.setattr(workflow, "forward_select", refit)
+    monkeypatch.setattr(final_stage, "forward_select", refit)
     r = diagnose(e, posterior=False, n_null=N_NULL, rng=1, max_effects=2)
     theta = r.detail["forward"].fit.theta
     assert r.parameters["v_offset"].median == theta[-1] != alone.parameters["v_offset"].median
@@ -449,8 +450,9 @@ def test_input_side_pairs_are_tried_only_when_no_single_candidate_gains(monkeypa
     exceed ``max_effects``, no pair is tried (negative controls).  ``_evaluate`` (fitting
     and testing) is replaced by a recorder; the recalibration is the real one."""
     from bayesmodal.discrepancy.diagnosis import forward
+    from bayesmodal.discrepancy.diagnosis.final import outcomes as _outcomes
     from bayesmodal.discrepancy.diagnosis.location import effect_location
-    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES, _outcomes
+    from bayesmodal.discrepancy.diagnosis.workflow import DEFAULT_CANDIDATES
 
     h = make_case("coulomb_friction+input_offset", 3, 800)
     rig = Rig()

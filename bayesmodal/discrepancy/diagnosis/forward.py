@@ -334,7 +334,7 @@ def forward_select(
     rng : numpy.random.Generator
     outcomes, location : callable
         The workflow's judging of diagnostics against a calibration and its location
-        rule (``workflow._outcomes``, ``location.effect_location``).
+        rule (``final.outcomes``, ``location.effect_location``).
     max_effects : int
         Largest number of effects in the model (the first included).
     max_fits : int, optional

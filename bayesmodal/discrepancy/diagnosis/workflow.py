@@ -39,22 +39,21 @@ from ...data import Experiment
 from ...fit.lsq import fit_lsq
 from ...identified import require_identified
 from ...inference.spec import RunDescription
-from ...metrics import fit_percent
-from ...model.effects import EXTENSIONS, Extension, default_candidates, get_extension
+from ...model.effects import EXTENSIONS, default_candidates
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
 from ...structure import check_structure
 from ..checks import skipped_for
-from ._result import CandidateScore, Diagnosis, Interval, TestOutcome
+from ._result import CandidateScore, Diagnosis, Interval
 from .candidates import REFINES
 from .equivalence import equivalent_readings
-from .forward import RESIDUAL_BASED, Cause, forward_select
+from .final import FinalModel, final_model, first_of_several, fit_percents, outcomes
+from .forward import RESIDUAL_BASED
 from .gains import loro_gain
-from .location import effect_location, final_causes
+from .location import effect_location
 from .null import (
     NullCalibration,
     calibrate_null,
-    diagnostic_statistics,
     fit_noise,
     infer_quantum,
     run_diagnostics,
@@ -81,26 +80,6 @@ def _train_indices(train, n: int) -> tuple[int, ...]:
     if len(set(out)) != len(out):
         raise ConfigError(f"train indices repeat: {idx}")
     return tuple(out)
-
-
-def _outcomes(cal: NullCalibration, exps, diags_per_exp) -> tuple[list[TestOutcome], float]:
-    stats_ = [diagnostic_statistics(d) for d in diags_per_exp]
-    z = cal.scores(stats_)
-    out = []
-    for j, (name, i) in enumerate(cal.keys):
-        d = diags_per_exp[i][name]
-        exceeded = bool(z[j] > cal.threshold)
-        out.append(TestOutcome(
-            name=name, experiment=exps[i].name, statistic=float(d.statistic),
-            threshold=cal.statistic_threshold(j), z=float(z[j]), exceeded=exceeded,
-            suggests=tuple(d.suggests) if exceeded else (), location=d.location,
-            summary=d.summary))
-    t_max = float(np.max(z)) if z.size else -np.inf
-    return out, t_max
-
-
-def _fit_percent(exps, sims) -> list[list[float]]:
-    return [fit_percent(e.y_m, y).tolist() for e, y in zip(exps, sims, strict=True)]
 
 
 def require_diagnosable(rig: Rig, what: str = "diagnose") -> None:
@@ -246,24 +225,21 @@ def diagnose(
                                                 spec, progress)
     ranking = tuple(sorted(scored, key=lambda s: -s.score if np.isfinite(s.score) else np.inf))
     accepted = next((s for s in ranking if s.fitted and s.significant and s.passes), None)
-    final = None
-    if accepted is None:
-        accepted, final = _first_of_several(st, train_exps, rig, cands, ranking, fits,
-                                            after_tests, spec, rng, progress, notes)
+    if accepted is not None:
+        final = final_model(st, train_exps, rig, cands, accepted, fits, after_tests, spec,
+                            rng, progress, notes)
+    else:  # no single effect passes: forward selection from the most significant one
+        accepted, final = first_of_several(st, train_exps, rig, cands, ranking, fits,
+                                           after_tests, spec, rng, progress, notes)
     if accepted is None:
         notes.append("discrepancy found but no candidate extension is both significant and "
                      "passes its diagnostics")
         return Diagnosis(discrepancy=True, cause="none", location=None, location_label=None,
                          explained=False, tests_after=(), ranking=ranking, parameters={},
                          linear_parameters={}, gain=gain, interval_method="none",
-                         notes=tuple(notes),
-                         detail={"calibration": st.cal, "linear": st.linear, "fits": fits},
-                         **base)
-    if final is None:
-        final = _final_model(st, train_exps, rig, cands, accepted, fits, after_tests, spec,
-                             rng, progress, notes)
-    fitted = dict(zip(final.fit.names, final.fit.theta, strict=True))
-    notes.extend(equivalent_readings(final.effects, fitted, rig))
+                         notes=tuple(notes), detail={"calibration": st.cal,
+                                                     "linear": st.linear, "fits": fits}, **base)
+    notes.extend(equivalent_readings(final.effects, final.fit.params, rig))
     _gain_after(st, final, train_exps, held_exps, rig, gain, notes)
     parameters, method = _intervals(st, final, train_exps, held_exps, rig, spec, rng,
                                     progress, gain, notes)
@@ -359,7 +335,7 @@ def _null_stage(train_exps, held_exps, model, q, spec, rng, progress) -> _NullSt
     cal = calibrate_null(train_exps, model, linear.theta, noise=noise, n_null=spec.n_null,
                          alpha=spec.alpha, rng=rng, progress=progress)
     diags = [run_diagnostics(e, model, linear.theta, quantum_m=q) for e in train_exps]
-    tests, t_max = _outcomes(cal, train_exps, diags)
+    tests, t_max = outcomes(cal, train_exps, diags)
     # one record: the AR(1) log density; several: it or the output error (sees a level)
     crit = criterion_for(train_exps)
     return _NullStage(
@@ -373,11 +349,11 @@ def _null_stage(train_exps, held_exps, model, q, spec, rng, progress) -> _NullSt
 
 def _gain_before(st: _NullStage, train_exps, held_exps) -> dict:
     """The gain record before any extension: the linear model's fit percents."""
-    fp_before = _fit_percent(train_exps, st.y_lin)
+    fp_before = fit_percents(train_exps, st.y_lin)
     gain: dict = {"fit_percent_before": fp_before, "fit_percent_after": fp_before,
                   "experiments": [e.name for e in train_exps]}
     if held_exps:
-        hb = _fit_percent(held_exps, st.held_lin)
+        hb = fit_percents(held_exps, st.held_lin)
         gain.update(heldout_experiments=[e.name for e in held_exps],
                     heldout_fit_percent_before=hb, heldout_fit_percent_after=hb)
     gain.update(delta_elpd=None, delta_elpd_se=None, criterion=None)
@@ -445,7 +421,7 @@ def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, sp
         lin_theta = ef.theta[: model.n_params]
         d_after = [run_diagnostics(e, model, lin_theta, quantum_m=st.q, y_pred=y)
                    for e, y in zip(train_exps, y_ext, strict=True)]
-        t_after, tmax_after = _outcomes(cal, train_exps, d_after)
+        t_after, tmax_after = outcomes(cal, train_exps, d_after)
         # only the diagnostics of the residual can pass or fail a model; the others
         # (free-decay envelope, amplitude dependence, stick) look at the measured motion
         # itself, which no model changes
@@ -473,116 +449,16 @@ def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, sp
     return scored, fits, after_tests
 
 
-@dataclass(frozen=True)
-class _FinalModel:
-    """The model the diagnosis ends with (step 5 and forward selection)."""
-
-    ext: Extension
-    fit: object
-    y_ext: list
-    pointwise: np.ndarray
-    causes: tuple
-    effects: tuple
-    t_after: list
-    label: str | None
-    forward: object
-    explained: bool
-
-
-def _final_model(st: _NullStage, train_exps, rig, cands, accepted, fits, after_tests, spec,
-                 rng, progress, notes: list) -> _FinalModel:
-    """The accepted first cause, then forward selection from it; appends its notes."""
-    model = st.model
-    c = accepted.name
-    ext = EXTENSIONS[c]
-    ef, y_ext, pw, tmax_after, label, held_out = fits[c]
-    t_after = after_tests[c]
-    first = Cause(
-        cause=c, location=accepted.location, location_label=label,
-        parameters=dict(accepted.params),
-        gain={"in_sample": {"delta_lpd": accepted.gain_nll,
-                            "lr_statistic": accepted.lr_statistic,
-                            "n_params": accepted.n_params, "p_value": accepted.p_value,
-                            "bic_gain": accepted.score,
-                            "fit_percent": _fit_percent(train_exps, y_ext)},
-              "held_out": held_out})
-    causes, effects, fwd = (first,), (c,), None
-    if spec.max_effects > 1:
-        fwd = forward_select(
-            train_exps, rig, c, ef, cands, linear=st.linear, quantum_m=st.q,
-            n_null=spec.n_null, alpha=spec.alpha, rng=rng, outcomes=_outcomes,
-            location=effect_location, max_effects=int(spec.max_effects), max_fits=spec.max_fits,
-            n_starts=spec.n_starts, max_nfev=spec.max_nfev,
-            global_search=bool(spec.global_search), progress=progress,
-            weights=spec.weights)
-        causes = final_causes(causes + fwd.added, fwd, rig, model)
-        for eff, simpler in fwd.simplified:
-            notes.append(f"{eff} {'simplified to ' + simpler if simpler else 'removed'} "
-                         "once later effects were in the model")
-        effects = fwd.names
-        # the residuals of the final model, judged against the null recalibrated on it
-        t_after = list(fwd.tests)
-        notes.append("forward selection: " + " -> ".join(x.cause for x in causes)
-                     + f"; stopped: {fwd.stop}")
-        if fwd.fit is not ef:
-            # intervals, fit percents and the ELPD change describe the final model, not
-            # the first step's: a refinement or an exchange may have replaced it, or a
-            # backward check refitted it from a later model's better optimum
-            ext, ef = get_extension(list(effects)), fwd.fit
-            y_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in train_exps]
-            pw = st.crit.pointwise([e.y_m - y for e, y in zip(train_exps, y_ext,
-                                                              strict=True)])
-    # explained only when the final model's residuals pass every residual diagnostic
-    explained = not any(t.exceeded for t in t_after)
-    if not explained:
-        rest = sorted({t.name for t in t_after if t.exceeded})
-        notes.append(f"after {'+'.join(effects)}, still beyond threshold: {', '.join(rest)} "
-                     "(misfit the catalogue does not explain)")
-    return _FinalModel(ext, ef, y_ext, pw, causes, tuple(effects), t_after, label, fwd,
-                       explained)
-
-
-def _first_of_several(st: _NullStage, train_exps, rig, cands, ranking, fits, after_tests,
-                      spec, rng, progress, notes: list):
-    """When no single effect passes: forward selection from the most significant one.
-
-    Two effects can each leave the residuals worse structured than the linear model while
-    both together explain them (friction with a drive dead band on one cart: each alone
-    raised the workflow statistic from 16 to 24 and 33, ``benchmarks/detection_layouts.py``
-    seed 20007).  The most significant single effect is then taken as the first step of
-    forward selection; the result is kept only if it holds two effects or more and passes
-    as a single candidate must (the largest residual statistic falls below the linear
-    model's), so that a record no model of the catalogue improves still ends with
-    ``none``.  Returns ``(accepted, final)``, or ``(None, None)``.
-    """
-    if spec.max_effects < 2:
-        return None, None
-    first = next((s for s in ranking if s.fitted and s.significant), None)
-    if first is None:
-        return None, None
-    trial: list[str] = []
-    final = _final_model(st, train_exps, rig, cands, first, fits, after_tests, spec, rng,
-                         progress, trial)
-    t_final = max((t.z for t in final.t_after if t.name in RESIDUAL_BASED), default=-np.inf)
-    if len(final.effects) < 2 or not t_final < st.t_max:
-        return None, None
-    notes.append(f"no single effect passes its diagnostics; forward selection from the "
-                 f"most significant one ({first.name}) lowers the workflow statistic from "
-                 f"{st.t_max:.1f} to {t_final:.1f}")
-    notes.extend(trial)
-    return first, final
-
-
-def _gain_after(st: _NullStage, final: _FinalModel, train_exps, held_exps, rig, gain: dict,
+def _gain_after(st: _NullStage, final: FinalModel, train_exps, held_exps, rig, gain: dict,
                 notes: list) -> None:
     """Fill in the final model's fit percents and plug-in ELPD change (training and
     held-out records)."""
     ext, ef = final.ext, final.fit
     gain["model"] = "+".join(final.effects)
-    gain["fit_percent_after"] = _fit_percent(train_exps, final.y_ext)
+    gain["fit_percent_after"] = fit_percents(train_exps, final.y_ext)
     held_ext = [ext.simulate(rig, ef.theta, e.v_volt, e.dt) for e in held_exps]
     if held_exps:
-        gain["heldout_fit_percent_after"] = _fit_percent(held_exps, held_ext)
+        gain["heldout_fit_percent_after"] = fit_percents(held_exps, held_ext)
     # plug-in ELPD (lpd minus parameter count) with the SE of pointwise differences
     d = final.pointwise - st.lin_pointwise
     gain.update(delta_elpd=st.crit.total(d) - len(ext.specs(rig)),
@@ -596,7 +472,7 @@ def _gain_after(st: _NullStage, final: _FinalModel, train_exps, held_exps, rig, 
                     heldout_delta_lpd_se=float(np.sqrt(hd.size * np.var(hd))))
 
 
-def _intervals(st: _NullStage, final: _FinalModel, train_exps, held_exps, rig, spec, rng,
+def _intervals(st: _NullStage, final: FinalModel, train_exps, held_exps, rig, spec, rng,
                progress, gain: dict, notes: list) -> tuple[dict, str]:
     """The final model's parameter intervals: its posterior (``spec.posterior``) or a
     Laplace approximation at the least-squares optimum; the posterior's ELPD change

@@ -123,6 +123,12 @@ class NoiseModel(ABC):
         return PriorSet(names, pri, trs)
 
     # helpers shared by the subclasses ------------------------------------------------
+    def _loglik_by_terms(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """``loglik`` as the sum of ``pointwise``: ``R`` of shape (N, n_out, nb), the
+        likelihood's layout; returns (nb,).  For a model without a faster total."""
+        return self.pointwise(np.moveaxis(np.asarray(R, dtype=float), -1, 0),
+                              params).sum(axis=(1, 2))
+
     def _params(self, params: np.ndarray, n_outputs: int) -> np.ndarray:
         params = np.atleast_2d(np.asarray(params, dtype=float))
         k = self.n_params(n_outputs)

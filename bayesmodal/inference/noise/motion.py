@@ -213,9 +213,7 @@ class MotionAR1Noise(NoiseModel):
         return out
 
     def loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
-        # R is (N, n_out, nb), the likelihood's layout; the terms sum exactly to this
-        return self.pointwise(np.moveaxis(np.asarray(R, dtype=float), -1, 0),
-                              params).sum(axis=(1, 2))
+        return self._loglik_by_terms(R, params)
 
     def start(self, r: np.ndarray) -> np.ndarray:
         """AR(1) moments, and the rest fraction from a straight line through the

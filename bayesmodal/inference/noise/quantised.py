@@ -47,6 +47,16 @@ def log_step_probability(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """``log(Phi(hi) - Phi(lo))`` for ``lo < hi``, accurate in both tails and when
     ``hi - lo`` is small.
 
+    Parameters
+    ----------
+    lo, hi : ndarray
+        Standardised lower and upper ends of the step, broadcast together.
+
+    Returns
+    -------
+    ndarray
+        The log probability of the step, shape of the broadcast inputs.
+
     Examples
     --------
     >>> from scipy.stats import norm
@@ -146,9 +156,7 @@ class QuantisedNoise(NoiseModel):
         return out
 
     def loglik(self, R: np.ndarray, params: np.ndarray) -> np.ndarray:
-        # R is (N, n_out, nb), the likelihood's layout
-        return self.pointwise(np.moveaxis(np.asarray(R, dtype=float), -1, 0),
-                              params).sum(axis=(1, 2))
+        return self._loglik_by_terms(R, params)
 
     def start(self, r: np.ndarray) -> np.ndarray:
         """``shift`` from the residuals' mean (in steps, within the prior), ``sigma`` from
