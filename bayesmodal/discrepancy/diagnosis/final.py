@@ -117,9 +117,10 @@ def first_of_several(st, train_exps, rig, cands, ranking, fits, after_tests,
     both together explain them (friction with a drive dead band on one cart: each alone
     raised the workflow statistic from 16 to 24 and 33, ``benchmarks/detection_layouts.py``
     seed 20007).  The most significant single effect is then taken as the first step of
-    forward selection; the result is kept only if it holds two effects or more and passes
-    as a single candidate must (the largest residual statistic falls below the linear
-    model's), so that a record no model of the catalogue improves still ends with
+    forward selection; the result is kept only if it holds two effects or more and its
+    largest residual statistic falls below the linear model's (the first half of a single
+    candidate's pass rule; the second, that every check pointing at the candidate falls,
+    is not applied), so that a record no model of the catalogue improves still ends with
     ``none``.  Returns ``(accepted, final)``, or ``(None, None)``.
     """
     if spec.max_effects < 2:
