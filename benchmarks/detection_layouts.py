@@ -26,6 +26,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from multiprocessing import Pool
 from pathlib import Path
 
@@ -151,15 +152,12 @@ def _done_rows(out: Path | None, n_samples: int) -> list[dict]:
     return [r if "commit" in r else {**r, "commit": earlier} for r in old["rows"]]
 
 
-def _commits(rows: list[dict], current: str | None) -> str | None:
-    """The commits that made ``rows``, in order, with their row counts when several
-    (a resumed run's rows may come from several commits)."""
-    counts: dict = {}
-    for r in rows:
-        c = r.get("commit", current)
-        counts[c] = counts.get(c, 0) + 1
+def _commits(rows: list[dict]) -> str | None:
+    """The commits that made ``rows`` (each row's ``commit``), in order, with their row
+    counts when several (a resumed run's rows may come from several commits)."""
+    counts = Counter(r.get("commit") for r in rows)
     if len(counts) <= 1:
-        return next(iter(counts), current)
+        return next(iter(counts), None)
     return ", ".join(f"{c} ({n} rows)" for c, n in counts.items())
 
 
@@ -169,7 +167,7 @@ def _write(out: Path, rows: list[dict], n_samples: int) -> None:
     st = stamp()
     for r in rows:
         r.setdefault("commit", st["commit"])
-    st["commit"] = _commits(rows, st["commit"])
+    st["commit"] = _commits(rows)
     out.write_text(json.dumps({"samples": n_samples, "table": summarise(rows), "rows": rows,
                                "stamp": st}, indent=1, default=str))
 
