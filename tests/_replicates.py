@@ -19,7 +19,9 @@ def map_replicates(replicate, tasks: list, processes: int = 1,
     if processes > 1:
         import multiprocessing as mp
 
-        with mp.get_context("fork").Pool(processes) as pool:
+        from bayesmodal._blas import blas_share, limit_blas
+
+        with mp.get_context("fork").Pool(processes, limit_blas, (blas_share(processes),)) as pool:
             for i, res in enumerate(pool.imap_unordered(replicate, tasks)):
                 out.append(res)
                 tick(i)

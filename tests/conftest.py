@@ -23,6 +23,22 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 from bayesmodal.data import data_root, find_data, load_experiment  # noqa: E402
 from bayesmodal.model.system import LinearModel, Rig  # noqa: E402
 
+
+def pytest_configure(config):
+    """Give each pytest-xdist worker its share of the cores for BLAS.
+
+    Every worker is a process with OpenBLAS's own thread pool, one thread per core by
+    default: with a worker per core, a least-squares SVD's threads wait for each other on
+    an oversubscribed machine (a 7 200 x 12 SVD 3 ms on one thread, 16 ms on two beside
+    another busy process; ``bayesmodal._blas``, ``benchmarks/blas_threads.py``).
+    """
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
+    if workers > 0:
+        from bayesmodal._blas import blas_share, limit_blas
+
+        limit_blas(blas_share(workers))
+
+
 #: Report Table 3 (free damping), in LinearModel("free").names order.
 TABLE3 = np.array([6.223, 1.565, 1.461, 1.146, 2.923, 1.806, 2.002, 0.00221, 0.00001])
 

@@ -88,7 +88,7 @@ PACKAGE_LAYER = {"model": "model", "fit": "fit", "modal": "fit", "ema": "fit",
                  "inference": "inference", "discrepancy": "diagnosis", "plots": "plots",
                  "runs": "runs", "cli": "cli"}
 ROOT_LAYER = {
-    "_errors": "base", "_format": "base", "_progress": "base", "_version": "base",
+    "_blas": "base", "_errors": "base", "_format": "base", "_progress": "base", "_version": "base",
     "_versions": "base", "_json": "base",
     "_channels": "data", "_ecp_export": "data", "_instruments": "data", "_readers": "data",
     "_release": "data", "_tdms": "data", "_uff": "data", "_window": "data", "data": "data",

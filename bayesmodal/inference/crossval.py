@@ -25,6 +25,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .._blas import blas_share, limit_blas
 from .._errors import ConfigError, DataError
 from ..data import Experiment
 from ..fit.lsq import fit_lsq
@@ -428,7 +429,8 @@ def _map(tasks, workers, scheduler, progress) -> list:
             say(f"fold {label(i)} done ({i + 1}/{len(tasks)})")
         return out
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=limit_blas,
+                             initargs=(blas_share(n),)) as pool:
         futs = {pool.submit(_call, t): i for i, t in enumerate(tasks)}
         from concurrent.futures import as_completed
 

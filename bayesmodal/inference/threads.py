@@ -20,11 +20,11 @@ independent jobs in processes there instead (``bayesmodal batch``, ``crossval``)
 from __future__ import annotations
 
 import copy
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .._blas import available_cores
 from .._errors import ConfigError
 
 __all__ = ["ThreadedLogPosterior", "resolve_threads"]
@@ -51,10 +51,7 @@ def resolve_threads(threads) -> int:
     if isinstance(threads, str) and threads.strip().isdigit():
         threads = int(threads)
     if isinstance(threads, str) and threads.strip().lower() == "auto":
-        try:
-            return max(1, len(os.sched_getaffinity(0)))
-        except AttributeError:  # (not on every platform)
-            return max(1, os.cpu_count() or 1)
+        return available_cores()
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
         raise ConfigError(f"threads must be a positive integer or 'auto', got {threads!r}")
     return int(threads)

@@ -16,6 +16,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from .._blas import blas_share, limit_blas
 from .._errors import ConfigError
 from .._progress import progress_bar
 from .config import load_config
@@ -239,7 +240,8 @@ def _local(tasks, n_workers: int, resume: bool, force: bool, bar) -> dict:
     if not tasks:
         return out
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx, initializer=limit_blas,
+                             initargs=(blas_share(n_workers),)) as pool:
         futs = {pool.submit(run_one, path, od, resume, force): (i, path, od)
                 for i, path, od in tasks}
         for fut in as_completed(futs):
