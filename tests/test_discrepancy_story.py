@@ -145,21 +145,26 @@ def test_least_squares_heldout_steps_gain(story):
 
 
 def test_the_impulses_do_not_identify_the_steps_predicting_fit(story):
-    """Section 5's trade-off, recomputed: a friction fit whose steps weight is 0.03 costs
-    the impulse fit less than half a point and predicts the steps at least 10 points better
-    than the linear model, so the target is reachable by the model class.  This checks a
-    point the optimiser found (an existence claim), not where an unweighted fit stops:
-    where the impulse-only optimum lands depends on the optimiser's path and on the
-    library versions (with numpy 2 / scipy 1.14+ it predicts the steps at about 86 %,
-    under the versions of the morning at 76-78 %), so no test asserts it."""
+    """Section 5's trade-off at its recorded points, not along the optimiser's path: the
+    friction fit with the steps weighted 0.03 (docs/figures/discrepancy.json, "tradeoff")
+    costs the impulse fit less than half a point against the unweighted one and predicts
+    the steps at least 10 points better than the linear model, so the target is
+    reachable by the model class (an existence claim, checked at the point the optimiser
+    found).  Where a fit started now lands depends on the optimiser's path: the BLAS
+    threads of its SVD alone moved the weighted fit's steps from 89 % to 77 %, so no test
+    asserts it.  The fits are recomputed from the recorded parameters."""
     mod, recs, lin, _, _ = story
-    theta0 = mod.friction_part(recs, lin["_lsq"])["theta"]
-    points = {p["weight_steps"]: p
-              for p in mod.tradeoff_part(recs, lin["_lsq"], np.asarray(theta0))}
-    opt, pulled = points[0.0], points[0.03]
+    doc = json.loads(NUMBERS.read_text())
+    points = {p["weight_steps"]: p for p in doc["tradeoff"]}
+    fits = {w: mod.fits_on(np.array(points[w]["theta"]), recs, mod.FRICTION)
+            for w in (0.0, 0.03)}
+    for w, f in fits.items():  # the recorded fits are those of the recorded parameters,
+        # both rounded to 0.1 points (fits_on): one rounding step apart at most
+        assert np.allclose(f["data_steps"], points[w]["fits"]["data_steps"], rtol=0,
+                           atol=0.1 * (1 + 1e-9))
     lin_steps = np.mean(lin["fits"]["data_steps"])
-    assert np.mean(pulled["fits"]["data_steps"]) >= lin_steps + 10
-    assert (np.mean(opt["fits"]["data_impulses"]) - np.mean(pulled["fits"]["data_impulses"])
+    assert np.mean(fits[0.03]["data_steps"]) >= lin_steps + 10
+    assert (np.mean(fits[0.0]["data_impulses"]) - np.mean(fits[0.03]["data_impulses"])
             < 0.5)
 
 
