@@ -101,7 +101,10 @@ def main(argv=None) -> int:
     done = {(r["case"], r["seed"]) for r in rows}
     todo = [j for j in jobs if j[:2] not in done]
     t0 = time.perf_counter()
-    with Pool(a.workers) if a.workers > 1 else _Serial() as pool:
+    from bayesmodal._blas import blas_share, limit_blas  # a BLAS share per process
+    pool = (Pool(a.workers, limit_blas, (blas_share(a.workers),)) if a.workers > 1
+            else _Serial())
+    with pool:
         for row in pool.imap_unordered(run_one, todo, chunksize=1):
             rows.append(row)
             if a.out:
