@@ -22,9 +22,13 @@ import argparse
 import json
 import multiprocessing as mp
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 SHAPES = ((7_200, 12), (87_000, 22))
 
@@ -59,8 +63,9 @@ def ms_per_svd(shape: tuple[int, int], threads: int, repeats: int, rng) -> float
 
 
 def run(repeats: int = 3) -> dict:
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
-        os.cpu_count() or 1)
+    from bayesmodal._blas import available_cores
+
+    cores = available_cores()
     rng = np.random.default_rng(0)
     out = {"cores": cores, "load_at_start": os.getloadavg()[0], "rows": []}
     for beside in (False, True):

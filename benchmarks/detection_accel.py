@@ -24,14 +24,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from multiprocessing import Pool
 from pathlib import Path
 
 _TESTS = Path(__file__).resolve().parent.parent / "tests"
 sys.path.insert(0, str(_TESTS))
 sys.path.insert(0, str(_TESTS.parent / "docs"))  # docs/_stamp.py
 
-from detection_layouts import _done_rows, _Serial, _write, summarise  # noqa: E402
+from detection_layouts import _done_rows, _pool, _write, summarise  # noqa: E402
 
 SEED_OFFSET = 30_000  # benchmark seeds never coincide with the tests' seeds
 N_NULL = 19  # null sets of each diagnosis' own calibration (5 % false positives)
@@ -101,10 +100,7 @@ def main(argv=None) -> int:
     done = {(r["case"], r["seed"]) for r in rows}
     todo = [j for j in jobs if j[:2] not in done]
     t0 = time.perf_counter()
-    from bayesmodal._blas import blas_share, limit_blas  # a BLAS share per process
-    pool = (Pool(a.workers, limit_blas, (blas_share(a.workers),)) if a.workers > 1
-            else _Serial())
-    with pool:
+    with _pool(a.workers) as pool:
         for row in pool.imap_unordered(run_one, todo, chunksize=1):
             rows.append(row)
             if a.out:

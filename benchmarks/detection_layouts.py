@@ -105,10 +105,7 @@ def main(argv=None) -> int:
     done = {(r["layout"], r["case"], r["seed"]) for r in rows}
     todo = [j for j in jobs if j[:3] not in done]
     t0 = time.perf_counter()
-    from bayesmodal._blas import blas_share, limit_blas  # a BLAS share per process
-    pool = (Pool(a.workers, limit_blas, (blas_share(a.workers),)) if a.workers > 1
-            else _Serial())
-    with pool:
+    with _pool(a.workers) as pool:
         for row in pool.imap_unordered(run_one, todo, chunksize=1):
             rows.append(row)
             if a.out:
@@ -125,6 +122,16 @@ def main(argv=None) -> int:
     if a.out:
         _write(a.out, rows, a.samples)
     return 0
+
+
+def _pool(workers: int):
+    """``workers`` processes, each with its share of the cores for BLAS, or this process
+    for one (``_Serial``)."""
+    if workers <= 1:
+        return _Serial()
+    from bayesmodal._blas import blas_share, limit_blas
+
+    return Pool(workers, limit_blas, (blas_share(workers),))
 
 
 class _Serial:
