@@ -66,6 +66,13 @@ class Config:
     burn: int = 500
     case: str = "force"
     noise: str | None = None  # the case's own (CASE_NOISE) when None
+    #: Relative spread of the truth: 0 keeps the one rig of ``TRUTH`` (and ``G_V``) in
+    #: every replicate; s > 0 draws each unknown parameter of a replicate uniformly within
+    #: a factor 1 +- s of it (known springs stay), from its own stream of the seed.
+    truth_spread: float = 0.0
+    #: With a spread: None draws a rig per replicate; an integer draws one rig from this
+    #: seed and keeps it in every replicate (the coverage at that one rig).
+    truth_seed: int | None = None
 
 
 def rig():
@@ -107,14 +114,20 @@ def _case(cfg: Config, seed: int):
     from bayesmodal.model.system import LinearModel
 
     rng = np.random.default_rng([seed, 40])
+    rig_seed = seed if cfg.truth_seed is None else cfg.truth_seed
+    spread = np.random.default_rng([rig_seed, 41]).uniform(1.0 - cfg.truth_spread,
+                                                           1.0 + cfg.truth_spread, 8)
     if cfg.case == "mixed":
         model = LinearModel(mixed_rig(), "free")
         assert model.names == ("g_v", "m1", "m2", "c1", "c2", "c12")
-        return model, np.r_[G_V, TRUTH[:5]], mixed_record(TRUTH, G_V, rng, n=cfg.n_samples,
-                                                          dt=cfg.dt)
+        p = np.r_[TRUTH[:5] * spread[:5], TRUTH[5:]]  # the springs are known
+        g_v = G_V * spread[7]
+        return model, np.r_[g_v, p[:5]], mixed_record(p, g_v, rng, n=cfg.n_samples,
+                                                      dt=cfg.dt)
     model = LinearModel(rig(), "free")
     assert model.names == NAMES
-    return model, TRUTH, measured_record(TRUTH, rng, n=cfg.n_samples, dt=cfg.dt)
+    p = TRUTH * spread[:7]
+    return model, p, measured_record(p, rng, n=cfg.n_samples, dt=cfg.dt)
 
 
 def replicate(args: tuple[Config, int]) -> dict:
@@ -137,7 +150,7 @@ def replicate(args: tuple[Config, int]) -> dict:
         iv = credible_interval(s, 0.9)
         hits[k] = iv.contains(true[k][0]).tolist()
         width[k] = (iv.hi - iv.lo).tolist()
-    return {"seed": seed, "hits": hits, "width": width,
+    return {"seed": seed, "truth": truth.tolist(), "hits": hits, "width": width,
             "converged": run.diagnostics.converged, "max_rhat": run.diagnostics.max_rhat,
             "seconds": time.perf_counter() - t0}
 
@@ -170,10 +183,18 @@ def main(argv=None) -> int:
     p.add_argument("--case", default="force", choices=tuple(CASE_GROUPS))
     p.add_argument("--noise", default=None,
                    help="the likelihood's noise model (default: the case's, CASE_NOISE)")
+    p.add_argument("--truth-spread", type=float, default=0.0,
+                   help="draw each replicate's rig within a factor 1 +- this of the truth "
+                        "(default 0: the same rig in every replicate)")
+    p.add_argument("--truth-seed", type=int, default=None,
+                   help="with --truth-spread: draw one rig from this seed for every "
+                        "replicate instead of one per replicate")
     p.add_argument("--out", default=None, help="write the raw results and table as JSON")
     a = p.parse_args(argv)
+    if not 0.0 <= a.truth_spread < 0.5:
+        p.error(f"--truth-spread must be in [0, 0.5), got {a.truth_spread}")
     cfg = Config(n_walkers=a.walkers, n_steps=a.steps, burn=a.burn, case=a.case,
-                 noise=a.noise)
+                 noise=a.noise, truth_spread=a.truth_spread, truth_seed=a.truth_seed)
     res = run_coverage(cfg, a.replicates, a.processes, progress=True)
     table = tabulate(res)
     print(f"{table['replicates']} replicates (converged {100 * table['converged_fraction']:.0f}"

@@ -57,6 +57,30 @@ def test_mixed_reference_agrees_with_the_package_simulator():
     assert np.all(np.max(np.abs(off - ref), axis=0) > 1e-3 * scale)
 
 
+@pytest.mark.parametrize("case", ["force", "mixed"])
+def test_a_truth_spread_draws_the_unknowns_and_keeps_the_known_springs(case):
+    """``truth_spread = 0`` is the one rig of ``TRUTH`` in every replicate, bit for bit;
+    a spread draws each unknown within its factor, the known springs of the mixed case
+    stay, and the record is that of the drawn rig (it differs from the fixed rig's)."""
+    cov = _benchmark()
+    fixed = cov.Config(case=case, n_samples=300)
+    model, truth, (_, _, y0) = cov._case(fixed, 3)
+    nominal = np.r_[cov.G_V, cov.TRUTH[:5]] if case == "mixed" else cov.TRUTH
+    assert np.array_equal(truth, nominal)
+    s = 0.05
+    _, drawn, (_, _, y1) = cov._case(cov.Config(case=case, n_samples=300, truth_spread=s), 3)
+    ratio = drawn / nominal
+    assert np.all(np.abs(ratio - 1.0) <= s) and np.all(ratio != 1.0)
+    assert drawn.size == model.n_params  # the known springs are not parameters
+    assert not np.array_equal(y0, y1)
+    # each seed draws its own rig
+    _, other, _ = cov._case(cov.Config(case=case, n_samples=300, truth_spread=s), 4)
+    assert not np.array_equal(drawn, other)
+    # a truth seed keeps one drawn rig in every replicate
+    one = cov.Config(case=case, n_samples=300, truth_spread=s, truth_seed=3)
+    assert np.array_equal(cov._case(one, 4)[1], drawn)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("case", ["force", "mixed"])
 def test_reduced_coverage_of_the_90_percent_intervals(case):
