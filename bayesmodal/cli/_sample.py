@@ -7,7 +7,6 @@ import shutil
 import sys
 from pathlib import Path
 
-from .._errors import DataError
 from .._format import param_unit, sig
 from ..inference import sample_posterior, to_inference_data
 from ..inference.noise_spec import accepted_noise
@@ -134,11 +133,7 @@ def sample_to_dir(exps, args, damping: str, out: Path):
 
     model = LinearModel(load_rig(args), damping)
     for e in exps:  # checked before the output folder is made
-        if e.n_outputs != model.n_outputs:
-            raise DataError(f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
-                            f"{model.n_outputs} {'carts' if model.rig.is_chain else 'sensors'}; "
-                            "give a record with one position column per "
-                            f"{'cart' if model.rig.is_chain else 'sensor'}")
+        model.check_record(e)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "chain.h5"

@@ -52,11 +52,7 @@ def check_records(model: LinearModel, experiments: Sequence[Experiment],
     if not experiments:
         raise DataError("no experiments given")
     for e in experiments:
-        if e.n_outputs != model.n_outputs:
-            raise DataError(
-                f"{e.source or e.name}: {e.n_outputs} outputs but the model has "
-                f"{model.n_outputs} {'carts' if model.rig.is_chain else 'sensors'}"
-            )
+        model.check_record(e)
         if initial_state == "rest":
             check_identifiable(e)
         elif np.all(np.ptp(e.y_m, axis=0) == 0):

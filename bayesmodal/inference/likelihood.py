@@ -156,11 +156,7 @@ class Likelihood(RecordMapping):
         if not exps:
             raise DataError("no experiments given")
         for e in exps:
-            if e.n_outputs != self.model.n_outputs:
-                raise DataError(
-                    f"{e.name}: {e.n_outputs} outputs but the model has "
-                    f"{self.model.n_outputs} {'carts' if self.model.rig.is_chain else 'sensors'}"
-                )
+            self.model.check_record(e)
         if self.layout is None and self.noise not in NOISE_MODELS:
             raise ConfigError(
                 f"noise must be one of {NOISE_MODELS}, got {self.noise!r}; other noise "

@@ -135,11 +135,7 @@ def linear_residuals(
     ...     model = LinearModel(Rig(), "free")
     ...     res = linear_residuals(e, model, fit_lsq(e, model).theta)
     """
-    if experiment.n_outputs != model.n_outputs:
-        raise DataError(
-            f"{experiment.name}: {experiment.n_outputs} outputs but the model has "
-            f"{model.n_outputs} sensors"
-        )
+    model.check_record(experiment)
     theta = model.check(np.asarray(theta, dtype=float))
     if theta.ndim != 1:
         raise DataError(f"theta must be one parameter vector, got shape {theta.shape}")
