@@ -444,9 +444,7 @@ def steady_state(
     rig = Rig() if rig is None else rig
     chain = rig.is_chain and rig.n_carts >= 2
     e = experiment
-    if e.n_outputs != rig.n_outputs:
-        raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has {rig.n_outputs} "
-                        "sensors")
+    rig.check_record(e)
     if not chain:
         # the gain from the levels and the known springs: x / v = g_v C K^-1 d
         unknown = [s.name for s in rig.springs if not s.known]

@@ -521,11 +521,11 @@ INPUTS = [
                    "x3=Encoder 3 Pos", "--input-scale", "1/800")),
     BadInput("two_carts", "a 2-cart record for the 3-cart model",
              _csv("two.csv", lambda t, v, y: (t, v, y[:, :2]), header="t,v,x1,x2"),
-             "2 outputs but the model has 3 carts",
+             "2 outputs but the rig has 3 carts",
              entries=("lsq", "sample", "diagnose", "run", "batch"),
              patterns={"run": r"\[rig.springs_n_m\] 3 springs make 3 carts, but two.csv has 2",
                        "batch": r"\[rig.springs_n_m\] 3 springs make 3 carts, but two.csv has 2",
-                       "diagnose": "2 outputs but the rig has 3 sensors"}),
+                       "diagnose": "2 outputs but the rig has 3 carts"}),
 ]
 
 

@@ -42,7 +42,7 @@ def test_wrong_number_of_outputs_is_named(tmp_path, capsys):
     p.write_text("t,v,x1,x2\n" + rows + "\n")
     code, _, err = _run(["lsq", str(p)], capsys)
     assert code == 2
-    assert "2 outputs but the model has 3 carts" in err
+    assert "2 outputs but the rig has 3 carts" in err
 
 
 def test_debug_shows_traceback(tmp_path, capsys):

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import ModelError
+from .._errors import DataError, ModelError
 from ._rig_checks import (
     as_tuple,
     check_grounded,
@@ -187,6 +187,30 @@ class Rig:
     def n_outputs(self) -> int:
         """Number of measured outputs (sensors)."""
         return len(self.sensors)
+
+    def check_record(self, experiment) -> None:
+        """Refuse a record whose number of output columns is not this rig's sensors'.
+
+        Parameters
+        ----------
+        experiment : Experiment
+            A record (its ``n_outputs`` and ``source`` or ``name`` are read).
+
+        Raises
+        ------
+        DataError
+            One line naming the record, both counts and the fix: a record with one
+            column per sensor, or a rig description (``--rig FILE``) with its sensors.
+        """
+        if experiment.n_outputs == self.n_outputs:
+            return
+        what = "cart" if self.is_chain else "sensor"
+        name = getattr(experiment, "source", None) or experiment.name
+        raise DataError(
+            f"{name}: {experiment.n_outputs} outputs but the rig has {self.n_outputs} "
+            f"{what}s; give a record with one position column per {what}, or describe "
+            "the rig that made it (--rig FILE, e.g. --rig ecp210-1cart for one cart; "
+            "docs/rigs.md)")
 
     @property
     def is_chain(self) -> bool:

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import DataError, ModelError
+from .._errors import ModelError
 from ._param_layout import _layout
 from .elements import (
     ECP_M_PER_COUNT,
@@ -272,28 +272,9 @@ class LinearModel:
         return theta
 
     def check_record(self, experiment) -> None:
-        """Refuse a record whose number of output columns is not this model's.
-
-        Parameters
-        ----------
-        experiment : Experiment
-            A record (its ``n_outputs`` and ``source`` or ``name`` are read).
-
-        Raises
-        ------
-        DataError
-            One line naming the record, both counts and the fix: a record with one
-            column per sensor, or a rig description (``--rig FILE``) with its sensors.
-        """
-        if experiment.n_outputs == self.n_outputs:
-            return
-        what = "cart" if self.rig.is_chain else "sensor"
-        name = getattr(experiment, "source", None) or experiment.name
-        raise DataError(
-            f"{name}: {experiment.n_outputs} outputs but the model has {self.n_outputs} "
-            f"{what}s; give a record with one position column per {what}, or describe "
-            "the rig that made it (--rig FILE, e.g. --rig ecp210-1cart for one cart; "
-            "docs/rigs.md)")
+        """Refuse a record whose number of output columns is not this model's
+        (:meth:`Rig.check_record`)."""
+        self.rig.check_record(experiment)
 
     # ------------------------------------------------------------------ matrices
     def matrices(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

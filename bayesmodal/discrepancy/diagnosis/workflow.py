@@ -274,9 +274,7 @@ def _checked_records(experiments, rig: Rig | None) -> tuple[list[Experiment], Ri
     for e in exps:
         if not isinstance(e, Experiment):
             raise DataError(f"expected Experiment objects, got {type(e).__name__}")
-        if e.n_outputs != rig.n_outputs:
-            raise DataError(f"{e.name}: {e.n_outputs} outputs but the rig has "
-                            f"{rig.n_outputs} sensors")
+        rig.check_record(e)
     return exps, rig
 
 
