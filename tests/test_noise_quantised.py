@@ -109,3 +109,20 @@ def test_for_record_reads_the_steps_and_the_spec_names_it():
 def test_invalid_rows_get_minus_inf():
     out = _model().pointwise(np.zeros((3, 4, 1)), np.array([[Q, 0.0], [-Q, 0.0], [Q, 0.7]]))
     assert np.all(np.isfinite(out[0])) and np.all(out[1:] == -np.inf)
+
+
+def test_the_prior_reaches_zero_noise_before_the_rounding():
+    """An encoder may have no noise before its count: the prior of ``sigma`` is uniform
+    from zero (density falling as ``sigma`` in ``log sigma``), not log-uniform above the
+    other noise models' floor of 1e-7 m, where a posterior of noise-free counts piled up.
+    Control: the Gaussian models keep that floor."""
+    from bayesmodal.inference.noise.base import SIGMA_PRIOR
+
+    pri = _model().priors(1)
+    tiny = np.array([[1e-3 * SIGMA_PRIOR.lo, 0.0]])  # far below the old floor
+    assert np.isfinite(pri.log_prior(tiny))[0]
+    assert not np.isfinite(WhiteNoise().priors(1).log_prior(tiny[:, :1]))[0]
+    # sampled in log sigma: the density there falls as sigma towards zero
+    z = pri.to_sampling(np.array([[1e-9, 0.0], [1e-10, 0.0]]))
+    dens = pri.log_prior_z(z)
+    assert np.isclose(dens[0] - dens[1], np.log(10.0), rtol=1e3 * EPS)
