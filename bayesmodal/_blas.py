@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["available_cores", "blas_share", "limit_blas"]
+__all__ = ["available_cores", "blas_pool", "blas_share", "limit_blas"]
 
 #: The limit set in this process by :func:`limit_blas` (kept so that it stays in force).
 _LIMIT = []
@@ -68,3 +68,24 @@ def limit_blas(n_threads: int) -> None:
     from threadpoolctl import threadpool_limits
 
     _LIMIT.append(threadpool_limits(max(1, int(n_threads)), user_api="blas"))
+
+
+def blas_pool(processes: int, context=None):
+    """A ``multiprocessing`` pool of ``processes`` workers, each limited to its share of
+    the cores for BLAS (:func:`blas_share`, set by :func:`limit_blas` as the initializer).
+
+    Parameters
+    ----------
+    processes : int
+        Worker processes (>= 1).
+    context : multiprocessing context, optional
+        E.g. ``multiprocessing.get_context("fork")``; the default context when None.
+
+    Returns
+    -------
+    multiprocessing.pool.Pool
+    """
+    import multiprocessing
+
+    ctx = multiprocessing if context is None else context
+    return ctx.Pool(processes, limit_blas, (blas_share(processes),))

@@ -27,7 +27,6 @@ import json
 import sys
 import time
 from collections import Counter
-from multiprocessing import Pool
 from pathlib import Path
 
 _TESTS = Path(__file__).resolve().parent.parent / "tests"
@@ -129,9 +128,9 @@ def _pool(workers: int):
     for one (``_Serial``)."""
     if workers <= 1:
         return _Serial()
-    from bayesmodal._blas import blas_share, limit_blas
+    from bayesmodal._blas import blas_pool
 
-    return Pool(workers, limit_blas, (blas_share(workers),))
+    return blas_pool(workers)
 
 
 class _Serial:

@@ -26,7 +26,6 @@ import argparse
 import json
 import sys
 import time
-from multiprocessing import Pool
 from pathlib import Path
 
 # the hidden-effect cases live in tests/
@@ -158,8 +157,8 @@ def main(argv=None) -> int:
             for c, s in wanted if (c, s) not in done]
     cases = list(dict.fromkeys(list(args.cases) + [r["case"] for r in rows if r["case"] != "none"]))
     t0 = time.perf_counter()
-    from bayesmodal._blas import blas_share, limit_blas  # a BLAS share per process
-    with Pool(max(1, args.workers), limit_blas, (blas_share(args.workers),)) as pool:
+    from bayesmodal._blas import blas_pool  # a BLAS share per process
+    with blas_pool(max(1, args.workers)) as pool:
         for i, r in enumerate(pool.imap_unordered(_job, jobs), 1):
             rows.append(r)
             print(f"[{i}/{len(jobs)}] {r['case']:32s} seed {r['seed']}: {r['found']} "

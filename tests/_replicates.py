@@ -19,9 +19,9 @@ def map_replicates(replicate, tasks: list, processes: int = 1,
     if processes > 1:
         import multiprocessing as mp
 
-        from bayesmodal._blas import blas_share, limit_blas
+        from bayesmodal._blas import blas_pool
 
-        with mp.get_context("fork").Pool(processes, limit_blas, (blas_share(processes),)) as pool:
+        with blas_pool(processes, mp.get_context("fork")) as pool:
             for i, res in enumerate(pool.imap_unordered(replicate, tasks)):
                 out.append(res)
                 tick(i)

@@ -5,7 +5,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from bayesmodal._blas import available_cores, blas_share, limit_blas
+from bayesmodal._blas import available_cores, blas_pool, blas_share, limit_blas
 
 
 def _blas_threads() -> list[int]:
@@ -31,6 +31,16 @@ def test_share_divides_the_cores():
 def test_a_pool_initializer_limits_its_process():
     threads = _in_pool(initializer=limit_blas, initargs=(1,))
     assert threads and all(t == 1 for t in threads)
+
+
+def _pool_threads() -> list[int]:
+    with blas_pool(2, multiprocessing.get_context("spawn")) as pool:
+        return pool.apply(_blas_threads)
+
+
+def test_a_blas_pool_gives_each_worker_its_share():
+    threads = _pool_threads()
+    assert threads and all(t == blas_share(2) for t in threads)
 
 
 def test_without_the_initializer_a_process_takes_every_core():

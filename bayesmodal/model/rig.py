@@ -205,7 +205,7 @@ class Rig:
         if experiment.n_outputs == self.n_outputs:
             return
         what = "cart" if self.is_chain else "sensor"
-        name = getattr(experiment, "source", None) or experiment.name
+        name = experiment.source or experiment.name
         raise DataError(
             f"{name}: {experiment.n_outputs} outputs but the rig has {self.n_outputs} "
             f"{what}s; give a record with one position column per {what}, or describe "
