@@ -83,9 +83,6 @@ UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     "discrepancy.checks.residuals.smooth_derivative": ('polyorder',),
     "discrepancy.checks.spectrum.model_frequencies_hz": ('res',),
     "discrepancy.diagnosis.forward.forward_select": ('first_fit',),
-    "discrepancy.diagnosis.gains.loro_gain": (
-        'exps', 'rig', 'cur_ext', 'cur_theta', 'new_ext', 'new_theta', 'linear', 'max_nfev',
-        'criterion', 'weights'),
     "discrepancy.diagnosis.null.diagnostic_statistics": ('diags',),
     "discrepancy.diagnosis.null.infer_quantum": ('experiments', 'default', 'tol'),
     "discrepancy.diagnosis.null.quantise": ('y', 'quantum_m'),

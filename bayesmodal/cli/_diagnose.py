@@ -89,6 +89,10 @@ def register(sub) -> None:
                    help="how the least-squares fits weigh several training records: "
                    "'none' sums their squared residuals (the largest record dominates), "
                    "'spread' weighs each record as much as the others (default: %(default)s)")
+    p.add_argument("--threads", default="auto", metavar="N|auto",
+                   help="threads for the fits that do not depend on one another (starts, "
+                   "generations of the global search, held-out folds); the same diagnosis "
+                   "on any count (default: %(default)s, one per core)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
@@ -169,7 +173,7 @@ def run(args) -> int:
         candidates=args.candidates, n_null=args.null, posterior=not args.no_posterior,
         posterior_options={"n_steps": args.steps}, n_starts=args.starts,
         max_effects=args.max_effects, global_search=not args.local_search,
-        weights=None if args.weights == "none" else args.weights)
+        weights=None if args.weights == "none" else args.weights, threads=args.threads)
     d = diagnose(exps, spec, rig=load_rig(args), train=train, rng=args.seed,
                  progress=not args.quiet)
     if args.plots:

@@ -40,6 +40,7 @@ from ..model.effects._base import Extension
 from ..model.simulate import simulate_linear
 from ..model.system import LinearModel
 from ._lsq_common import fd_jacobian
+from ._threads import thread_map
 from .linear import equilibrated_singular_values
 from .residuals import new_record_theta, simulate_model
 from .result import LSQResult
@@ -244,12 +245,18 @@ def local_search(p: Problem, starts: Sequence[tuple[np.ndarray, np.ndarray]],
     """``least_squares`` from each ``(z0, theta_start)``; the lowest final cost wins.
 
     With ``keep_start`` a search that ends above its start returns the start (the
-    shared extended fit its ``theta_start`` as given, the others their decoded ``z0``)."""
+    shared extended fit its ``theta_start`` as given, the others their decoded ``z0``).
+    The searches run side by side on the fits' threads (``_threads``), with the numbers
+    of one thread."""
+    starts = list(starts)
+
+    def search(start):
+        return least_squares(lambda z: residual_vector(p, z), start[0],
+                             jac=lambda z: jacobian(p, z), bounds=(p.lower, p.upper),
+                             max_nfev=max_nfev, **p.solve_options)
+
     best, cost_best, n_eval = None, np.inf, 0
-    for z0, start in starts:
-        sol = least_squares(lambda z: residual_vector(p, z), z0,
-                            jac=lambda z: jacobian(p, z), bounds=(p.lower, p.upper),
-                            max_nfev=max_nfev, **p.solve_options)
+    for (z0, start), sol in zip(starts, thread_map(search, starts), strict=True):
         n_eval += int(sol.nfev)
         z, cost = sol.x, np.sum(sol.fun**2)
         if p.keep_start:

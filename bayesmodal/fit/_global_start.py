@@ -31,7 +31,7 @@ ended at the truth's optimum, 12-32 s each on 2 400 samples (one core, the other
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import differential_evolution
@@ -39,10 +39,11 @@ from scipy.optimize import differential_evolution
 from ..data import Experiment
 from ..model.effects._base import Extension
 from ..model.system import LinearModel, Rig, damper_mask
+from ._threads import split_rows
 from .residuals import extension_residuals
 
-__all__ = ["is_stick_slip", "search_box", "head", "clip_to_null", "evolve", "pruned_starts",
-           "MASS_BOX", "DAMPER_BOX"]
+__all__ = ["is_stick_slip", "search_box", "head", "clip_to_null", "evolve", "member_cost",
+           "pruned_starts", "MASS_BOX", "DAMPER_BOX"]
 
 #: Relative box of the drive gain and the masses around the linear fit, (low, high).
 MASS_BOX = (0.7, 1.3)
@@ -141,6 +142,52 @@ def clip_to_null(ext: Extension, rig: Rig, theta: np.ndarray) -> np.ndarray:
     return out
 
 
+def member_cost(ext: Extension, rig: Rig, search: Sequence[Experiment],
+                root_w: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
+    """The cost of a generation of the evolution in SciPy's vectorised layout.
+
+    The members are evaluated in blocks on the fits' threads (``_threads``), each row's
+    sum of squares computed row by row in memory, so that a member's cost does not depend
+    on the rest of its generation or on the number of threads.
+
+    Parameters
+    ----------
+    ext : Extension
+    rig : Rig
+    search : sequence of Experiment
+        The samples the evolution sees.
+    root_w : ndarray, shape (n_residuals,), or None
+        Square roots of the records' weights, one per stacked residual.
+
+    Returns
+    -------
+    callable
+        ``x`` (n_params, S) -> the sums of squares (S,); inadmissible or diverging
+        members get ten times the worst finite cost plus one.
+    """
+    def sums(theta: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            # row by row in memory, so that a row's sum does not depend on the batch: the
+            # residuals of a batch of one chunk of lanes and one output come lanes-first
+            # (a sum down those columns rounds differently)
+            r = np.ascontiguousarray(extension_residuals(ext, rig, theta, search))
+            return np.sum((r if root_w is None else r * root_w) ** 2, axis=1)
+
+    def cost(x: np.ndarray) -> np.ndarray:  # x: (n_params, S), SciPy's vectorised layout
+        theta = clip_to_null(ext, rig, np.ascontiguousarray(x.T))
+        out = np.full(theta.shape[0], np.inf)
+        ok = ext.valid(rig, theta)
+        if np.any(ok):
+            out[ok] = split_rows(sums, theta[ok])
+        # inadmissible or diverging members: worse than every admissible one but finite
+        # (SciPy's convergence test squares the population's energies)
+        fin = np.isfinite(out)
+        worst = float(np.max(out[fin])) if np.any(fin) else 1.0
+        return np.where(fin, out, 10.0 * worst + 1.0)
+
+    return cost
+
+
 def evolve(ext: Extension, rig: Rig, box: np.ndarray, search: Sequence[Experiment],
            root_w: np.ndarray | None, *, generations: int, popsize: int, seed) -> np.ndarray:
     """The best member of SciPy's differential evolution over ``box`` (module docstring).
@@ -164,23 +211,9 @@ def evolve(ext: Extension, rig: Rig, box: np.ndarray, search: Sequence[Experimen
     ndarray, shape (n_params,)
         The best member, not yet clipped to the nulls (``clip_to_null``).
     """
-    def cost(x: np.ndarray) -> np.ndarray:  # x: (n_params, S), SciPy's vectorised layout
-        theta = clip_to_null(ext, rig, np.ascontiguousarray(x.T))
-        out = np.full(theta.shape[0], np.inf)
-        ok = ext.valid(rig, theta)
-        if np.any(ok):
-            with np.errstate(all="ignore"):
-                r = extension_residuals(ext, rig, theta[ok], search)
-                out[ok] = np.sum((r if root_w is None else r * root_w) ** 2, axis=1)
-        # inadmissible or diverging members: worse than every admissible one but finite
-        # (SciPy's convergence test squares the population's energies)
-        fin = np.isfinite(out)
-        worst = float(np.max(out[fin])) if np.any(fin) else 1.0
-        return np.where(fin, out, 10.0 * worst + 1.0)
-
-    res = differential_evolution(cost, box, vectorized=True, updating="deferred",
-                                 popsize=int(popsize), maxiter=int(generations), tol=0.0,
-                                 polish=False, seed=seed)
+    res = differential_evolution(member_cost(ext, rig, search, root_w), box, vectorized=True,
+                                 updating="deferred", popsize=int(popsize),
+                                 maxiter=int(generations), tol=0.0, polish=False, seed=seed)
     return res.x
 
 

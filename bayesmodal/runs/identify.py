@@ -294,7 +294,10 @@ def _diagnose(spec: IdentifySpec, prep, folder: RunFolder, progress: bool) -> di
     rig = prep.model.rig
     d = spec.diagnosis
     exps, train, cut = diagnosis_records(prep.experiments, rig, d)
-    dspec = d.diagnose_spec(rig, len(train), posterior=False)
+    # the fits' threads: the final stage's (``FinalSpec.threads``, one per core); the same
+    # diagnosis on any count
+    dspec = replace(d.diagnose_spec(rig, len(train), posterior=False),
+                    threads=spec.final.threads)
     t0 = time.perf_counter()
     res = diagnose(exps, dspec, rig=rig, train=train, rng=d.seed, progress=progress)
     out = {"key": key, "finished": now_iso(), "elapsed_s": time.perf_counter() - t0,

@@ -251,6 +251,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
         screened.append((cost0, added_, dropped, new_names, new, starts))
     screened.sort(key=lambda x: x[0])
     rows = []
+    current_refits: dict = {}  # the current model's fold refits, shared by the candidates
     n_fit = len(screened) if max_fits is None else max(int(max_fits), 1)
     for _, added_, dropped, new_names, new, starts in screened[:n_fit]:
         c = "+".join(added_) + (f" for {dropped}" if dropped and len(added_) > 1 else "")
@@ -281,7 +282,7 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
         ho = None
         if sig and len(exps) >= 2:
             ho = loro_gain(exps, rig, ext, ref_theta, new, f.theta, linear, loro_nfev,
-                           weights=weights)
+                           weights=weights, cache=current_refits)
             sig = sig and held_out_significant(ho, level)
         rows.append({"cause": c, "added": added_, "dropped": dropped, "names": new_names,
                      "fit": f, "delta_lpd": g, "lr": lr, "n_params": k, "p_value": pv,

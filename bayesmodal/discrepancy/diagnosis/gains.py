@@ -16,6 +16,7 @@ import numpy as np
 
 from ..._errors import DataError, ModelError
 from ...data import Experiment
+from ...fit._threads import thread_map
 from ...fit.lsq import fit_lsq
 from ...fit.result import LSQResult
 from ...metrics import fit_percent
@@ -64,7 +65,8 @@ def _refit(ext, rig, theta, exps, linear: LSQResult, max_nfev: int, weights=None
 
 def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext, new_theta,
               linear: LSQResult, max_nfev: int = 20,
-              criterion: Criterion | None = None, weights=None) -> dict:
+              criterion: Criterion | None = None, weights=None,
+              cache: dict | None = None) -> dict:
     """Leave-one-record-out gain of ``new_ext`` over ``cur_ext`` (None: the linear model).
 
     For every record, both models are refitted by least squares on the other records
@@ -74,6 +76,28 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
     output error, each output's noise profiled on each prediction's residual), new minus
     current; :func:`scoring.held_out_significant` tests it.  ``weights`` (None or
     ``"spread"``): the refits' weighting of their records (``fit_extension_lsq``).
+    The folds run side by side on the fits' threads (``bayesmodal.fit._threads``), with
+    the numbers of one thread.
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The training records (at least two).
+    rig : Rig
+    cur_ext, new_ext : Extension or None
+        The current and the candidate model (None: the linear model).
+    cur_theta, new_theta : ndarray
+        Their fits to all of ``exps``, where each fold's refit starts.
+    linear : LSQResult
+        The linear fit to ``exps`` (the extended fits' reference).
+    max_nfev : int
+        Residual evaluations of each refit.
+    criterion : Criterion, optional
+    weights : {None, "spread"}
+    cache : dict, optional
+        Kept by the caller across calls that share ``exps``, ``cur_ext``, ``linear``,
+        ``max_nfev`` and ``weights`` (the candidates of one forward step): the current
+        model's refits by fold and start, which every candidate of the step compares with.
 
     Returns
     -------
@@ -90,13 +114,21 @@ def loro_gain(exps: Sequence[Experiment], rig: Rig, cur_ext, cur_theta, new_ext,
         records, docs/discrepancy.md section 6, which fits each fold from scratch).
     """
     crit = criterion_for(exps) if criterion is None else criterion
-    per, per_oe, pts, fp_new, fp_cur = [], [], [], [], []
-    for r in range(len(exps)):
+    cache = {} if cache is None else cache
+    start = (getattr(cur_ext, "name", None), np.asarray(cur_theta, float).tobytes())
+
+    def fold(r):
         others = [e for i, e in enumerate(exps) if i != r]
-        th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev, weights)
+        th_c = cache.get((r, start))
+        if th_c is None:
+            th_c = _refit(cur_ext, rig, cur_theta, others, linear, max_nfev, weights)
         th_n = _refit(new_ext, rig, new_theta, others, linear, max_nfev, weights)
-        y_n = _simulate(new_ext, rig, th_n, [exps[r]])
-        y_c = _simulate(cur_ext, rig, th_c, [exps[r]])
+        return th_c, _simulate(new_ext, rig, th_n, [exps[r]]), _simulate(cur_ext, rig, th_c,
+                                                                           [exps[r]])
+
+    per, per_oe, pts, fp_new, fp_cur = [], [], [], [], []
+    for r, (th_c, y_n, y_c) in enumerate(thread_map(fold, range(len(exps)))):
+        cache[(r, start)] = th_c
         d = _lpd([exps[r]], y_n, crit) - _lpd([exps[r]], y_c, crit)
         per.append(crit.total(d))
         if d.ndim == 2:

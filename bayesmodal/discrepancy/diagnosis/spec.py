@@ -23,6 +23,7 @@ import numpy as np
 from ..._errors import ConfigError
 from ...fit.effects import WEIGHTINGS
 from ...inference.spec import put_settings
+from ...inference.threads import resolve_threads
 from ...model.effects import EXTENSIONS
 
 __all__ = ["DiagnoseSpec", "with_diagnose_settings"]
@@ -70,6 +71,11 @@ class DiagnoseSpec:
     weights : {None, "spread"}
         How the extended models' fits weigh several training records (None: the plain
         sum of squares; ``"spread"``: each record as much as the others).
+    threads : int or "auto"
+        Threads for the parts of the fits that do not depend on one another (the local
+        searches from several starts, each generation of the global search, the folds
+        of the leave-one-record-out gains; ``bayesmodal.fit._threads``); ``"auto"``: one
+        per core.  The same diagnosis, number for number, on any count.
     """
 
     candidates: Sequence[str] | None = None
@@ -84,6 +90,7 @@ class DiagnoseSpec:
     max_effects: int = 3
     global_search: bool = True
     weights: str | None = None
+    threads: int | str = 1
 
     def __post_init__(self) -> None:
         if self.candidates is not None:
@@ -99,6 +106,7 @@ class DiagnoseSpec:
         if self.quantum_m is not None and not (np.isfinite(self.quantum_m)
                                                and self.quantum_m >= 0):
             raise ConfigError(f"quantum_m must be finite and >= 0, got {self.quantum_m!r}")
+        resolve_threads(self.threads)
         _positive_int("n_starts", self.n_starts)
         _positive_int("max_effects", self.max_effects)
 

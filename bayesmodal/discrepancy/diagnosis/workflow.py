@@ -36,9 +36,11 @@ from scipy import stats
 from ..._errors import ConfigError, DataError, ModelError
 from ..._progress import announce, progress_bar
 from ...data import Experiment
+from ...fit._threads import fit_threads, thread_map
 from ...fit.lsq import fit_lsq
 from ...identified import require_identified
 from ...inference.spec import RunDescription
+from ...inference.threads import resolve_threads
 from ...model.effects import EXTENSIONS, default_candidates
 from ...model.simulate import simulate_linear
 from ...model.system import LinearModel, Rig
@@ -188,6 +190,12 @@ def diagnose(
     if spec is not None and not isinstance(spec, DiagnoseSpec):
         spec, rig, rng = _read_description(spec, experiments, rig, train, rng)
     spec = with_diagnose_settings(spec, settings)
+    with fit_threads(resolve_threads(spec.threads)):
+        return _diagnosed(experiments, spec, rig, train, rng, progress)
+
+
+def _diagnosed(experiments, spec: DiagnoseSpec, rig, train, rng, progress) -> Diagnosis:
+    """``diagnose`` with its settings read (its steps, on the fits' threads)."""
     exps, rig = _checked_records(experiments, rig)
     tr = _train_indices(train, len(exps))
     held = tuple(i for i in range(len(exps)) if i not in tr)
@@ -369,6 +377,7 @@ def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, sp
     scored: list[CandidateScore] = []
     fits = {}
     after_tests = {}
+    linear_refits: dict = {}  # the linear model's fold refits, shared by the candidates
     peak_volt = max(float(np.max(np.abs(e.v_volt))) for e in train_exps)
     bar = progress_bar(len(to_fit), desc="diagnose: candidate extensions", unit="fit",
                        enabled=progress)
@@ -392,13 +401,16 @@ def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, sp
         bar.update(1)
         try:
             with np.errstate(all="ignore"):
-                ef = None
-                for theta0 in best_starts(ext, rig, linear.theta, train_exps, spec.n_starts,
-                                          spec.weights):
+                def fit(theta0, ext=ext, c=c):
                     inactive = c == "input_saturation" and theta0[-1] >= peak_volt
-                    f = fit_lsq(train_exps, rig, extension=ext, theta0=theta0, linear=linear,
-                                max_nfev=1 if inactive else spec.max_nfev,
-                                weights=spec.weights)
+                    return fit_lsq(train_exps, rig, extension=ext, theta0=theta0,
+                                   linear=linear, max_nfev=1 if inactive else spec.max_nfev,
+                                   weights=spec.weights)
+
+                ef = None
+                # the starts side by side on the fits' threads, the same fits as in turn
+                for f in thread_map(fit, best_starts(ext, rig, linear.theta, train_exps,
+                                                     spec.n_starts, spec.weights)):
                     if ef is None or f.cost < ef.cost:
                         ef = f
         except (ModelError, DataError, ValueError, FloatingPointError,
@@ -414,7 +426,7 @@ def _fit_candidates(st: _NullStage, train_exps, rig, cands, order, signature, sp
         if sig and len(train_exps) >= 2:
             # several records: the leave-one-record-out gain must be significant too
             held_out = loro_gain(train_exps, rig, None, linear.theta, ext, ef.theta, linear,
-                                 weights=spec.weights)
+                                 weights=spec.weights, cache=linear_refits)
             sig = held_out_significant(held_out, level)
         lin_theta = ef.theta[: model.n_params]
         d_after = [run_diagnostics(e, model, lin_theta, quantum_m=st.q, y_pred=y)
