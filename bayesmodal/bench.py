@@ -507,7 +507,11 @@ def bench_extensions(
         baseline), ``n_sub`` (sub-steps per sample, None for exact extensions), and the
         same timing on ``rig_input`` (pulses, steps, sweep) instead of the random input:
         ``ratio_to_linear_rig_input``, ``ratio_per_round_rig_input``,
-        ``meets_target_rig_input``.
+        ``meets_target_rig_input``; ``ratio_of_best`` and ``ratio_of_best_rig_input``: the
+        best time over the rounds against the linear simulator's best (a baseline slowed
+        by a neighbour's memory traffic does not flatter it), from the per-round times on
+        the rig-like input ``us_per_eval_rounds_rig_input`` and
+        ``linear_us_per_eval_rounds_rig_input``.
     """
 
     model, theta, u_random = _bench_problem(n_samples, batch, rng)
@@ -541,6 +545,12 @@ def bench_extensions(
         ratio = float(np.median(ratios))
         ratios_rig = ext_rig[name] / lin_rig
         ratio_rig = float(np.median(ratios_rig))
+        # the best time of each side over the rounds: the linear simulator streams its
+        # output through memory and a neighbour's traffic slows it for seconds at a time
+        # (rounds of one run 24-35 us/eval) while the compute-bound kernels keep their
+        # time, so a round's ratio is low whenever the baseline was slowed
+        best = float(np.min(ext_t[name]) / np.min(lin))
+        best_rig = float(np.min(ext_rig[name]) / np.min(lin_rig))
         out[name] = {
             "us_per_eval": float(np.median(ext_t[name])) / batch * 1e6,
             "ratio_to_linear": ratio,
@@ -552,6 +562,10 @@ def bench_extensions(
             "ratio_to_linear_rig_input": ratio_rig,
             "ratio_per_round_rig_input": [float(r) for r in ratios_rig],
             "meets_target_rig_input": bool(ratio_rig <= target),
+            "ratio_of_best": best,
+            "ratio_of_best_rig_input": best_rig,
+            "us_per_eval_rounds_rig_input": [float(t) / batch * 1e6 for t in ext_rig[name]],
+            "linear_us_per_eval_rounds_rig_input": [float(t) / batch * 1e6 for t in lin_rig],
         }
     return out
 
@@ -568,8 +582,10 @@ def headline(extensions: dict) -> dict:
     Returns
     -------
     dict
-        ``coulomb_friction``: ``ratio_rig_input``, ``ratio_random_input``, ``target``
-        (``EXTENSION_MAX_RATIO``), ``meets_target`` (on the rig-like input);
+        ``coulomb_friction``: ``ratio_rig_input`` (median of the rounds),
+        ``ratio_of_best_rig_input`` (best against best), ``ratio_random_input``,
+        ``target`` (``EXTENSION_MAX_RATIO``), ``meets_target`` (best against best on the
+        rig-like input: a round whose baseline a neighbour slowed does not pass it);
         ``best_combined``: the same for the costlier of the ``BEST_COMBINED`` models on the
         rig-like input, with its ``name`` and ``target`` ``COMBINED_MAX_RATIO``.  A figure
         whose models were not timed is left out.
@@ -577,15 +593,17 @@ def headline(extensions: dict) -> dict:
     def figure(name, target):
         r = extensions[name]
         rig = r["ratio_to_linear_rig_input"]
+        best = r["ratio_of_best_rig_input"]
         return {"name": name, "ratio_rig_input": rig, "ratio_random_input": r["ratio_to_linear"],
                 "ratio_per_round_rig_input": r["ratio_per_round_rig_input"],
-                "target": target, "meets_target": bool(rig <= target)}
+                "ratio_of_best_rig_input": best, "target": target,
+                "meets_target": bool(best <= target)}
 
     out = {}
     if "coulomb_friction" in extensions:
         out["coulomb_friction"] = figure("coulomb_friction", EXTENSION_MAX_RATIO)
     timed = [n for n in BEST_COMBINED if n in extensions]
     if timed:
-        worst = max(timed, key=lambda n: extensions[n]["ratio_to_linear_rig_input"])
+        worst = max(timed, key=lambda n: extensions[n]["ratio_of_best_rig_input"])
         out["best_combined"] = figure(worst, COMBINED_MAX_RATIO)
     return out
