@@ -95,7 +95,8 @@ ROOT_LAYER = {
     "reading": "data", "segments": "data", "inspection": "data", "structure": "data",
     "_columns": "data", "timebase": "data",
     "identified": "fit", "metrics": "fit", "static": "fit",
-    "reproduce": "runs", "bench": "runs", "bench_sampler": "runs", "__main__": "cli"}
+    "reproduce": "runs", "bench": "runs", "bench_sampler": "runs", "bench_stamps": "runs",
+    "__main__": "cli"}
 
 
 def layer_of(module: str) -> str | None:

@@ -9,11 +9,11 @@ from ..bench import (
     bench_extensions,
     bench_linear,
     bench_sensor_kinds,
-    bench_stamps,
     headline,
     machine_load,
 )
 from ..bench_sampler import SAMPLER_MIN_FRACTION, bench_sampler
+from ..bench_stamps import bench_stamps
 from ._common import print_json
 
 
