@@ -207,8 +207,8 @@ def _count_kernel_calls(monkeypatch) -> list:
     returned = []
     compiled = nk.coulomb_kernel
 
-    def counting(n, width, adaptive=True):
-        kernel = compiled(n, width, adaptive)
+    def counting(n, width, adaptive=True, **kw):
+        kernel = compiled(n, width, adaptive, **kw)
         return lambda *args: returned.append(kernel(*args))
 
     monkeypatch.setattr(nk, "coulomb_kernel", counting)
@@ -296,3 +296,37 @@ def test_friction_accuracy_over_random_levels_on_measured_inputs():
             assert err < 0.5, (record, i, err)
             worst_one = max(worst_one, np.max(np.abs(y1[i] - y_ref)) / COUNT)
     assert worst_one > 1.0, worst_one
+
+
+def test_friction_kernel_leaves_out_the_rigs_absent_springs_bit_for_bit(monkeypatch):
+    """On the three-cart chain carts 1 and 3 share no spring or damper: the four entries of
+    ``G = [-K, -C]`` joining them are zero in every lane and the kernel leaves their
+    products out, with the output bit for bit that of the kernel summing them all; leaving
+    out an entry that is not zero (negative control) changes it."""
+    import bayesmodal.model.kernels.coulomb as nk
+    from bayesmodal.bench import rig_input
+
+    theta = _friction_draws(16, np.random.default_rng(11))
+    n, s = 3, 6
+    joined = {(0, 2), (2, 0)}
+    expected = sorted(i * s + j + off for i, j in joined for off in (0, n))
+    u = rig_input(3000, DT)
+    ext = EXTENSIONS["coulomb_friction"]
+    seen = []
+    real = nk.structural_zeros
+
+    def spy(G):
+        seen.append(real(G))
+        return seen[-1]
+
+    monkeypatch.setattr(nk, "structural_zeros", spy)
+    left_out = ext.simulate(RIG, theta, u, DT)
+    assert seen and seen[-1] == tuple(expected), seen
+    monkeypatch.setattr(nk, "structural_zeros", lambda G: ())
+    summed = ext.simulate(RIG, theta, u, DT)
+    assert left_out.tobytes() == summed.tobytes()
+    monkeypatch.setattr(nk, "structural_zeros", lambda G: (1,))  # k2 on cart 1: not zero
+    wrong = ext.simulate(RIG, theta, u, DT)
+    assert not np.array_equal(wrong, summed)
+    with pytest.raises(ValueError, match="off-diagonal"):
+        nk.coulomb_kernel(n, 16, g_zeros=(0,))

@@ -137,17 +137,20 @@ def test_exec_sites_take_no_outside_text():
                         or bool(calls & checkers))
             # tuples of integers are allowed when each is turned into integers in range
             # before any line is built (the cubic kernel's spring ends, its sensors and
-            # their states: ``checked_springs``, ``checked_outputs``, ``checked_columns``)
+            # their states: ``checked_springs``, ``checked_outputs``, ``checked_columns``;
+            # the friction kernel's zero entries of G: ``checked_zeros``)
             # and tuples of flags when each is turned into a bool first
             checked = {a.arg for a in fn.args.args if any(
                 re.search(rf"{chk}\({a.arg}\b", src) for chk in (
-                    "checked_springs", "checked_outputs", "checked_columns"))}
+                    "checked_springs", "checked_outputs", "checked_columns",
+                    "checked_zeros"))}
             flags = {a.arg for a in fn.args.args
                      if re.search(rf"tuple\(\(?bool\(\w+\) for \w+ in {a.arg}\)", src)}
             assert kinds and all(
                 k in ("int", "bool") or (k == "tuple[str, ...]" and names_ok)
                 or (k in ("tuple[tuple[int, int], ...] | None",
-                          "tuple[tuple[int, ...], ...] | None") and a.arg in checked)
+                          "tuple[tuple[int, ...], ...] | None", "tuple[int, ...]")
+                    and a.arg in checked)
                 or (k == "tuple[bool, ...] | None" and a.arg in flags)
                 for k, a in zip(kinds, fn.args.args, strict=True)), (f, fn.name, kinds)
 

@@ -53,13 +53,32 @@ def fit_threads(threads: int) -> Iterator[int]:
     ...     thread_map(lambda x: x * x, [1, 2, 3])
     [1, 4, 9]
     """
-    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise ConfigError(f"threads must be a positive integer, got {threads!r}")
-    token = _THREADS.set(int(threads))
+    threads = checked_threads(threads)
+    token = _THREADS.set(threads)
     try:
-        yield int(threads)
+        yield threads
     finally:
         _THREADS.reset(token)
+
+
+def checked_threads(threads, allowed: str = "a positive integer") -> int:
+    """``threads`` as an ``int`` of at least 1.
+
+    Parameters
+    ----------
+    threads : int
+        The count asked for.
+    allowed : str
+        What the caller accepts, for the error message.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the value and ``allowed``.
+    """
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ConfigError(f"threads must be {allowed}, got {threads!r}")
+    return int(threads)
 
 
 def thread_count() -> int:

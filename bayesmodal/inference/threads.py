@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .._blas import available_cores
-from .._errors import ConfigError
+from ..fit._threads import checked_threads
 
 __all__ = ["ThreadedLogPosterior", "resolve_threads"]
 
@@ -52,9 +52,7 @@ def resolve_threads(threads) -> int:
         threads = int(threads)
     if isinstance(threads, str) and threads.strip().lower() == "auto":
         return available_cores()
-    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise ConfigError(f"threads must be a positive integer or 'auto', got {threads!r}")
-    return int(threads)
+    return checked_threads(threads, "a positive integer or 'auto'")
 
 
 class ThreadedLogPosterior:

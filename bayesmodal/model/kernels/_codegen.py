@@ -227,11 +227,14 @@ class _Rows:
 
     With ``base`` (the name of a variable of the kernel) element i of lane ``b`` is at
     ``base + row * width + b``: blocks of ``width`` lanes packed one after the other
-    (``_pack(..., block=width)``), ``base`` locating the block of lane ``b``."""
+    (``_pack(..., block=width)``), ``base`` locating the block of lane ``b``.  ``zeros``:
+    the ``(name, i)`` elements that are an exact zero in every lane (``nonzero``), whose
+    products a kernel's sums may leave out."""
 
     def __init__(self, array: str, width: int, fields: list[tuple[str, int]],
-                 base: str | None = None):
+                 base: str | None = None, zeros: frozenset = frozenset()):
         self.array, self.width, self.base = array, width, base
+        self.zeros = frozenset(zeros)
         self.offset: dict[str, int] = {}
         n = 0
         for name, count in fields:
@@ -242,6 +245,10 @@ class _Rows:
     def __call__(self, name: str, i: int = 0) -> str:
         at = f"{(self.offset[name] + i) * self.width} + b"
         return f"{self.array}[{at}]" if self.base is None else f"{self.array}[{self.base} + {at}]"
+
+    def nonzero(self, name: str, i: int = 0) -> bool:
+        """False for an element that is an exact zero in every lane (``zeros``)."""
+        return (name, i) not in self.zeros
 
 
 def _aligned_lines(name: str, size: str, dtype: str = "np.float64") -> list[str]:
@@ -367,8 +374,8 @@ def interleave(blocks: list[list[str]]) -> list[str]:
 
 
 def _sum(products) -> str:
-    """Code of ``sum(a * b)``."""
-    return " + ".join(f"{a} * {b}" for a, b in products)
+    """Code of ``sum(a * b)`` (``0.0`` for no products)."""
+    return " + ".join(f"{a} * {b}" for a, b in products) or "0.0"
 
 
 def checked_outputs(outputs, n: int) -> tuple[tuple[int, int], ...]:
@@ -379,6 +386,18 @@ def checked_outputs(outputs, n: int) -> tuple[tuple[int, int], ...]:
         if not (0 <= k < n and 0 <= o <= 2):
             raise ValueError(f"outputs must be (dof 0..{n - 1}, order 0..2) pairs, got "
                              f"{(k, o)}")
+    return out
+
+
+def checked_zeros(g_zeros, n: int) -> tuple[int, ...]:
+    """``g_zeros`` as sorted distinct flat indices of off-diagonal entries of an ``(n, 2n)``
+    matrix ``[-K, -C]`` (never a cart's own spring or damper; only these reach generated
+    source)."""
+    out = tuple(sorted({int(k) for k in g_zeros}))
+    off_diagonal = {i * 2 * n + j for i in range(n) for j in range(2 * n) if j % n != i}
+    if not set(out) <= off_diagonal:
+        raise ValueError(f"g_zeros must be off-diagonal entries of the ({n}, {2 * n}) "
+                         f"matrix G, got {out}")
     return out
 
 

@@ -61,12 +61,19 @@ def _force_rates(P, n: int, i: int) -> tuple[list, list]:
     """The products whose sums are the rates of change of cart i's net force at the step
     start and end, N/s: ``G`` times the velocities and accelerations (``x{n+j}``,
     ``A0_j``; ``V1_j``, ``A1_j``)."""
-    s, C = 2 * n, range(n)
-    r0 = ([(P("G", i * s + j), f"x{n + j}") for j in C]
-          + [(P("G", i * s + n + j), f"A0_{j}") for j in C])
-    r1 = ([(P("G", i * s + j), f"V1_{j}") for j in C]
-          + [(P("G", i * s + n + j), f"A1_{j}") for j in C])
+    C = range(n)
+    r0 = _g_row(P, n, i, [f"x{n + j}" for j in C] + [f"A0_{j}" for j in C])
+    r1 = _g_row(P, n, i, [f"V1_{j}" for j in C] + [f"A1_{j}" for j in C])
     return r0, r1
+
+
+def _g_row(P, n: int, i: int, values: list[str]) -> list[tuple[str, str]]:
+    """The products of row i of ``G`` with ``values`` (one per state), without the
+    entries that are an exact zero in every lane (``_Rows.nonzero``: springs and dampers
+    the rig does not have).  Leaving a product ``x * 0.0`` out of a sum changes no
+    finite result but the sign of an exact zero sum."""
+    s = 2 * n
+    return [(P("G", i * s + j), v) for j, v in enumerate(values) if P.nonzero("G", i * s + j)]
 
 
 def _kinetic(i: int, d: str, asym: bool) -> str:
@@ -102,7 +109,7 @@ def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
     # when the input jumped past Fs), sliding carts get -Fc dir; written as selects (no
     # nested branches) so that the compiler vectorises across lanes
     for i in C:
-        gz = " + ".join(f"{P('G', i * s + j)} * x{j}" for j in R)
+        gz = _sum(_g_row(P, n, i, [f"x{j}" for j in R]))
         L += [f"{t}F{i} = gb{i} * uk + {gz}",
               f"{t}aF{i} = abs(F{i})",
               f"{t}hold = st{i} & (aF{i} < fs{i})",
@@ -115,7 +122,7 @@ def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
         L.append(f"{t}n{r} = {P(mats[1], r)} * uk + {_sum(prods)}")
 
     def end_force(i):
-        return f"{t}Fe{i} = gb{i} * uk + {_sum((P('G', i * s + j), f'n{j}') for j in R)}"
+        return f"{t}Fe{i} = gb{i} * uk + {_sum(_g_row(P, n, i, [f'n{j}' for j in R]))}"
 
     # net forces at the end; a held cart's force changed over the step, and holding it
     # with its start value would let it drift and pull on its neighbours: hold it with
@@ -321,14 +328,13 @@ def _coulomb_at_rest(t, P, X, n) -> list[str]:
     at rest.  The test depends on the lane's own state only, and skipping changes no
     result: the output is the same whatever the batch.
     """
-    s = 2 * n
     L: list[str] = [f"{t}rest = True"]
     for i in range(n):
         # positions only: a lane can be at rest only if every cart is stuck, and a stuck
         # cart's velocity is a zero (the steps set it so), whose products would change
         # the sums at most by the sign of a zero
-        terms = [f"{P('gb', i)} * uk"] + [f"{P('G', i * s + j)} * {X('x', j)}"
-                                          for j in range(n)]
+        terms = [f"{P('gb', i)} * uk"] + [f"{g} * {x}" for g, x in _g_row(
+            P, n, i, [X("x", j) for j in range(n)])]
         L += [f"{t}Fq = {' + '.join(terms)}",
               f"{t}mq = {' + '.join(f'abs({term})' for term in terms)}",
               f"{t}rest = rest & ({X('st', i)} != 0.0)"
@@ -424,7 +430,7 @@ def _coulomb_rates(t, P, X, n, width, asym=False, stop=0) -> list[str]:
               f"{t}pq = pq if pq > 0.0 else 0.0",
               f"{t}uk = uk - {stop:+d}.0 * {P('kq')} * pq"]
     for i in C:
-        gz = _sum((P("G", i * s + j), f"x{j}") for j in R)
+        gz = _sum(_g_row(P, n, i, [f"x{j}" for j in R]))
         L += [f"{t}fc{i} = {P('fc', i)}"]
         if asym:
             L += [f"{t}fp{i} = fc{i}", f"{t}fn{i} = {P('fn', i)}"]

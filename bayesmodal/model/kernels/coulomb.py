@@ -13,6 +13,7 @@ from ._codegen import (
     _lane_inputs,
     _Rows,
     checked_outputs,
+    checked_zeros,
     run_batched,
 )
 from ._coulomb_steps import (
@@ -129,10 +130,23 @@ def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
     return out
 
 
-@functools.lru_cache(maxsize=16)
+def structural_zeros(G: np.ndarray) -> tuple[int, ...]:
+    """Flat indices of the entries of ``G`` (nb, n, 2n) that are an exact zero in every
+    lane: springs and dampers the rig does not have (on the three-cart chain 8 of 18).
+    The diagonal entries (each cart's own spring and damper, read by the held-force code)
+    are never left out."""
+    G = np.asarray(G)
+    n = G.shape[1]
+    zero = ~np.any(G != 0.0, axis=0)
+    zero[np.arange(n), np.arange(n)] = False
+    zero[np.arange(n), n + np.arange(n)] = False
+    return tuple(int(k) for k in np.flatnonzero(zero))
+
+
+@functools.lru_cache(maxsize=32)
 def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = False,
                    asymmetric: bool = False, stages: tuple[str, ...] = (), stop: int = 0,
-                   rates: bool = False):
+                   rates: bool = False, g_zeros: tuple[int, ...] = ()):
     """Compiled stick-slip Coulomb friction kernel (see ``coulomb_run``).
 
     The kernel returns how many packed groups of lanes took a sample again in sub-steps
@@ -144,9 +158,14 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     ``stop`` (+1 or -1, shared input only): an end stop of that side on the driven cart,
     rows ``xq`` (m) and ``kq`` (``k_stop / g_v``, V/m) (``kernels.stop``); ``rates``: it
     takes ``cols`` (before ``Y``) and writes those rows of the carts' positions,
-    velocities and accelerations (``_coulomb_steps._coulomb_read``), not the positions.
+    velocities and accelerations (``_coulomb_steps._coulomb_read``), not the positions;
+    ``g_zeros``: flat indices of the entries of ``G`` that are zero in every lane
+    (``structural_zeros``), whose products the kernel leaves out (one compiled variant
+    per pattern of the rig's springs and dampers).
     """
     stages = checked_stages(stages, per_lane)
+    g_zeros = checked_zeros(g_zeros, n)
+    zeros = frozenset(("G", k) for k in g_zeros)
     stop = checked_side(stop) if stop else 0
     if stop and per_lane:
         raise ValueError("the end stop needs a shared input; pass u of shape (N,)")
@@ -160,8 +179,9 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     p_rows += [("xq", 1), ("kq", 1)] if stop else []
     tag = f"{' asym' * asym}{''.join(' ' + k for k in stages)}{f' stop{stop:+d}' * bool(stop)}"
     tag += " rates" * rates
+    tag += f" G0={','.join(map(str, g_zeros))}" * bool(g_zeros)
     x_rows = [("x", s), ("st", n), ("d", n), ("xs", n)]
-    P, X = _Rows("P", w, p_rows), _Rows("X", w, x_rows)
+    P, X = _Rows("P", w, p_rows, zeros=zeros), _Rows("X", w, x_rows)
     L = _head("P, X, u, n_sub, h, Y", n, w, X, per_lane)
     if rates:  # the sensors' rows ``cols`` of the lane's rates, n_out a sample
         L = [L[0].replace("h, Y", "h, cols, Y"), "    n_out = cols.shape[0]",
@@ -190,28 +210,10 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
     # the packed state XX also holds the sub-steps' scratch rows (one array less for the
     # vectoriser to check for aliasing: with a separate one, the first loop of a sub-step
     # ran one lane at a time)
-    PP, XX = _Rows("PP", g, p_rows), _Rows("XX", g, x_rows + _scratch_rows(n))
-    # the rows sub-steps use (not those of the whole-sample step, Ad to rd), lane-major
+    PP, XX = _Rows("PP", g, p_rows, zeros=zeros), _Rows("XX", g, x_rows + _scratch_rows(n))
     n_a = P.offset["Ad"]
     n_pl = n_a + P.size - P.offset["G"]
-    L[1:1] = [*_aligned_lines("PL", str(w * n_pl)),
-              # (not a lane loop ``b``, which gets the input code of every lane loop)
-              f"    for lane in range({w}):",
-              f"        for r in range({n_a}):",
-              f"            PL[lane * {n_pl} + r] = P[r * {w} + lane]",
-              f"        for r in range({P.offset['G']}, {P.size}):",
-              f"            PL[lane * {n_pl} + r - {P.offset['G'] - n_a}] = P[r * {w} + lane]",
-              *_aligned_lines("S", f"X.shape[0] + {w}"),
-              f"    rested = np.zeros({-(-w // g)}, np.bool_)",
-              *_aligned_lines("PP", str(P.size * g)), *_aligned_lines("XX", str(XX.size * g)),
-              f"    idx = np.empty({w}, np.int64)",
-              "    dt = h * n_sub",
-              # unused packed slots hold copies of lane 0 (valid numbers)
-              f"    for j in range({g}):",
-              f"        for r in range({P.size}):",
-              f"            PP[r * {g} + j] = P[r * {w}]",
-              f"        for r in range({X.size}):",
-              f"            XX[r * {g} + j] = X[r * {w}]"]
+    L[1:1] = _packing_preamble(P, X, XX, w, g)
     # a group whose lanes are all at rest skips the sample (the state does not change);
     # the others take the sample in one step, and the lanes with an event in it take it
     # again in event-corrected sub-steps, packed into groups.  A corrected step without
@@ -280,6 +282,33 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
         L = _staged_inputs(L, P, PP, stages, packed_from, stop=stop, n=n, X=X, XX=XX,
                            steps=("dt", "h"))
     return _compile(L, f"<bayesmodal coulomb n={n} w={w} adaptive{tag}>")
+
+
+def _packing_preamble(P, X, XX, w: int, g: int) -> list[str]:
+    """Kernel source before the sample loop of the adaptive friction kernel: the rows
+    sub-steps use (not those of the whole-sample step, ``Ad`` to ``rd``) copied
+    lane-major into ``PL``, the saved states ``S``, the packed groups' parameters ``PP``
+    and states ``XX`` (unused slots hold copies of lane 0: valid numbers), the packed
+    lanes' indices ``idx`` and the sample interval ``dt``."""
+    n_a = P.offset["Ad"]
+    n_pl = n_a + P.size - P.offset["G"]
+    return [*_aligned_lines("PL", str(w * n_pl)),
+            # (not a lane loop ``b``, which gets the input code of every lane loop)
+            f"    for lane in range({w}):",
+            f"        for r in range({n_a}):",
+            f"            PL[lane * {n_pl} + r] = P[r * {w} + lane]",
+            f"        for r in range({P.offset['G']}, {P.size}):",
+            f"            PL[lane * {n_pl} + r - {P.offset['G'] - n_a}] = P[r * {w} + lane]",
+            *_aligned_lines("S", f"X.shape[0] + {w}"),
+            f"    rested = np.zeros({-(-w // g)}, np.bool_)",
+            *_aligned_lines("PP", str(P.size * g)), *_aligned_lines("XX", str(XX.size * g)),
+            f"    idx = np.empty({w}, np.int64)",
+            "    dt = h * n_sub",
+            f"    for j in range({g}):",
+            f"        for r in range({P.size}):",
+            f"            PP[r * {g} + j] = P[r * {w}]",
+            f"        for r in range({X.size}):",
+            f"            XX[r * {g} + j] = X[r * {w}]"]
 
 
 def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h, x0, *,
@@ -394,7 +423,8 @@ def coulomb_run(Ah, Bh, Fh, Rh, Ad, Bd, Fd, Rd, G, gb, minv, Fc, Fs, u, n_sub, h
     if kinds and u.ndim != 1:
         raise ValueError("input stages apply to a shared input; pass u of shape (N,)")
     params += [np.asarray(values, dtype=float).reshape(-1, 1) for _, values in input_stages]
-    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive))
+    kernel = functools.partial(coulomb_kernel, n, adaptive=bool(adaptive),
+                               g_zeros=structural_zeros(G))
     if Fc_backward is not None:
         kernel = functools.partial(kernel, asymmetric=True)
     if kinds:
