@@ -330,3 +330,24 @@ def test_friction_kernel_leaves_out_the_rigs_absent_springs_bit_for_bit(monkeypa
     assert not np.array_equal(wrong, summed)
     with pytest.raises(ValueError, match="off-diagonal"):
         nk.coulomb_kernel(n, 16, g_zeros=(0,))
+
+
+def test_friction_groups_without_a_stuck_cart_take_the_sliding_step_bit_for_bit(monkeypatch):
+    """A group of lanes none of whose carts is stuck takes the whole-sample step without
+    the held carts' ramp correction and tests (``GROUP_STEPS``): the output is bit for
+    bit that of the kernel taking the full step everywhere; taking the sliding step in
+    every group, stuck carts included (negative control), changes it."""
+    import bayesmodal.model.kernels.coulomb as nk
+    from bayesmodal.bench import rig_input
+
+    theta = _friction_draws(32, np.random.default_rng(12))
+    u = rig_input(3000, DT)
+    ext = EXTENSIONS["coulomb_friction"]
+    out = {}
+    for steps in (("sliding", "held"), ("held",), ("sliding",)):
+        monkeypatch.setattr(nk, "GROUP_STEPS", steps)
+        nk.coulomb_kernel.cache_clear()
+        out[steps] = ext.simulate(RIG, theta, u, DT)
+    nk.coulomb_kernel.cache_clear()
+    assert out[("sliding", "held")].tobytes() == out[("held",)].tobytes()
+    assert not np.array_equal(out[("sliding",)], out[("held",)])

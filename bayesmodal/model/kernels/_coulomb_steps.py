@@ -97,11 +97,16 @@ def _coulomb_load(t, P, X, n, asym=False) -> list[str]:
     return L
 
 
-def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
+def _coulomb_predict(t, P, n, mats, asym=False, held=True) -> list[str]:
     """Code of the friction decision at the step start and the state predicted with it
     held over the step (matrices ``mats = (A, B, F, R)`` of the step: input, held and
     ramped force responses), the net forces at the end (``Fe``) and the velocities and
-    accelerations at both ends."""
+    accelerations at both ends.
+
+    ``held=False``: for lanes none of whose carts is stuck at the step start, without the
+    ramp correction of held carts.  Its force differences are then ``0.0 * (...)`` and
+    the correction adds an exact zero to each state, so for a finite state the result
+    is the same bit for bit."""
     s = 2 * n
     R, C = range(s), range(n)
     L: list[str] = []
@@ -127,13 +132,13 @@ def _coulomb_predict(t, P, n, mats, asym=False) -> list[str]:
     # net forces at the end; a held cart's force changed over the step, and holding it
     # with its start value would let it drift and pull on its neighbours: hold it with
     # the force ramping to its end value instead (one correction with the ramp response)
-    for i in C:
+    for i in C if held else ():
         # (a product with 1 or 0, not a branch: the compiler would sink the end force
         # into the branch and not vectorise the loop)
         L += [end_force(i),
               f"{t}df{i} = (1.0 if st{i} else 0.0) * (F{i} -"
               f" ({_held_force(P, n, i, f'Fe{i}', f'xs{i}')}))"]
-    for r in R:
+    for r in R if held else ():
         prods = [(P(mats[3], r * n + j), f"df{j}") for j in C]
         L.append(f"{t}n{r} = {_fma_sum(f'n{r}', prods)}")
     # net forces at the end again, and the rates of change of the net force at both ends
@@ -271,7 +276,8 @@ def _coulomb_store(t, X, n) -> list[str]:
     return L
 
 
-def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False, stop=False) -> list[str]:
+def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False, stop=False,
+                        held=True) -> list[str]:
     """Code of a step without event corrections that counts the lanes needing them.
 
     Saves the lane's state in ``S``, takes the step with the matrices ``mats`` (of length
@@ -283,28 +289,31 @@ def _coulomb_quiet_step(t, P, X, n, mats, step, asym=False, stop=False) -> list[
     inside the step, which the end values alone would hide).  With ``stop`` a lane is
     also flagged where its driven cart is in contact with the end stop or can reach it
     within the step (``nq_``, set by ``kernels.stop.stop_input_lines``): the stop force
-    is held at its mid-step value, accurate in sub-steps.
+    is held at its mid-step value, accurate in sub-steps.  ``held=False``: the step of
+    lanes without a stuck cart (``_coulomb_predict``), which tests the sliding carts
+    only.
     """
     C, w = range(n), X.width
     L = [f"{t}S[{r * w} + b] = {X.array}[{r * w} + b]" for r in range(X.size)]
     L += _coulomb_load(t, P, X, n, asym)
-    L += _coulomb_predict(t, P, n, mats, asym)
+    L += _coulomb_predict(t, P, n, mats, asym, held)
     flags = []
     for i in C:
         v = n + i
         r0, r1 = (_fma_sum("0.0", r) for r in _force_rates(P, n, i))
+        # (a stuck cart's test: not needed where no cart is stuck)
         L += [f"{t}q1 = {_held_force(P, n, i, f'Fe{i}', f'xs{i}')}",
               f"{t}k0 = {step} * ({r0})",
               f"{t}k1 = {step} * ({r1})",
               f"{t}qm = 0.5 * (F{i} + q1) + 0.125 * (k0 - k1)",
               f"{t}hit = ((abs(q1) >= fs{i}) | (abs(qm) >= fs{i}) | (abs(F{i} + k0) >= fs{i})"
-              f" | (abs(q1 - k1) >= fs{i}))",
-              f"{t}m0 = A0_{i} * {step}",
+              f" | (abs(q1 - k1) >= fs{i}))"] if held else []
+        L += [f"{t}m0 = A0_{i} * {step}",
               f"{t}m1 = A1_{i} * {step}",
               f"{t}vm = 0.5 * (x{v} + n{v}) + 0.125 * (m0 - m1)",
               f"{t}turn = ((d{i} * n{v} < 0.0) | (d{i} * vm < 0.0) | (d{i} * (x{v} + m0) < 0.0)"
               f" | (d{i} * (n{v} - m1) < 0.0))",
-              f"{t}ev{i} = hit if st{i} else turn",
+              f"{t}ev{i} = hit if st{i} else turn" if held else f"{t}ev{i} = turn",
               f"{t}n{i} = xs{i} if st{i} else n{i}",
               f"{t}n{v} = 0.0 if st{i} else n{v}"]
         flags.append(f"ev{i}")

@@ -35,6 +35,13 @@ from .stop import checked_side, stop_input_lines
 #: its batch.
 REFINE_GROUP = 16
 
+#: The whole-sample steps the adaptive friction kernel compiles: a group of lanes none of
+#: whose carts is stuck takes the ``"sliding"`` step (without the held carts' ramp
+#: correction and tests), the others the ``"held"`` one; the two give the same result
+#: bit for bit where both apply (``("held",)`` alone is the kernel without the split:
+#: tests compare the two).
+GROUP_STEPS = ("sliding", "held")
+
 #: Memoryless input stages the friction kernel can apply itself to the shared input, in
 #: the order given, each with one parameter per lane: ``offset`` (V, added), ``deadband``
 #: (V, sharp), ``saturation`` (V, clip level), ``gain`` (1/V, ``v (1 + kappa |v|)``).
@@ -233,14 +240,20 @@ def coulomb_kernel(n: int, width: int, adaptive: bool = True, per_lane: bool = F
           "                nrest += 1",
           "                continue",
           "            nq = 0",
+          "            ns = 0",
           f"            for b in range(g0, g0 + {g}):"]
     L += _coulomb_at_rest(" " * 16, P, X, n)
+    L += [f"                ns += 1 if {X('st', i)} != 0.0 else 0" for i in range(n)]
     L += [f"            rested[g0 // {g}] = nq == {g}",
           f"            if nq == {g}:", "                nrest += 1", "                continue",
-          "            ev = 0",
-          f"            for b in range(g0, g0 + {g}):"]
-    L += _coulomb_quiet_step(" " * 16, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym,
-                             bool(stop))
+          "            ev = 0"]
+    # a group none of whose carts is stuck takes the step without the held carts' ramp
+    # correction (an exact zero for it: the same result) and their tests
+    heads = ("if ns == 0:", "else:") if len(GROUP_STEPS) == 2 else ("if True:",)
+    for kind, head in zip(GROUP_STEPS, heads, strict=True):
+        L += [f"            {head}", f"                for b in range(g0, g0 + {g}):"]
+        L += _coulomb_quiet_step(" " * 20, P, X, n, ("Ad", "bd", "fd", "rd"), "dt", asym,
+                                 bool(stop), kind == "held")
     L += ["            if ev > 0:",
           f"                for b in range(g0, g0 + {g}):",
           f"                    if S[{X.size * w} + b] != 0.0:",
