@@ -16,6 +16,11 @@ Usage::
     python benchmarks/detection_layouts.py --layouts two_frame_at_drive --cases \\
         coulomb_friction,end_stop --seeds 3 --nulls 0
 
+With ``--slow-drive`` every record goes on with a slow triangle of the drive
+(``hidden_layouts.slow_triangle``, half as many samples again): on one cart, friction
+with a drive offset and directional friction move the cart alike under pulses and steps
+alone.
+
 With ``--out``, every diagnosis is written as soon as it is done, and a run given an
 existing file keeps its rows and runs only the rest (resume after a stop).
 """
@@ -46,7 +51,7 @@ def candidates() -> tuple[str, ...]:
 
 
 def run_one(args) -> dict:
-    layout, case, seed, n_samples = args
+    layout, case, seed, n_samples, slow = args
     import warnings
 
     from hidden_layouts import layout_rig, make_layout_case
@@ -56,7 +61,7 @@ def run_one(args) -> dict:
 
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
-    h = make_layout_case(layout, case, seed, n_samples)
+    h = make_layout_case(layout, case, seed, n_samples, slow_drive=slow)
     rig = layout_rig(layout)
     try:
         d = diagnose(h.experiment, rig=rig, posterior=False, n_null=N_NULL, rng=seed,
@@ -67,7 +72,8 @@ def run_one(args) -> dict:
         ok, found, err, notes = False, [], f"{type(exc).__name__}: {exc}", []
     return {"layout": layout, "case": case, "seed": seed, "correct": bool(ok),
             "found": [[k, v] for k, v in found], "truth": h.effects, "sizes": h.sizes,
-            "error": err, "notes": notes, "seconds": time.perf_counter() - t0}
+            "error": err, "notes": notes, "seconds": time.perf_counter() - t0,
+            "slow_drive": bool(slow)}
 
 
 def summarise(rows: list[dict]) -> list[dict]:
@@ -91,16 +97,22 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--nulls", type=int, default=50)
     ap.add_argument("--samples", type=int, default=2400)
+    ap.add_argument("--slow-drive", action="store_true",
+                    help="records go on with a slow triangle of the drive")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", type=Path)
     a = ap.parse_args(argv)
-    jobs = [(lay, case, SEED_OFFSET + s, a.samples) for lay in a.layouts.split(",")
+    slow = bool(a.slow_drive)
+    jobs = [(lay, case, SEED_OFFSET + s, a.samples, slow) for lay in a.layouts.split(",")
             for case in a.cases.split(",") if case for s in range(a.seeds)]
-    jobs += [(lay, "none", SEED_OFFSET + 1000 + s, a.samples) for lay in a.layouts.split(",")
-             for s in range(a.nulls)]
+    jobs += [(lay, "none", SEED_OFFSET + 1000 + s, a.samples, slow)
+             for lay in a.layouts.split(",") for s in range(a.nulls)]
     # rows already in --out are kept (a long run resumes where it stopped); each new
     # diagnosis is written as soon as it is done
     rows = _done_rows(a.out, a.samples)
+    if any(r.get("slow_drive", False) != slow for r in rows):
+        raise SystemExit(f"{a.out} holds diagnoses of records {'without' if slow else 'with'}"
+                         " the slow drive; give another --out")
     done = {(r["layout"], r["case"], r["seed"]) for r in rows}
     todo = [j for j in jobs if j[:3] not in done]
     t0 = time.perf_counter()

@@ -25,7 +25,11 @@ backlash+motor_lag               backlash as above and a lag of 10-30 ms
 
 Record: ``hidden_effects.rig_input`` (pulses of 3 V and 1.5 V of both signs, then steps),
 white noise of 0.3-1 count, rounding to counts; the linear parameters perturbed by up to
-5 % per seed.
+5 % per seed.  With ``slow_drive`` the record goes on with a slow triangle of the drive
+(``slow_triangle``, half as many samples again): friction on the driven cart with a
+drive offset and directional friction move the cart alike under pulses and steps and
+differ only in the breakaway force, which a slow drive reaches gradually
+(``bayesmodal.discrepancy.diagnosis.equivalence``).
 """
 
 from __future__ import annotations
@@ -78,8 +82,19 @@ def _spring_extension(ref: RefLayout, y: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def make_layout_case(layout: str, case: str, seed: int, n_samples: int = 2400) -> HiddenCase:
-    """One record of ``case`` (``CASES``) on ``layout`` (``LAYOUTS``) drawn from ``seed``.
+def slow_triangle(n_samples: int, peak: float = 1.5) -> np.ndarray:
+    """A slow triangle of the drive, V: at rest for 5 % of ``n_samples``, up to ``peak``
+    at 30 %, down to ``-peak`` at 80 %, back to 0 at 95 %, then at rest (1.5 V over
+    ``0.25 n_samples`` samples: 1.2 V/s over 1 200 samples of 5 ms)."""
+    t = np.arange(n_samples) / n_samples
+    return np.interp(t, [0.0, 0.05, 0.3, 0.8, 0.95, 1.0], [0.0, 0.0, peak, -peak, 0.0, 0.0])
+
+
+def make_layout_case(layout: str, case: str, seed: int, n_samples: int = 2400,
+                     slow_drive: bool = False) -> HiddenCase:
+    """One record of ``case`` (``CASES``) on ``layout`` (``LAYOUTS``) drawn from ``seed``:
+    ``n_samples`` of pulses and steps, then with ``slow_drive`` ``n_samples // 2`` of
+    ``slow_triangle``.
 
     ``effects`` of the result maps each effect to its location: the cart numbers (friction,
     end stop, backlash: the driven cart 1), the spring's place in the rig description
@@ -91,6 +106,9 @@ def make_layout_case(layout: str, case: str, seed: int, n_samples: int = 2400) -
     rng = np.random.default_rng(seed)
     theta_lin = base * rng.uniform(0.95, 1.05, base.size)
     u = rig_input(n_samples)
+    if slow_drive:
+        u = np.concatenate([u, slow_triangle(n_samples // 2)])
+    n_samples = u.size
     names = [] if case == "none" else case.split("+")
     n = ref.n
     v, effects, sizes = input_stages(rng, names, u)
