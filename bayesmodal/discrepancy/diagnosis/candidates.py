@@ -15,6 +15,7 @@ import itertools
 import numpy as np
 
 from ..._errors import ModelError
+from ...fit._threads import thread_map
 from ...fit.effects import ExtensionFit, extension_residuals, root_weights
 from ...fit.global_search import is_stick_slip
 from ...fit.lsq import fit_lsq
@@ -80,7 +81,8 @@ def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None, weights=Non
               ) -> ExtensionFit | None:
     """The best local fit from ``starts`` and, for a stick-slip model when ``search``
     (a seed) is given, of the global search (``fit_extension_global``); both weigh the
-    records by ``weights`` (``fit_extension_lsq``)."""
+    records by ``weights`` (``fit_extension_lsq``).  The fits run side by side on the
+    fits' threads (``fit._threads``), the first of equal costs winning as in turn."""
     fits = []
     if search is not None and is_stick_slip(new):
         fits.append(lambda: fit_lsq(exps, rig, extension=new, search="global", linear=linear,
@@ -89,15 +91,19 @@ def _fit_from(new, rig, starts, exps, linear, max_nfev, search=None, weights=Non
                                      max_nfev=max_nfev, weights=weights)
              for th0 in starts]
     best = None
-    for fit in fits:
-        try:
-            with np.errstate(all="ignore"):
-                f = fit()
-        except _FIT_ERRORS:
-            continue
-        if best is None or f.cost < best.cost:
+    for f in thread_map(_or_none, fits):
+        if f is not None and (best is None or f.cost < best.cost):
             best = f
     return best
+
+
+def _or_none(fit):
+    """``fit()`` with numpy's warnings off, or None where it fails (``_FIT_ERRORS``)."""
+    try:
+        with np.errstate(all="ignore"):
+            return fit()
+    except _FIT_ERRORS:
+        return None
 
 
 def _global_if_better(new, rig, f, exps, linear, max_nfev, search, weights=None

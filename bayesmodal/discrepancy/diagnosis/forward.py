@@ -80,6 +80,7 @@ from ..._errors import DataError, ModelError
 from ..._json import to_jsonable
 from ..._progress import announce
 from ...data import Experiment
+from ...fit._threads import thread_map
 from ...fit.effects import ExtensionFit
 from ...fit.global_search import is_stick_slip
 from ...fit.result import LSQResult
@@ -253,11 +254,15 @@ def _evaluate(options, level, *, names, ext, fit, rig, exps, linear, cur_pw,
     rows = []
     current_refits: dict = {}  # the current model's fold refits, shared by the candidates
     n_fit = len(screened) if max_fits is None else max(int(max_fits), 1)
-    for _, added_, dropped, new_names, new, starts in screened[:n_fit]:
+    todo = screened[:n_fit]
+    announce(f"diagnose: forward step {len(names) + 1}: fitting "
+             f"{', '.join(row[4].name for row in todo)}", enabled=progress)
+    # the candidates' local fits side by side on the fits' threads, the same fits as one
+    # after another
+    fits = thread_map(lambda row: _fit_from(row[4], rig, row[5], exps, linear, max_nfev,
+                                            weights=weights), todo)
+    for (_, added_, dropped, new_names, new, _), f in zip(todo, fits, strict=True):
         c = "+".join(added_) + (f" for {dropped}" if dropped and len(added_) > 1 else "")
-        announce(f"diagnose: forward step {len(names) + 1}: fitting {new.name}",
-                 enabled=progress)
-        f = _fit_from(new, rig, starts, exps, linear, max_nfev, weights=weights)
         if f is None:
             continue
         k = len(new.specs(rig)) - len(ext.specs(rig))
