@@ -82,3 +82,23 @@ def test_the_note_gives_the_other_reading(effects):
     assert other in note
     assert equivalent_readings(effects + ["drive_deadband"], p, RIG) == []
     assert equivalent_readings(["coulomb_friction"], p, RIG) == []
+
+
+def test_the_note_says_whether_the_records_could_tell_them_apart():
+    """With pulses only, the note tells how to tell the readings apart; where a record
+    drives slowly (a sine), it says the records chose; a record of steps, pulses and a
+    slow triangle drives slowly, one of steps and pulses alone does not."""
+    from hidden_effects import rig_input
+    from hidden_layouts import slow_triangle
+
+    from bayesmodal.discrepancy.diagnosis.equivalence import has_slow_drive
+
+    s = LIN[0]
+    p = dict(g_v=LIN[0], Fc1=FC, Fs1=FS, Fcp1=FC - s * V0, Fcn1=FC + s * V0)
+    (pulsed,) = equivalent_readings(["coulomb_directional"], p, RIG, [_pulses()])
+    (slow,) = equivalent_readings(["coulomb_directional"], p, RIG, [_pulses(), _sine()])
+    assert "add a slow ramp" in pulsed and "add a slow ramp" not in slow
+    assert "records chose" in slow and "records chose" not in pulsed
+    u = rig_input(2400)
+    assert not has_slow_drive(u)
+    assert has_slow_drive(np.concatenate([u, slow_triangle(1200)]))

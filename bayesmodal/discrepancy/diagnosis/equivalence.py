@@ -25,17 +25,52 @@ import numpy as np
 
 from ...model.system import Rig
 
-__all__ = ["equivalent_readings"]
+__all__ = ["equivalent_readings", "has_slow_drive"]
 
 #: Effects that shape the drive's voltage after the offset (a dead band or a saturation of
 #: ``v + v0`` is not that of ``v`` plus a constant) or act in the drive itself: with any of
 #: them the equivalence does not hold.
 _HOW = ("only the breakaway force tells them apart, which steps and pulses cross within a "
         "sample under either reading: add a slow ramp or sine of the drive to tell them apart")
+_SLOW = ("only the breakaway force tells them apart, which the records' slow drive reaches "
+         "gradually: the records chose this reading")
+
+#: A record drives slowly when at least this share of its samples change the input by a
+#: nonzero amount of at most ``SLOW_STEP`` of its range (a ramp or a sine; steps and
+#: pulses change it only at their edges).
+SLOW_SHARE = 0.05
+SLOW_STEP = 0.01
+
+
+def has_slow_drive(v) -> bool:
+    """Whether the input ``v`` (N,), V, holds a slow drive (``SLOW_SHARE``, ``SLOW_STEP``).
+
+    Parameters
+    ----------
+    v : array_like, shape (N,)
+        A record's input, V.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> t = np.arange(2000) * 0.005
+    >>> has_slow_drive(np.sin(2 * np.pi * 0.2 * t)), has_slow_drive(np.sign(np.sin(t)))
+    (True, False)
+    """
+    v = np.asarray(v, dtype=float)
+    dv = np.abs(np.diff(v))
+    span = float(np.ptp(v)) if v.size else 0.0
+    if dv.size == 0 or span == 0.0:
+        return False
+    return bool(np.mean((dv > 0.0) & (dv <= SLOW_STEP * span)) >= SLOW_SHARE)
 _SHAPING = frozenset({"drive_deadband", "input_saturation", "amplitude_gain", "backlash"})
 
 
-def equivalent_readings(effects, params: dict[str, float], rig: Rig) -> list[str]:
+def equivalent_readings(effects, params: dict[str, float], rig: Rig,
+                        inputs=()) -> list[str]:
     """One note for each driven cart whose friction the records cannot tell from an offset.
 
     Parameters
@@ -46,6 +81,9 @@ def equivalent_readings(effects, params: dict[str, float], rig: Rig) -> list[str
         Its fitted parameters by name (``g_v`` and the friction levels ``Fc<i>`` or
         ``Fcp<i>``, ``Fcn<i>``, N; the offset ``v_offset``, V).
     rig : Rig
+    inputs : sequence of array_like, optional
+        The records' inputs, V: where one of them drives slowly (``has_slow_drive``) the
+        note says that the records chose the reading, else how to tell them apart.
 
     Returns
     -------
@@ -67,6 +105,7 @@ def equivalent_readings(effects, params: dict[str, float], rig: Rig) -> list[str
     """
     if set(effects) & _SHAPING:
         return []
+    how = _SLOW if any(has_slow_drive(v) for v in inputs) else _HOW
     shares = rig.input_vector()
     g_v = float(params.get("g_v", 1.0))
     out = []
@@ -79,7 +118,7 @@ def equivalent_readings(effects, params: dict[str, float], rig: Rig) -> list[str
             out.append(
                 f"cart {k} (driven): directional friction Fcp {fcp:.3f} N, Fcn {fcn:.3f} N "
                 f"acts while the cart slides exactly as equal levels Fc {(fcp + fcn) / 2:.3f} N "
-                f"with a drive offset of {(fcn - fcp) / (2 * s):+.4f} V; {_HOW}")
+                f"with a drive offset of {(fcn - fcp) / (2 * s):+.4f} V; {how}")
         elif "coulomb_friction" in effects and "input_offset" in effects:
             fc, v0 = params.get(f"Fc{k}", 0.0), params.get("v_offset", 0.0)
             if fc == 0.0 or v0 == 0.0:
@@ -87,5 +126,5 @@ def equivalent_readings(effects, params: dict[str, float], rig: Rig) -> list[str
             out.append(
                 f"cart {k} (driven): friction Fc {fc:.3f} N with the drive offset "
                 f"{v0:+.4f} V acts while the cart slides exactly as directional levels Fcp "
-                f"{fc - s * v0:.3f} N, Fcn {fc + s * v0:.3f} N without an offset; {_HOW}")
+                f"{fc - s * v0:.3f} N, Fcn {fc + s * v0:.3f} N without an offset; {how}")
     return out

@@ -247,7 +247,8 @@ def _diagnosed(experiments, spec: DiagnoseSpec, rig, train, rng, progress) -> Di
                          linear_parameters={}, gain=gain, interval_method="none",
                          notes=tuple(notes), detail={"calibration": st.cal,
                                                      "linear": st.linear, "fits": fits}, **base)
-    notes.extend(equivalent_readings(final.effects, final.fit.params, rig))
+    notes.extend(equivalent_readings(final.effects, final.fit.params, rig,
+                                     [e.v_volt for e in train_exps]))
     _gain_after(st, final, train_exps, held_exps, rig, gain, notes)
     parameters, method = _intervals(st, final, train_exps, held_exps, rig, spec, rng,
                                     progress, gain, notes)
