@@ -210,8 +210,10 @@ def _layouts(name: str) -> str:
             lines.append(f"| {layout} | {case} | {n} | {_pct(k / n)} | lower {_pct(lower)} | "
                          f"{', '.join(missed) or '-'} |")
     lines.append("")
-    lines.append(f"Settings: {out['samples']} samples per record; median time per data set "
-                 f"{np.median([r['seconds'] for r in out['rows']]):.0f} s.")
+    slow = (", then half as many of a slow triangle of the drive"
+            if any(r.get("slow_drive") for r in out["rows"]) else "")
+    lines.append(f"Settings: {out['samples']} samples per record{slow}; median time per data "
+                 f"set {np.median([r['seconds'] for r in out['rows']]):.0f} s.")
     return "\n".join(lines) + "\n\n" + stamp_line(out.get("stamp"))
 
 
@@ -323,6 +325,8 @@ BLOCKS: dict[str, Block] = {
                                    ("detection_pairs_2records.json",)),
     "detection-layouts": Block("detection.md", _rows_table("detection_layouts.json"),
                                ("detection_layouts.json",)),
+    "detection-one-slow": Block("detection.md", _rows_table("detection_one_slow.json"),
+                                ("detection_one_slow.json",)),
     "detection-accel": Block("detection.md", _rows_table("detection_accel.json"),
                              ("detection_accel.json",)),
     "threads": Block("performance.md", _threads, ("threads.json",)),
