@@ -139,9 +139,9 @@ def _staged_inputs(lines: list[str], P, PP, stages: tuple[str, ...],
 
 def structural_zeros(G: np.ndarray) -> tuple[int, ...]:
     """Flat indices of the entries of ``G`` (nb, n, 2n) that are an exact zero in every
-    lane: springs and dampers the rig does not have (on the three-cart chain 8 of 18).
-    The diagonal entries (each cart's own spring and damper, read by the held-force code)
-    are never left out."""
+    lane: springs and dampers the rig does not have (on the three-cart chain 4 of 18,
+    those joining carts 1 and 3).  The diagonal entries (each cart's own spring and
+    damper, read by the held-force code) are never left out."""
     G = np.asarray(G)
     n = G.shape[1]
     zero = ~np.any(G != 0.0, axis=0)
