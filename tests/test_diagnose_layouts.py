@@ -66,3 +66,23 @@ def test_a_pair_no_single_effect_explains_is_found_from_the_most_significant_one
     assert any(n.startswith("no single effect passes") for n in d.notes), d.notes
     null = diagnose(make_layout_case("one_cart", "none", 20007).experiment, **kw)
     assert null.cause == "none", null.notes
+
+
+@pytest.mark.slow
+def test_a_slow_drive_tells_friction_with_an_offset_from_directional_friction():
+    """One cart, friction with a drive offset (the layouts benchmark's seed 20002): under
+    pulses and steps alone the cart moves as under directional friction and the diagnosis
+    names that, with a note advising a slow drive (negative control); the same record
+    followed by a slow triangle of the drive names friction on cart 1 and the offset,
+    with a note that the records chose the reading."""
+    kw = dict(rig=layout_rig("one_cart"), posterior=False, n_null=19, rng=20002,
+              candidates=CANDIDATES)
+    plain = diagnose(make_layout_case("one_cart", "coulomb_friction+input_offset",
+                                      20002).experiment, **kw)
+    assert plain.cause == "coulomb_directional", plain.notes
+    assert any("add a slow ramp" in n for n in plain.notes), plain.notes
+    h = make_layout_case("one_cart", "coulomb_friction+input_offset", 20002, slow_drive=True)
+    d = diagnose(h.experiment, **kw)
+    ok, found = judge(h, d)
+    assert ok, f"truth {h.effects} {h.sizes}; found {found}; notes {d.notes}"
+    assert any("records chose" in n for n in d.notes), d.notes
