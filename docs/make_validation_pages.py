@@ -325,6 +325,8 @@ BLOCKS: dict[str, Block] = {
                                    ("detection_pairs_2records.json",)),
     "detection-layouts": Block("detection.md", _rows_table("detection_layouts.json"),
                                ("detection_layouts.json",)),
+    "detection-one-slow": Block("detection.md", _rows_table("detection_one_slow.json"),
+                                ("detection_one_slow.json",)),
     "detection-accel": Block("detection.md", _rows_table("detection_accel.json"),
                              ("detection_accel.json",)),
     "threads": Block("performance.md", _threads, ("threads.json",)),
