@@ -339,15 +339,23 @@ def test_friction_groups_without_a_stuck_cart_take_the_sliding_step_bit_for_bit(
     every group, stuck carts included (negative control), changes it."""
     import bayesmodal.model.kernels.coulomb as nk
     from bayesmodal.bench import rig_input
+    from bayesmodal.model.rigs import load_rig
 
-    theta = _friction_draws(32, np.random.default_rng(12))
+    # two carts (smaller kernels to compile than the chain's): 16 lanes, friction up to
+    # 1.6 N on each cart
+    rng = np.random.default_rng(12)
+    two = load_rig("ecp210-2cart-frame-at-drive")
+    base = np.array([6.223, 1.565, 1.461, 2.923, 1.806, 0.3])
+    lin = base * rng.uniform(0.9, 1.1, (16, base.size))
+    fc = rng.uniform(0.1, 0.8, (16, 2))
+    theta = np.concatenate([lin, fc, fc + rng.uniform(0.0, 0.8, (16, 2))], axis=1)
     u = rig_input(3000, DT)
     ext = EXTENSIONS["coulomb_friction"]
     out = {}
     for steps in (("sliding", "held"), ("held",), ("sliding",)):
         monkeypatch.setattr(nk, "GROUP_STEPS", steps)
         nk.coulomb_kernel.cache_clear()
-        out[steps] = ext.simulate(RIG, theta, u, DT)
+        out[steps] = ext.simulate(two, theta, u, DT)
     nk.coulomb_kernel.cache_clear()
     assert out[("sliding", "held")].tobytes() == out[("held",)].tobytes()
     assert not np.array_equal(out[("sliding",)], out[("held",)])
